@@ -6,4 +6,17 @@
 
 #![warn(missing_docs)]
 
+pub mod arena;
+pub mod body;
+pub mod collider;
+pub mod hash;
 pub mod math;
+pub mod shape;
+pub mod snapshot;
+pub mod solver;
+pub mod world;
+
+pub use body::{BodyDesc, BodyHandle, BodyKind};
+pub use collider::{ColliderDesc, ColliderHandle, CollisionFilter, Material};
+pub use math::{Aabb, Faults, Mat3, Quat, Scalar, SymMat3, Transform, Vec3};
+pub use world::{BodyRef, StepReport, World, WorldConfig, WorldError};

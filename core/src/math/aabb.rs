@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::scalar::Scalar;
+use super::scalar::{Scalar, wide_sum};
 use super::vec3::Vec3;
 
 /// An axis-aligned box `[min, max]` (inclusive).
@@ -85,6 +85,10 @@ impl Aabb {
     /// Half the surface area (the cost metric of AABB trees): xy + yz + zx.
     pub fn half_area(&self) -> Scalar {
         let d = self.max - self.min;
-        Scalar::from_wide(d.x.wide_mul(d.y) + d.y.wide_mul(d.z) + d.z.wide_mul(d.x))
+        Scalar::from_wide(wide_sum([
+            d.x.wide_mul(d.y),
+            d.y.wide_mul(d.z),
+            d.z.wide_mul(d.x),
+        ]))
     }
 }

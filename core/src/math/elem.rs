@@ -92,3 +92,75 @@ pub fn sin_cos(x: Scalar) -> (Scalar, Scalar) {
         _ => (-c, s),
     }
 }
+
+/// atan2(y, x) in (−π, π], by a 62-step integer CORDIC in Q62 (atan2(0,0)
+/// is 0).
+pub fn atan2(y: Scalar, x: Scalar) -> Scalar {
+    if x.is_zero() && y.is_zero() {
+        return Scalar::ZERO;
+    }
+    // Rotate into the right half-plane first.
+    let (mut xr, mut yr, base): (i128, i128, i128) = if x.is_negative() {
+        if y.is_negative() {
+            (
+                -(x.to_bits() as i128),
+                -(y.to_bits() as i128),
+                -(Scalar::PI.to_bits() as i128) << 30,
+            )
+        } else {
+            (
+                -(x.to_bits() as i128),
+                -(y.to_bits() as i128),
+                (Scalar::PI.to_bits() as i128) << 30,
+            )
+        }
+    } else {
+        (x.to_bits() as i128, y.to_bits() as i128, 0)
+    };
+    // Scale so the larger coordinate has ~64 significant bits.
+    let m = xr.abs().max(yr.abs());
+    let shift = 64i32 - (128 - m.leading_zeros() as i32);
+    if shift > 0 {
+        xr <<= shift;
+        yr <<= shift;
+    } else {
+        xr >>= -shift;
+        yr >>= -shift;
+    }
+    let mut angle: i128 = 0; // Q62
+    for i in 0..62u32 {
+        let t = atan_pow2_q62(i);
+        let (nx, ny) = if yr > 0 {
+            angle += t;
+            (xr + (yr >> i), yr - (xr >> i))
+        } else {
+            angle -= t;
+            (xr - (yr >> i), yr + (xr >> i))
+        };
+        xr = nx;
+        yr = ny;
+    }
+    let total = base + angle;
+    Scalar::from_bits(super::scalar::round_shift(total, 30) as i64)
+}
+
+/// atan(2^-i) in Q62, from a series evaluated in integers.
+fn atan_pow2_q62(i: u32) -> i128 {
+    // atan(t) = t - t^3/3 + t^5/5 - ..., t = 2^-i; for i = 0 use pi/4.
+    if i == 0 {
+        return FRAC_PI_2_Q64 >> 3;
+    }
+    let one: i128 = 1 << 62;
+    let t = one >> i;
+    let mut sum = 0i128;
+    let mut p = t;
+    let mut k = 1i128;
+    let mut sign = 1i128;
+    while p != 0 {
+        sum += sign * p / k;
+        p = (p >> i) >> i;
+        k += 2;
+        sign = -sign;
+    }
+    sum
+}

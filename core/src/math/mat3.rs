@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::faults::{self, Faults};
 use super::quat::Quat;
-use super::scalar::{Scalar, div_round_i128, narrow};
+use super::scalar::{Scalar, div_round_i128, narrow, wide_sum};
 use super::vec3::Vec3;
 
 /// A 3×3 matrix stored as three columns.
@@ -59,10 +59,12 @@ impl Mat3 {
         let (x, y, z, w) = (q.x, q.y, q.z, q.w);
         let two = |a: Scalar, b: Scalar, c: Scalar, d: Scalar| {
             // 2(ab ± cd) with one rounding.
-            Scalar::from_wide(2 * (a.wide_mul(b) + c.wide_mul(d)))
+            let sum = wide_sum([a.wide_mul(b), c.wide_mul(d)]);
+            Scalar::from_wide(wide_sum([sum, sum]))
         };
         let one_minus = |a: Scalar, b: Scalar| {
-            Scalar::from_wide((1i128 << 64) - 2 * (a.wide_mul(a) + b.wide_mul(b)))
+            let sum = wide_sum([a.wide_mul(a), b.wide_mul(b)]);
+            Scalar::from_wide(wide_sum([1i128 << 64, -sum, -sum]))
         };
         Mat3::from_cols(
             Vec3::new(one_minus(y, z), two(x, y, w, z), two(x, z, -w, y)),
@@ -115,9 +117,11 @@ impl Mat3 {
     pub fn mul_vec(&self, v: Vec3) -> Vec3 {
         let [a, b, c] = self.cols;
         let e = |i: usize| {
-            Scalar::from_wide(
-                a.get(i).wide_mul(v.x) + b.get(i).wide_mul(v.y) + c.get(i).wide_mul(v.z),
-            )
+            Scalar::from_wide(wide_sum([
+                a.get(i).wide_mul(v.x),
+                b.get(i).wide_mul(v.y),
+                c.get(i).wide_mul(v.z),
+            ]))
         };
         Vec3::new(e(0), e(1), e(2))
     }
@@ -258,15 +262,21 @@ impl SymMat3 {
     #[inline]
     pub fn mul_vec(&self, v: Vec3) -> Vec3 {
         Vec3::new(
-            Scalar::from_wide(
-                self.xx.wide_mul(v.x) + self.xy.wide_mul(v.y) + self.xz.wide_mul(v.z),
-            ),
-            Scalar::from_wide(
-                self.xy.wide_mul(v.x) + self.yy.wide_mul(v.y) + self.yz.wide_mul(v.z),
-            ),
-            Scalar::from_wide(
-                self.xz.wide_mul(v.x) + self.yz.wide_mul(v.y) + self.zz.wide_mul(v.z),
-            ),
+            Scalar::from_wide(wide_sum([
+                self.xx.wide_mul(v.x),
+                self.xy.wide_mul(v.y),
+                self.xz.wide_mul(v.z),
+            ])),
+            Scalar::from_wide(wide_sum([
+                self.xy.wide_mul(v.x),
+                self.yy.wide_mul(v.y),
+                self.yz.wide_mul(v.z),
+            ])),
+            Scalar::from_wide(wide_sum([
+                self.xz.wide_mul(v.x),
+                self.yz.wide_mul(v.y),
+                self.zz.wide_mul(v.z),
+            ])),
         )
     }
 
@@ -309,9 +319,9 @@ impl SymMat3 {
         let zz = d.z.wide_mul(d.z);
         let mm = |v: i128| Scalar::from_wide(v) * m;
         SymMat3 {
-            xx: mm(yy + zz),
-            yy: mm(xx + zz),
-            zz: mm(xx + yy),
+            xx: mm(wide_sum([yy, zz])),
+            yy: mm(wide_sum([xx, zz])),
+            zz: mm(wide_sum([xx, yy])),
             xy: -mm(d.x.wide_mul(d.y)),
             xz: -mm(d.x.wide_mul(d.z)),
             yz: -mm(d.y.wide_mul(d.z)),

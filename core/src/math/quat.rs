@@ -9,7 +9,7 @@ use std::ops::Mul;
 use serde::{Deserialize, Serialize};
 
 use super::elem;
-use super::scalar::{Scalar, narrow, round_shift};
+use super::scalar::{Scalar, narrow, round_shift, saturated_product, wide_sum};
 use super::vec3::Vec3;
 
 /// A quaternion `w + xi + yj + zk`; rotations use unit quaternions.
@@ -43,7 +43,12 @@ impl std::fmt::Debug for Quat {
 
 #[inline(always)]
 fn dot4(a: [Scalar; 4], b: [Scalar; 4]) -> i128 {
-    a[0].wide_mul(b[0]) + a[1].wide_mul(b[1]) + a[2].wide_mul(b[2]) + a[3].wide_mul(b[3])
+    wide_sum([
+        a[0].wide_mul(b[0]),
+        a[1].wide_mul(b[1]),
+        a[2].wide_mul(b[2]),
+        a[3].wide_mul(b[3]),
+    ])
 }
 
 impl Quat {
@@ -105,13 +110,15 @@ impl Quat {
         if sq == 0 {
             return Quat::IDENTITY;
         }
-        let shift = (sq.leading_zeros() - 2) & !1;
+        let shift = sq.leading_zeros().saturating_sub(2) & !1;
         let half_shift = shift / 2;
         let len_ext = elem::isqrt_u128(sq << shift) as u128;
         let inv = ((1u128 << 126) / len_ext) as i128;
         let unit = |c: Scalar| {
             Scalar::from_bits(narrow(round_shift(
-                c.to_bits() as i128 * inv,
+                (c.to_bits() as i128)
+                    .checked_mul(inv)
+                    .unwrap_or_else(|| saturated_product(c)),
                 94 - half_shift,
             )))
         };

@@ -40,13 +40,13 @@ pub struct Scalar(I32F32);
 /// Symmetric: `round_shift32(-p) == -round_shift32(p)`.
 #[inline(always)]
 pub(crate) const fn round_shift32(p: i128) -> i128 {
-    (p + (1i128 << 31) - (p < 0) as i128) >> 32
+    p.saturating_add((1i128 << 31) - (p < 0) as i128) >> 32
 }
 
 /// Rounds `p / 2^shift` to nearest, ties away from zero (`shift` in 1..=126).
 #[inline(always)]
 pub(crate) const fn round_shift(p: i128, shift: u32) -> i128 {
-    (p + (1i128 << (shift - 1)) - (p < 0) as i128) >> shift
+    p.saturating_add((1i128 << (shift - 1)) - (p < 0) as i128) >> shift
 }
 
 /// Narrows an `i128` to `i64`, saturating and raising the overflow fault.
@@ -60,6 +60,37 @@ pub(crate) fn narrow(v: i128) -> i64 {
         i64::MIN
     } else {
         v as i64
+    }
+}
+
+/// Adds Q64.64 terms (each a [`Scalar::wide_mul`] product or a sum of
+/// such), saturating and raising the overflow fault if the sum leaves `i128`
+/// (only possible with operands near ±2³¹).
+#[inline(always)]
+pub fn wide_sum<const N: usize>(terms: [i128; N]) -> i128 {
+    let mut acc: i128 = 0;
+    for t in terms {
+        acc = match acc.checked_add(t) {
+            Some(v) => v,
+            None => {
+                faults::raise(Faults::OVERFLOW);
+                return if t > 0 { i128::MAX } else { i128::MIN };
+            }
+        };
+    }
+    acc
+}
+
+/// The stand-in for a product that left `i128` while normalising a vector
+/// whose squared length had already saturated: raises the overflow fault
+/// and returns the extreme of `c`'s sign.
+#[cold]
+pub(crate) fn saturated_product(c: Scalar) -> i128 {
+    faults::raise(Faults::OVERFLOW);
+    if c.is_negative() {
+        i128::MIN
+    } else {
+        i128::MAX
     }
 }
 
@@ -273,13 +304,14 @@ impl Scalar {
     /// `a * b + c * d` with a single rounding.
     #[inline(always)]
     pub fn mul_add2(a: Scalar, b: Scalar, c: Scalar, d: Scalar) -> Scalar {
-        Scalar::from_wide(a.wide_mul(b) + c.wide_mul(d))
+        Scalar::from_wide(wide_sum([a.wide_mul(b), c.wide_mul(d)]))
     }
 
     /// `a * b - c * d` with a single rounding.
     #[inline(always)]
     pub fn mul_sub2(a: Scalar, b: Scalar, c: Scalar, d: Scalar) -> Scalar {
-        Scalar::from_wide(a.wide_mul(b) - c.wide_mul(d))
+        // -(c*d) cannot overflow: |c*d| <= 2^126.
+        Scalar::from_wide(wide_sum([a.wide_mul(b), -c.wide_mul(d)]))
     }
 
     fn saturate_sign(self) -> Scalar {

@@ -11,8 +11,7 @@ use std::ops::{Add, AddAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 use serde::{Deserialize, Serialize};
 
 use super::elem;
-use super::faults::{self, Faults};
-use super::scalar::{Scalar, narrow, round_shift};
+use super::scalar::{Scalar, narrow, round_shift, saturated_product, wide_sum};
 
 /// A 3-vector.
 #[derive(Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -28,19 +27,6 @@ pub struct Vec3 {
 impl std::fmt::Debug for Vec3 {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "({}, {}, {})", self.x, self.y, self.z)
-    }
-}
-
-/// Adds Q64.64 products with an overflow check (only reachable with
-/// components near ±2³¹).
-#[inline(always)]
-fn acc3(a: i128, b: i128, c: i128) -> i128 {
-    match a.checked_add(b).and_then(|ab| ab.checked_add(c)) {
-        Some(v) => v,
-        None => {
-            faults::raise(Faults::OVERFLOW);
-            i128::MAX
-        }
     }
 }
 
@@ -103,11 +89,11 @@ impl Vec3 {
     /// The exact dot product as Q64.64, for further exact accumulation.
     #[inline(always)]
     pub fn dot_wide(self, o: Vec3) -> i128 {
-        acc3(
+        wide_sum([
             self.x.wide_mul(o.x),
             self.y.wide_mul(o.y),
             self.z.wide_mul(o.z),
-        )
+        ])
     }
 
     /// Dot product, rounded once.
@@ -164,13 +150,15 @@ impl Vec3 {
             return None;
         }
         // Scale by an even power of two so the square root has 62-63 bits.
-        let shift = (sq.leading_zeros() - 2) & !1;
+        let shift = sq.leading_zeros().saturating_sub(2) & !1;
         let half_shift = shift / 2;
         let len_ext = elem::isqrt_u128(sq << shift) as u128; // in [2^62, 2^63)
         let inv = ((1u128 << 126) / len_ext) as i128; // in (2^63, 2^64]
         let unit = |c: Scalar| {
             Scalar::from_bits(narrow(round_shift(
-                c.to_bits() as i128 * inv,
+                (c.to_bits() as i128)
+                    .checked_mul(inv)
+                    .unwrap_or_else(|| saturated_product(c)),
                 94 - half_shift,
             )))
         };
@@ -196,6 +184,12 @@ impl Vec3 {
     pub fn scale_pow2(self, k: u32) -> Vec3 {
         let f = |c: Scalar| Scalar::from_bits(narrow((c.to_bits() as i128) << k));
         Vec3::new(f(self.x), f(self.y), f(self.z))
+    }
+
+    /// Every component times an integer, exact unless it overflows.
+    #[inline(always)]
+    pub fn mul_int(self, k: i64) -> Vec3 {
+        Vec3::new(self.x.mul_int(k), self.y.mul_int(k), self.z.mul_int(k))
     }
 
     /// Component-wise product.
@@ -334,7 +328,7 @@ impl MulAssign<Scalar> for Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::faults::FaultScope;
+    use crate::math::faults::{FaultScope, Faults};
 
     fn v(x: f64, y: f64, z: f64) -> Vec3 {
         Vec3::new(

@@ -1,0 +1,144 @@
+//! World settings, the step report and the world's error type.
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::body::BodyHandle;
+use crate::collider::ColliderHandle;
+use crate::math::{Faults, Scalar, Vec3};
+use crate::shape::ShapeError;
+use crate::solver::sleep::SleepConfig;
+
+/// The most substeps a step may be split into.
+pub const MAX_SUBSTEPS: u32 = 64;
+/// The highest tick rate accepted, Hz.
+pub const MAX_TICK_RATE: u32 = 10_000;
+
+/// Settings fixed for a world's lifetime.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct WorldConfig {
+    /// Gravitational acceleration, m/s².
+    pub gravity: Vec3,
+    /// Ticks per second; one `step()` advances `1/tick_rate` seconds.
+    pub tick_rate: u32,
+    /// Substeps per tick (1..=64): each integrates `1/(tick_rate·substeps)`.
+    pub substeps: u32,
+    /// Sleep thresholds.
+    pub sleep: SleepConfig,
+}
+
+impl Default for WorldConfig {
+    /// Gravity (0, −9.81, 0), 60 Hz, 4 substeps, default sleep settings.
+    fn default() -> WorldConfig {
+        WorldConfig {
+            gravity: Vec3::new(Scalar::ZERO, Scalar::from_ratio(-981, 100), Scalar::ZERO),
+            tick_rate: 60,
+            substeps: 4,
+            sleep: SleepConfig::default(),
+        }
+    }
+}
+
+impl WorldConfig {
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidConfig`] naming the bad setting.
+    pub fn validate(&self) -> Result<(), WorldError> {
+        if self.tick_rate == 0 || self.tick_rate > MAX_TICK_RATE {
+            return Err(WorldError::InvalidConfig(format!(
+                "tick_rate must be in 1..={MAX_TICK_RATE}, got {}",
+                self.tick_rate
+            )));
+        }
+        if self.substeps == 0 || self.substeps > MAX_SUBSTEPS {
+            return Err(WorldError::InvalidConfig(format!(
+                "substeps must be in 1..={MAX_SUBSTEPS}, got {}",
+                self.substeps
+            )));
+        }
+        let s = &self.sleep;
+        if s.linear_threshold.is_negative()
+            || s.angular_threshold.is_negative()
+            || s.time_to_sleep.is_negative()
+        {
+            return Err(WorldError::InvalidConfig(
+                "sleep thresholds and time_to_sleep must not be negative".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The tick length `1/tick_rate`, rounded to nearest once.
+    pub fn dt(&self) -> Scalar {
+        Scalar::from_ratio(1, self.tick_rate as i64)
+    }
+
+    /// The substep length `1/(tick_rate·substeps)`, rounded to nearest once
+    /// (not `dt/substeps`, which would round twice).
+    pub fn substep_dt(&self) -> Scalar {
+        Scalar::from_ratio(1, self.tick_rate as i64 * self.substeps as i64)
+    }
+}
+
+/// What one `step()` did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StepReport {
+    /// The world's tick after the step (the first step reports 1).
+    pub tick: u64,
+    /// Substeps run.
+    pub substeps: u32,
+    /// Dynamic bodies integrated (awake).
+    pub awake_bodies: u32,
+    /// Dynamic bodies skipped because they sleep.
+    pub sleeping_bodies: u32,
+    /// Kinematic bodies moved.
+    pub kinematic_bodies: u32,
+    /// Body-substeps that needed the gyroscopic midpoint solve.
+    pub gyroscopic_solves: u32,
+    /// Bodies that fell asleep during this step.
+    pub fell_asleep: u32,
+    /// Arithmetic faults raised during this step (overflow, division by
+    /// zero, domain errors). Non-empty means the results can no longer be
+    /// trusted: tests and desync checks treat it as a failure.
+    pub faults: Faults,
+    /// Every fault raised since the world was created or restored (sticky).
+    pub sticky_faults: Faults,
+}
+
+impl StepReport {
+    /// Whether any arithmetic fault happened during this step.
+    pub fn overflowed(&self) -> bool {
+        !self.faults.is_empty()
+    }
+}
+
+/// Errors from world operations.
+#[derive(Clone, Debug, PartialEq, Eq, Error)]
+pub enum WorldError {
+    /// The body handle is stale or was never issued by this world.
+    #[error("no such body: {0}")]
+    InvalidBody(BodyHandle),
+    /// The collider handle is stale or was never issued by this world.
+    #[error("no such collider: {0:?}")]
+    InvalidCollider(ColliderHandle),
+    /// A world setting is out of range.
+    #[error("invalid world config: {0}")]
+    InvalidConfig(String),
+    /// A triangle mesh or height field was put on a body that can move.
+    #[error("{shape} shapes are static only: body {body:?} is {kind}")]
+    StaticOnlyShape {
+        /// The shape kind's name.
+        shape: &'static str,
+        /// The body's name.
+        body: String,
+        /// The body kind's name.
+        kind: &'static str,
+    },
+    /// A shape rejected its parameters or cannot give mass properties.
+    #[error("shape: {0}")]
+    Shape(#[from] ShapeError),
+    /// A mass, density or other body parameter is out of range.
+    #[error("invalid body parameter: {0}")]
+    InvalidParameter(String),
+}

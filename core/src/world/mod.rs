@@ -1,0 +1,628 @@
+//! The `World`: bodies, colliders, settings, and the step that advances them.
+
+mod body_ref;
+mod config;
+mod state_hash;
+mod step;
+
+pub use body_ref::BodyRef;
+pub use config::{MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig, WorldError};
+pub use state_hash::STATE_HASH_VERSION;
+
+use serde::{Deserialize, Serialize};
+
+use crate::arena::Arena;
+use crate::body::{BodyCold, BodyDesc, BodyHandle, BodyHot, BodyKind, BodySet};
+use crate::collider::{Collider, ColliderDesc, ColliderHandle, MassSpec};
+use crate::math::{FaultScope, Faults, Quat, Scalar, SymMat3, Transform, Vec3};
+use crate::shape::MassProperties;
+use crate::solver::integrate::{momentum_from_omega, omega_from_momentum};
+
+/// A physics world: everything one simulation needs, and nothing global.
+///
+/// Determinism: every operation visits bodies and colliders in handle
+/// order; the same sequence of calls gives the same state, bit for bit, on
+/// every platform. [`World::state_hash`] summarises that state.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct World {
+    config: WorldConfig,
+    tick: u64,
+    bodies: BodySet,
+    colliders: Arena<Collider>,
+    faults: Faults,
+}
+
+impl World {
+    /// An empty world.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidConfig`] if a setting is out of range.
+    pub fn new(config: WorldConfig) -> Result<World, WorldError> {
+        config.validate()?;
+        Ok(World {
+            config,
+            tick: 0,
+            bodies: BodySet::default(),
+            colliders: Arena::default(),
+            faults: Faults::NONE,
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &WorldConfig {
+        &self.config
+    }
+
+    /// Changes gravity (takes effect at the next step).
+    pub fn set_gravity(&mut self, g: Vec3) {
+        self.config.gravity = g;
+    }
+
+    /// The tick length, s.
+    pub fn dt(&self) -> Scalar {
+        self.config.dt()
+    }
+
+    /// Steps taken since creation (restored with snapshots).
+    pub fn tick(&self) -> u64 {
+        self.tick
+    }
+
+    /// Every arithmetic fault raised by this world since creation or
+    /// restore (sticky).
+    pub fn faults(&self) -> Faults {
+        self.faults
+    }
+
+    /// The bodies (read-only access to hot and cold state).
+    pub fn bodies(&self) -> &BodySet {
+        &self.bodies
+    }
+
+    /// Live body handles in handle order.
+    pub fn body_handles(&self) -> impl Iterator<Item = BodyHandle> + '_ {
+        self.bodies.handles()
+    }
+
+    /// A read-only view of one body.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`] for a stale handle.
+    pub fn body(&self, h: BodyHandle) -> Result<BodyRef<'_>, WorldError> {
+        match (self.bodies.hot(h), self.bodies.cold(h)) {
+            (Some(hot), Some(cold)) => Ok(BodyRef::new(h, hot, cold)),
+            _ => Err(WorldError::InvalidBody(h)),
+        }
+    }
+
+    /// The first body with this name, in handle order (a linear search: for
+    /// tools and tests, not for every tick).
+    pub fn find_body(&self, name: &str) -> Option<BodyHandle> {
+        self.bodies
+            .iter()
+            .find(|(_, _, c)| c.name == name)
+            .map(|(h, _, _)| h)
+    }
+
+    /// A collider.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidCollider`] for a stale handle.
+    pub fn collider(&self, h: ColliderHandle) -> Result<&Collider, WorldError> {
+        self.colliders
+            .get(h.0)
+            .ok_or(WorldError::InvalidCollider(h))
+    }
+
+    /// All colliders with their handles, in handle order.
+    pub fn colliders(&self) -> impl Iterator<Item = (ColliderHandle, &Collider)> {
+        self.colliders.iter().map(|(h, c)| (ColliderHandle(h), c))
+    }
+
+    /// Creates a body. Its mass comes from the colliders added later, unless
+    /// set with [`World::set_mass_properties`]; a dynamic body with neither
+    /// has mass 1 kg and the inertia of a unit-radius solid sphere
+    /// (0.4 kg·m² about every axis), so it still moves sensibly.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidParameter`] for negative damping.
+    pub fn create_body(&mut self, desc: &BodyDesc) -> Result<BodyHandle, WorldError> {
+        if desc.linear_damping.is_negative() || desc.angular_damping.is_negative() {
+            return Err(WorldError::InvalidParameter(format!(
+                "body {:?}: damping must not be negative",
+                desc.name
+            )));
+        }
+        let rotation = desc.rotation.normalize();
+        let moving = desc.kind != BodyKind::Static;
+        let hot = BodyHot {
+            kind: desc.kind,
+            sleeping: desc.asleep && desc.kind == BodyKind::Dynamic,
+            isotropic: true,
+            center: desc.position,
+            rotation,
+            linear_velocity: if moving {
+                desc.linear_velocity
+            } else {
+                Vec3::ZERO
+            },
+            angular_velocity: if moving {
+                desc.angular_velocity
+            } else {
+                Vec3::ZERO
+            },
+            angular_momentum: Vec3::ZERO,
+            force: Vec3::ZERO,
+            torque: Vec3::ZERO,
+            inv_mass: Scalar::ZERO,
+            inertia: SymMat3::ZERO,
+            inv_inertia: SymMat3::ZERO,
+            linear_damping: desc.linear_damping,
+            angular_damping: desc.angular_damping,
+            gravity_scale: desc.gravity_scale,
+            rest_ticks: 0,
+        };
+        let cold = BodyCold {
+            name: desc.name.clone(),
+            user_data: desc.user_data,
+            ..BodyCold::default()
+        };
+        let h = self.bodies.insert(hot, cold);
+        self.update_mass(h);
+        Ok(h)
+    }
+
+    /// Removes a body and its colliders.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`] for a stale handle.
+    pub fn remove_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
+        let cold = self.bodies.remove(h).ok_or(WorldError::InvalidBody(h))?;
+        for c in cold.colliders {
+            self.colliders.remove(c.0);
+        }
+        Ok(())
+    }
+
+    /// Attaches a collider to a body and updates the body's mass properties
+    /// (keeping the body origin, linear velocity and angular velocity).
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`]; [`WorldError::StaticOnlyShape`] for a
+    /// triangle mesh or height field on a dynamic or kinematic body;
+    /// [`WorldError::Shape`] for a non-positive density or mass.
+    pub fn add_collider(
+        &mut self,
+        body: BodyHandle,
+        desc: ColliderDesc,
+    ) -> Result<ColliderHandle, WorldError> {
+        let hot = self.bodies.hot(body).ok_or(WorldError::InvalidBody(body))?;
+        let kind = hot.kind;
+        if desc.shape.is_static_only() && kind != BodyKind::Static {
+            let name = self
+                .bodies
+                .cold(body)
+                .map(|c| c.name.clone())
+                .unwrap_or_default();
+            return Err(WorldError::StaticOnlyShape {
+                shape: desc.shape.kind().name(),
+                body: name,
+                kind: kind.name(),
+            });
+        }
+        let mass_properties = if kind == BodyKind::Dynamic {
+            collider_mass(&desc)?
+        } else {
+            MassProperties::default()
+        };
+        let shape_hash = crate::hash::shape_hash(&desc.shape);
+        let ch = ColliderHandle(self.colliders.insert(Collider {
+            body,
+            shape: desc.shape,
+            local_pose: Transform::new(
+                desc.local_pose.translation,
+                desc.local_pose.rotation.normalize(),
+            ),
+            mass_spec: desc.mass,
+            mass_properties,
+            material: desc.material,
+            filter: desc.filter,
+            is_trigger: desc.is_trigger,
+            shape_hash,
+        }));
+        if let Some(cold) = self.bodies.cold_mut(body) {
+            cold.colliders.push(ch);
+        }
+        self.update_mass(body);
+        Ok(ch)
+    }
+
+    /// Detaches and removes a collider; the body's mass is recomputed.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidCollider`] for a stale handle.
+    pub fn remove_collider(&mut self, h: ColliderHandle) -> Result<(), WorldError> {
+        let c = self
+            .colliders
+            .remove(h.0)
+            .ok_or(WorldError::InvalidCollider(h))?;
+        if let Some(cold) = self.bodies.cold_mut(c.body) {
+            cold.colliders.retain(|x| *x != h);
+        }
+        self.update_mass(c.body);
+        Ok(())
+    }
+
+    /// Overrides a dynamic body's mass properties (colliders then no longer
+    /// change them). `props.inertia` is about `props.local_center`, in body
+    /// axes.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`]; [`WorldError::InvalidParameter`] for a
+    /// non-positive mass or a body that is not dynamic.
+    pub fn set_mass_properties(
+        &mut self,
+        h: BodyHandle,
+        props: MassProperties,
+    ) -> Result<(), WorldError> {
+        let kind = self.bodies.hot(h).ok_or(WorldError::InvalidBody(h))?.kind;
+        if kind != BodyKind::Dynamic {
+            return Err(WorldError::InvalidParameter(
+                "only dynamic bodies have a mass".into(),
+            ));
+        }
+        if !props.mass.is_positive() {
+            return Err(WorldError::InvalidParameter(format!(
+                "mass must be positive, got {}",
+                props.mass
+            )));
+        }
+        self.apply_mass(h, props, true);
+        Ok(())
+    }
+
+    /// Recomputes a body's mass properties from its colliders.
+    fn update_mass(&mut self, h: BodyHandle) {
+        let Some(cold) = self.bodies.cold(h) else {
+            return;
+        };
+        let kind = self.bodies.hot(h).map(|b| b.kind).unwrap_or_default();
+        if cold.mass_override && kind == BodyKind::Dynamic {
+            return;
+        }
+        let props = if kind == BodyKind::Dynamic {
+            let parts: Vec<(MassProperties, Transform)> = cold
+                .colliders
+                .iter()
+                .filter_map(|c| self.colliders.get(c.0))
+                .map(|c| (c.mass_properties, c.local_pose))
+                .collect();
+            let combined = MassProperties::combine(&parts);
+            if combined.mass.is_positive() {
+                combined
+            } else {
+                MassProperties {
+                    mass: Scalar::ONE,
+                    local_center: Vec3::ZERO,
+                    inertia: SymMat3::from_diagonal(Vec3::splat(Scalar::from_ratio(2, 5))),
+                }
+            }
+        } else {
+            MassProperties::default()
+        };
+        self.apply_mass(h, props, false);
+    }
+
+    /// Installs mass properties, keeping the body origin and the velocities.
+    fn apply_mass(&mut self, h: BodyHandle, props: MassProperties, is_override: bool) {
+        let Some((hot, cold)) = self.bodies.both_mut(h) else {
+            return;
+        };
+        let origin = hot.origin_pose(cold.local_center);
+        cold.local_center = props.local_center;
+        cold.mass_override = is_override;
+        hot.center = origin.transform_point(props.local_center);
+        if hot.kind == BodyKind::Dynamic {
+            cold.mass = props.mass;
+            hot.inv_mass = props.mass.recip();
+            hot.inertia = props.inertia;
+            hot.inv_inertia = props.inertia.try_inverse().unwrap_or(SymMat3::ZERO);
+            let i = &props.inertia;
+            hot.isotropic =
+                i.xx == i.yy && i.yy == i.zz && i.xy.is_zero() && i.xz.is_zero() && i.yz.is_zero();
+            hot.angular_momentum =
+                momentum_from_omega(hot.rotation, &hot.inertia, hot.angular_velocity);
+        } else {
+            cold.mass = Scalar::ZERO;
+            hot.inv_mass = Scalar::ZERO;
+            hot.inertia = SymMat3::ZERO;
+            hot.inv_inertia = SymMat3::ZERO;
+            hot.isotropic = true;
+            hot.angular_momentum = Vec3::ZERO;
+        }
+    }
+
+    fn hot_mut(&mut self, h: BodyHandle) -> Result<&mut BodyHot, WorldError> {
+        self.bodies.hot_mut(h).ok_or(WorldError::InvalidBody(h))
+    }
+
+    /// Teleports a body: its origin goes to `pose` (velocities kept, body
+    /// woken). Use sparingly on dynamic bodies: it ignores everything in the
+    /// way.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn set_pose(&mut self, h: BodyHandle, pose: Transform) -> Result<(), WorldError> {
+        let (hot, cold) = self.bodies.both_mut(h).ok_or(WorldError::InvalidBody(h))?;
+        let rotation = pose.rotation.normalize();
+        hot.rotation = rotation;
+        hot.center = pose.translation + rotation.rotate(cold.local_center);
+        if hot.kind == BodyKind::Dynamic {
+            hot.angular_momentum =
+                momentum_from_omega(rotation, &hot.inertia, hot.angular_velocity);
+        }
+        wake(hot);
+        Ok(())
+    }
+
+    /// Sets the linear velocity of the centre of mass (wakes the body;
+    /// ignored for static bodies).
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn set_linear_velocity(&mut self, h: BodyHandle, v: Vec3) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        if hot.kind != BodyKind::Static {
+            hot.linear_velocity = v;
+            wake(hot);
+        }
+        Ok(())
+    }
+
+    /// Sets the angular velocity, world axes (wakes the body; ignored for
+    /// static bodies). For a dynamic body this sets its angular momentum to
+    /// `I_world · ω`.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn set_angular_velocity(&mut self, h: BodyHandle, w: Vec3) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        match hot.kind {
+            BodyKind::Static => {}
+            BodyKind::Kinematic => {
+                hot.angular_velocity = w;
+            }
+            BodyKind::Dynamic => {
+                hot.angular_momentum = momentum_from_omega(hot.rotation, &hot.inertia, w);
+                hot.angular_velocity =
+                    omega_from_momentum(hot.rotation, &hot.inv_inertia, hot.angular_momentum);
+                wake(hot);
+            }
+        }
+        Ok(())
+    }
+
+    /// Asks a kinematic body to arrive exactly at `pose` (its origin) at the
+    /// end of the next step. During the step it moves with the constant
+    /// velocities that reach the pose, so contacts see a smooth motion; after
+    /// the step its velocities are zero again unless a new target is set
+    /// (the body stops where the game stops steering it).
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`]; [`WorldError::InvalidParameter`] if the
+    /// body is not kinematic.
+    pub fn set_kinematic_target(
+        &mut self,
+        h: BodyHandle,
+        pose: Transform,
+    ) -> Result<(), WorldError> {
+        let (hot, cold) = self.bodies.both_mut(h).ok_or(WorldError::InvalidBody(h))?;
+        if hot.kind != BodyKind::Kinematic {
+            return Err(WorldError::InvalidParameter(format!(
+                "set_kinematic_target needs a kinematic body; {:?} is {}",
+                cold.name,
+                hot.kind.name()
+            )));
+        }
+        cold.kinematic_target = Some(Transform::new(pose.translation, pose.rotation.normalize()));
+        Ok(())
+    }
+
+    /// Adds a force at the centre of mass, applied over the next step
+    /// (dynamic bodies only; wakes the body).
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn apply_force(&mut self, h: BodyHandle, f: Vec3) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        if hot.kind == BodyKind::Dynamic {
+            hot.force += f;
+            wake(hot);
+        }
+        Ok(())
+    }
+
+    /// Adds a force at a world point: a force at the centre of mass plus the
+    /// torque `(p − c) × f`, over the next step.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn apply_force_at_point(
+        &mut self,
+        h: BodyHandle,
+        f: Vec3,
+        point: Vec3,
+    ) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        if hot.kind == BodyKind::Dynamic {
+            hot.force += f;
+            hot.torque += (point - hot.center).cross(f);
+            wake(hot);
+        }
+        Ok(())
+    }
+
+    /// Adds a torque (world axes) over the next step.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn apply_torque(&mut self, h: BodyHandle, t: Vec3) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        if hot.kind == BodyKind::Dynamic {
+            hot.torque += t;
+            wake(hot);
+        }
+        Ok(())
+    }
+
+    /// Applies an impulse at the centre of mass now: `v += j/m`.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn apply_impulse(&mut self, h: BodyHandle, j: Vec3) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        if hot.kind == BodyKind::Dynamic {
+            hot.linear_velocity += j * hot.inv_mass;
+            wake(hot);
+        }
+        Ok(())
+    }
+
+    /// Applies an impulse at a world point now (an explosion, a hit):
+    /// `v += j/m`, `L += (p − c) × j`.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn apply_impulse_at_point(
+        &mut self,
+        h: BodyHandle,
+        j: Vec3,
+        point: Vec3,
+    ) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        if hot.kind == BodyKind::Dynamic {
+            hot.linear_velocity += j * hot.inv_mass;
+            hot.angular_momentum += (point - hot.center).cross(j);
+            hot.angular_velocity =
+                omega_from_momentum(hot.rotation, &hot.inv_inertia, hot.angular_momentum);
+            wake(hot);
+        }
+        Ok(())
+    }
+
+    /// Applies an angular impulse (world axes) now: `L += a`.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn apply_angular_impulse(&mut self, h: BodyHandle, a: Vec3) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        if hot.kind == BodyKind::Dynamic {
+            hot.angular_momentum += a;
+            hot.angular_velocity =
+                omega_from_momentum(hot.rotation, &hot.inv_inertia, hot.angular_momentum);
+            wake(hot);
+        }
+        Ok(())
+    }
+
+    /// Wakes a sleeping body.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn wake_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
+        wake(self.hot_mut(h)?);
+        Ok(())
+    }
+
+    /// Puts a dynamic body to sleep now (velocities zeroed).
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn sleep_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        if hot.kind == BodyKind::Dynamic {
+            hot.sleeping = true;
+            hot.linear_velocity = Vec3::ZERO;
+            hot.angular_velocity = Vec3::ZERO;
+            hot.angular_momentum = Vec3::ZERO;
+        }
+        Ok(())
+    }
+
+    /// Runs `f` with this world's faults attributed to it.
+    pub(crate) fn with_fault_scope<T>(&mut self, f: impl FnOnce(&mut World) -> T) -> (T, Faults) {
+        let scope = FaultScope::enter();
+        let v = f(self);
+        let faults = scope.finish();
+        self.faults = self.faults.union(faults);
+        (v, faults)
+    }
+}
+
+fn wake(hot: &mut BodyHot) {
+    hot.sleeping = false;
+    hot.rest_ticks = 0;
+}
+
+/// A collider's mass properties in the body frame (before the local pose is
+/// applied; `MassProperties::combine` applies it).
+fn collider_mass(desc: &ColliderDesc) -> Result<MassProperties, WorldError> {
+    match desc.mass {
+        MassSpec::Density(d) => Ok(desc.shape.mass_properties(d)?),
+        MassSpec::Mass(m) => {
+            if !m.is_positive() {
+                return Err(WorldError::InvalidParameter(format!(
+                    "collider mass must be positive, got {m}"
+                )));
+            }
+            let unit = desc.shape.mass_properties(Scalar::ONE)?;
+            // Scale density so the total is m: every entry scales by m / m1.
+            let k = m / unit.mass;
+            Ok(MassProperties {
+                mass: m,
+                local_center: unit.local_center,
+                inertia: unit.inertia.scale(k),
+            })
+        }
+    }
+}
+
+/// The quaternion rotation vector (axis × angle, angle in [0, π]) taking
+/// orientation `from` to `to`.
+pub(crate) fn rotation_delta(from: Quat, to: Quat) -> Vec3 {
+    let d = (to * from.conjugate()).canonical();
+    match d.xyz().normalize_and_length() {
+        Some((axis, s)) => {
+            let angle = crate::math::elem::atan2(s, d.w) * Scalar::TWO;
+            axis * angle
+        }
+        None => Vec3::ZERO,
+    }
+}
+
+impl World {
+    /// Checks the cross-references a decoded snapshot must satisfy: every
+    /// collider's body exists and lists it, and every listed collider exists.
+    pub(crate) fn check_invariants(&self) -> Result<(), String> {
+        self.bodies.check()?;
+        self.colliders.check()?;
+        for (h, c) in self.colliders.iter() {
+            let listed = self
+                .bodies
+                .cold(c.body)
+                .map(|b| b.colliders.contains(&ColliderHandle(h)))
+                .unwrap_or(false);
+            if !listed {
+                return Err(format!("collider {h:?} is not attached to a live body"));
+            }
+        }
+        for (bh, _, cold) in self.bodies.iter() {
+            for ch in &cold.colliders {
+                if self.colliders.get(ch.0).map(|c| c.body) != Some(bh) {
+                    return Err(format!("{bh} lists a collider that is not its own"));
+                }
+            }
+        }
+        Ok(())
+    }
+}
