@@ -11,6 +11,7 @@ pub mod body;
 pub mod collider;
 pub mod hash;
 pub mod math;
+pub mod scene;
 pub mod shape;
 pub mod snapshot;
 pub mod solver;
