@@ -84,7 +84,7 @@ fn drive(w: &mut World, tick: u64) {
         ),
     )
     .unwrap();
-    if tick % 30 == 0 {
+    if tick.is_multiple_of(30) {
         let b = w.find_body("box3").unwrap();
         w.apply_impulse_at_point(
             b,

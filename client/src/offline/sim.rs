@@ -93,7 +93,7 @@ pub fn run_sim(opts: &SimOptions, out: &mut impl Write) -> Result<SimSummary, Si
                 faults: report.faults,
             });
         }
-        if report.tick % opts.hash_every == 0 {
+        if report.tick.is_multiple_of(opts.hash_every) {
             writeln!(out, "tick {} {:016x}", report.tick, world.state_hash()).map_err(SimError::Output)?;
         }
     }

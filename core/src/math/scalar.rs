@@ -385,6 +385,7 @@ impl Div for Scalar {
     /// toward the dividend's sign and raises `DIV_BY_ZERO`; overflow
     /// saturates and raises `OVERFLOW`.
     #[inline]
+    #[allow(clippy::suspicious_arithmetic_impl)] // the shift is the Q32.32 scaling
     fn div(self, rhs: Scalar) -> Scalar {
         if rhs.is_zero() {
             faults::raise(Faults::DIV_BY_ZERO);

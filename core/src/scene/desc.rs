@@ -202,15 +202,9 @@ pub struct ShapeDesc {
     pub line: u32,
 }
 
-/// How a shape's mass is given.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MassSpec {
-    /// Density in kg/m³ (> 0): mass = density × volume.
-    Density(Scalar),
-    /// The shape's total mass in kg (> 0), whatever its volume; the inertia
-    /// is that of a uniform solid of this mass.
-    Mass(Scalar),
-}
+/// How a shape's mass is given: the collider type, shared with the world
+/// API so the builder passes it through unchanged.
+pub use crate::collider::MassSpec;
 
 /// The geometry of a shape, in the shape's local frame (before `offset` and
 /// `rotation`). All lengths in metres.

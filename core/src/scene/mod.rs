@@ -8,6 +8,7 @@
 //! a [`SceneDesc`], is validated data; building a `World` from it is a
 //! separate step. The format itself is documented in `docs/scene-format.md`.
 
+mod build;
 mod desc;
 mod error;
 mod parse;
@@ -22,5 +23,6 @@ pub use desc::{
     BodyDesc, BodyKindDesc, DEFAULT_DENSITY, DEFAULT_FRICTION, DEFAULT_RESTITUTION, GeometryDesc,
     MassSpec, MaterialDesc, SceneDesc, ShapeDesc, WorldDesc,
 };
+pub use build::{build_world, load_world};
 pub use error::{SceneError, SceneErrorKind};
 pub use parse::parse_scene;

@@ -1,0 +1,103 @@
+//! The `lockstep` binary as a user runs it.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn lockstep() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_lockstep"))
+}
+
+fn scene(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name)
+}
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("lockstep-cli-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn sim_prints_one_hash_line_per_hashed_tick() {
+    let out = lockstep()
+        .args(["sim", "--scene"])
+        .arg(scene("shapes.toml"))
+        .args(["--ticks", "120", "--hash-every", "30"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 4);
+    for (i, line) in lines.iter().enumerate() {
+        let parts: Vec<&str> = line.split(' ').collect();
+        assert_eq!(parts[0], "tick");
+        assert_eq!(parts[1], ((i + 1) * 30).to_string());
+        assert_eq!(parts[2].len(), 16);
+        assert!(parts[2].chars().all(|c| c.is_ascii_hexdigit()));
+    }
+    // The same run twice prints the same thing.
+    let again = lockstep()
+        .args(["sim", "--scene"])
+        .arg(scene("shapes.toml"))
+        .args(["--ticks", "120", "--hash-every", "30"])
+        .output()
+        .unwrap();
+    assert_eq!(String::from_utf8(again.stdout).unwrap(), text);
+}
+
+#[test]
+fn dump_state_writes_exact_decimals_for_every_body() {
+    let dir = temp_dir("dump");
+    let dump = dir.join("state.json");
+    let out = lockstep()
+        .args(["sim", "--scene"])
+        .arg(scene("spin.toml"))
+        .args(["--ticks", "60", "--hash-every", "60", "--dump-state"])
+        .arg(&dump)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&dump).unwrap()).unwrap();
+    assert_eq!(json["tick"], 60);
+    let printed_hash = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(printed_hash.trim(), format!("tick 60 {}", json["state_hash"].as_str().unwrap()));
+    let bodies = json["bodies"].as_array().unwrap();
+    assert!(!bodies.is_empty());
+    for b in bodies {
+        for key in ["position", "linear_velocity", "angular_velocity"] {
+            let v = b[key].as_array().unwrap();
+            assert_eq!(v.len(), 3);
+            for c in v {
+                // Exact decimals parse back to a fixed-point value.
+                let s = c.as_str().unwrap();
+                assert!(s.parse::<lockstep_core::Scalar>().is_ok(), "{s}");
+            }
+        }
+        assert_eq!(b["rotation"].as_array().unwrap().len(), 4);
+        assert!(b["name"].is_string() && b["kind"].is_string() && b["asleep"].is_boolean());
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn a_bad_scene_file_is_a_clear_error_with_file_line_and_column() {
+    let dir = temp_dir("bad");
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[world]\ntick_rate = 60\n\n[[bodies]]\nname = \"ball\"\nkind = \"dynamic\"\n[[bodies.shapes]]\nkind = \"sphere\"\nradius = -1\n").unwrap();
+    let out = lockstep().args(["sim", "--scene"]).arg(&bad).args(["--ticks", "10"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.starts_with("lockstep sim: error: "), "{err}");
+    assert!(err.contains("bad.toml:9:"), "{err}");
+    assert!(err.contains("radius"), "{err}");
+    assert!(out.stdout.is_empty());
+
+    let missing = lockstep().args(["sim", "--scene", "/nonexistent/scene.toml", "--ticks", "1"]).output().unwrap();
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(String::from_utf8(missing.stderr).unwrap().contains("/nonexistent/scene.toml"));
+
+    let zero = lockstep().args(["sim", "--scene"]).arg(scene("spin.toml")).args(["--ticks", "1", "--hash-every", "0"]).output().unwrap();
+    assert_eq!(zero.status.code(), Some(2));
+    std::fs::remove_dir_all(dir).ok();
+}
