@@ -1,0 +1,657 @@
+//! Collision shapes and their exact mass properties.
+//!
+//! One file per shape kind: [`Sphere`], [`Capsule`], [`Cuboid`] (the box),
+//! [`ConvexHull`], [`TriMesh`] and [`HeightField`]; [`MassProperties`] in
+//! `mass.rs`. [`Shape`] is the closed set the rest of the engine dispatches
+//! on. `wide.rs` holds the exact integer arithmetic (orientation predicate,
+//! 768-bit integers) and `quickhull.rs` the hull construction.
+//!
+//! Every constructor validates its input and returns a [`ShapeError`]; a
+//! shape that exists is valid. Mass properties are computed from exact
+//! integer products and rounded once per output number.
+
+mod capsule;
+mod cuboid;
+mod heightfield;
+mod hull;
+mod mass;
+mod quickhull;
+mod sphere;
+mod trimesh;
+mod wide;
+
+#[cfg(test)]
+mod hull_tests;
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+pub use capsule::Capsule;
+pub use cuboid::Cuboid;
+pub use heightfield::HeightField;
+pub use hull::{ConvexHull, HullFace};
+pub use mass::MassProperties;
+pub use sphere::Sphere;
+pub use trimesh::TriMesh;
+
+use crate::math::{Aabb, Mat3, Scalar, Transform, Vec3};
+
+/// Why a shape could not be built, or has no mass properties.
+#[derive(Clone, Debug, PartialEq, Eq, Error)]
+pub enum ShapeError {
+    /// A sphere needs a positive radius.
+    #[error("sphere radius must be positive, got {radius}")]
+    SphereRadius {
+        /// The radius given.
+        radius: Scalar,
+    },
+    /// A capsule needs a positive radius.
+    #[error("capsule radius must be positive, got {radius}")]
+    CapsuleRadius {
+        /// The radius given.
+        radius: Scalar,
+    },
+    /// A capsule's half-height may be zero (a sphere) but not negative.
+    #[error("capsule half-height must not be negative, got {half_height}")]
+    CapsuleHalfHeight {
+        /// The half-height given.
+        half_height: Scalar,
+    },
+    /// A box needs three positive half-extents.
+    #[error("box half-extents must all be positive, got {half_extents:?}")]
+    CuboidHalfExtents {
+        /// The half-extents given.
+        half_extents: Vec3,
+    },
+    /// The hull's points do not enclose any volume.
+    #[error(
+        "convex hull needs at least 4 points that are not coplanar; \
+         got {distinct_points} distinct point(s) spanning {dimension} dimension(s)"
+    )]
+    DegenerateHull {
+        /// Number of distinct input points.
+        distinct_points: usize,
+        /// Dimension of their affine span: 0 (one point), 1 (a line) or 2
+        /// (a plane).
+        dimension: u8,
+    },
+    /// A hull point is too far from the origin for the exact predicates.
+    #[error(
+        "convex hull point {index} has coordinate {coordinate}, beyond the limit of \
+         ±1048576 (2^20 m) that keeps the exact predicates exact"
+    )]
+    HullCoordinateOutOfRange {
+        /// Index of the point in the input slice.
+        index: usize,
+        /// The offending coordinate.
+        coordinate: Scalar,
+    },
+    /// An internal consistency check of the hull construction failed. This
+    /// is a bug, never the input's fault: please report it with the points.
+    #[error("convex hull construction failed an internal check ({0}); this is a bug")]
+    HullConstruction(&'static str),
+    /// A triangle mesh needs at least one triangle.
+    #[error("triangle mesh needs at least one triangle")]
+    TriMeshEmpty,
+    /// A triangle refers to a vertex that does not exist.
+    #[error(
+        "triangle {triangle} of the mesh uses vertex {index}, but there are only \
+         {vertex_count} vertices"
+    )]
+    TriMeshIndexOutOfRange {
+        /// Index of the triangle.
+        triangle: usize,
+        /// The bad vertex index.
+        index: u32,
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// A triangle's corners are collinear (or repeated): it has no normal.
+    #[error("triangle {triangle} of the mesh has zero area")]
+    TriMeshDegenerateTriangle {
+        /// Index of the triangle.
+        triangle: usize,
+    },
+    /// A height field needs at least one cell.
+    #[error("height field needs at least 2 rows and 2 columns, got {rows}×{cols}")]
+    HeightFieldTooSmall {
+        /// Rows given.
+        rows: u32,
+        /// Columns given.
+        cols: u32,
+    },
+    /// The height list does not match the grid size.
+    #[error("height field of {rows}×{cols} needs {expected} heights, got {got}")]
+    HeightFieldSizeMismatch {
+        /// Rows given.
+        rows: u32,
+        /// Columns given.
+        cols: u32,
+        /// `rows · cols`.
+        expected: u64,
+        /// Number of heights given.
+        got: usize,
+    },
+    /// A height field's scale must be positive on every axis.
+    #[error("height field scale must be positive on every axis, got {scale:?}")]
+    HeightFieldScale {
+        /// The scale given.
+        scale: Vec3,
+    },
+    /// The grid's extent or a scaled height does not fit Q32.32.
+    #[error("height field extent or a scaled height does not fit the Q32.32 range")]
+    HeightFieldOutOfRange,
+    /// Triangle meshes and height fields have no volume, hence no mass.
+    #[error("a {kind} shape is static-only: it has no mass properties")]
+    StaticOnly {
+        /// The shape's kind.
+        kind: ShapeKind,
+    },
+    /// Densities must be positive.
+    #[error("density must be positive, got {density}")]
+    InvalidDensity {
+        /// The density given.
+        density: Scalar,
+    },
+    /// The mass or inertia does not fit Q32.32, or the mass rounds to zero.
+    #[error(
+        "mass properties of the {kind} at density {density} are out of the Q32.32 range \
+         (overflow, or a mass that rounds to zero)"
+    )]
+    MassOutOfRange {
+        /// The shape kind's name.
+        kind: &'static str,
+        /// The density given.
+        density: Scalar,
+    },
+}
+
+/// The kind of a [`Shape`], without its data: what dispatch tables, logs and
+/// scene files name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub enum ShapeKind {
+    /// [`Sphere`].
+    Sphere,
+    /// [`Capsule`].
+    Capsule,
+    /// [`Cuboid`], named "box".
+    Cuboid,
+    /// [`ConvexHull`].
+    ConvexHull,
+    /// [`TriMesh`].
+    TriMesh,
+    /// [`HeightField`].
+    HeightField,
+}
+
+impl ShapeKind {
+    /// The stable lower-case name: "sphere", "capsule", "box",
+    /// "convex_hull", "trimesh" or "heightfield". Scene files and logs use
+    /// it; never change one.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ShapeKind::Sphere => "sphere",
+            ShapeKind::Capsule => "capsule",
+            ShapeKind::Cuboid => "box",
+            ShapeKind::ConvexHull => "convex_hull",
+            ShapeKind::TriMesh => "trimesh",
+            ShapeKind::HeightField => "heightfield",
+        }
+    }
+}
+
+impl std::fmt::Display for ShapeKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A collision shape: the closed set of kinds the engine supports.
+///
+/// The small shapes are stored inline; hulls, meshes and height fields are
+/// shared behind an `Arc`, so cloning a shape (or giving the same mesh to
+/// many bodies) is cheap.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Shape {
+    /// A ball.
+    Sphere(Sphere),
+    /// A capsule along local y.
+    Capsule(Capsule),
+    /// A box.
+    Cuboid(Cuboid),
+    /// A convex polyhedron.
+    ConvexHull(Arc<ConvexHull>),
+    /// A static triangle mesh.
+    TriMesh(Arc<TriMesh>),
+    /// A static height field.
+    HeightField(Arc<HeightField>),
+}
+
+/// The allowance added to rotated bounding boxes: `2⁻²⁶ · extent + 32` ulps
+/// (about 15 nm per metre of extent, plus 7.5e-9 m).
+///
+/// A unit quaternion in Q32.32 is unit only to about 2⁻³⁰, and the rotation
+/// matrix and `Quat::rotate` round differently, so a point rotated by one and
+/// by the other can differ by a few parts in 2³⁰ of its distance from the
+/// origin. The allowance makes a box computed one way contain the points
+/// computed the other way.
+pub(crate) fn rotation_margin(extent: Scalar) -> Scalar {
+    Scalar::from_bits((extent.to_bits().max(0) >> 26) + 32)
+}
+
+/// `|R| h`: the half-extents of the box around a box of half-extents `h`
+/// rotated by `R`, each component accumulated exactly and rounded once.
+fn rotated_half_extents(r: &Mat3, h: Vec3) -> Vec3 {
+    let row = |i: usize| {
+        let acc = r.cols[0].get(i).abs().wide_mul(h.x)
+            + r.cols[1].get(i).abs().wide_mul(h.y)
+            + r.cols[2].get(i).abs().wide_mul(h.z);
+        Scalar::from_wide(acc)
+    };
+    Vec3::new(row(0), row(1), row(2))
+}
+
+/// The world box around a local box posed at `pose` (conservative: the box
+/// of the rotated box).
+///
+/// The local centre and half-extents are taken in `i128` (centre rounded
+/// down, half-extents up), so a box spanning most of the Q32.32 range, as a
+/// level mesh may, does not overflow on the way.
+fn posed_box(local: &Aabb, pose: &Transform) -> Aabb {
+    let (lo, hi) = (local.min.to_array(), local.max.to_array());
+    let mut center = Vec3::ZERO;
+    let mut half = Vec3::ZERO;
+    for k in 0..3 {
+        let (a, b) = (lo[k].to_bits() as i128, hi[k].to_bits() as i128);
+        let c = (a + b) >> 1;
+        center.set(k, Scalar::from_bits(c as i64));
+        half.set(k, Scalar::from_bits(crate::math::scalar::narrow(b - c)));
+    }
+    let r = Mat3::from_quat(pose.rotation);
+    let world_half = rotated_half_extents(&r, half);
+    let c = center.abs();
+    let margin = rotation_margin(c.x + c.y + c.z + half.x + half.y + half.z);
+    Aabb::from_center_half_extents(pose.transform_point(center), world_half).expanded(margin)
+}
+
+impl Shape {
+    /// The shape's kind.
+    pub fn kind(&self) -> ShapeKind {
+        match self {
+            Shape::Sphere(_) => ShapeKind::Sphere,
+            Shape::Capsule(_) => ShapeKind::Capsule,
+            Shape::Cuboid(_) => ShapeKind::Cuboid,
+            Shape::ConvexHull(_) => ShapeKind::ConvexHull,
+            Shape::TriMesh(_) => ShapeKind::TriMesh,
+            Shape::HeightField(_) => ShapeKind::HeightField,
+        }
+    }
+
+    /// Whether only static bodies may carry this shape (triangle meshes and
+    /// height fields: they enclose no volume, so they have no mass).
+    pub fn is_static_only(&self) -> bool {
+        matches!(self, Shape::TriMesh(_) | Shape::HeightField(_))
+    }
+
+    /// The bounding box in the shape's local frame.
+    pub fn local_aabb(&self) -> Aabb {
+        match self {
+            Shape::Sphere(s) => s.local_aabb(),
+            Shape::Capsule(c) => c.local_aabb(),
+            Shape::Cuboid(b) => b.local_aabb(),
+            Shape::ConvexHull(h) => h.local_aabb(),
+            Shape::TriMesh(m) => m.local_aabb(),
+            Shape::HeightField(f) => f.local_aabb(),
+        }
+    }
+
+    /// The world bounding box of the shape posed at `pose`, for the broad
+    /// phase. Always contains the shape:
+    /// * sphere: exactly `center ± r`;
+    /// * capsule: the box of the two rotated segment ends grown by `r`
+    ///   (tight up to the rotation allowance);
+    /// * box: `|R| h` around the centre;
+    /// * hull: the box of its rotated vertices;
+    /// * mesh, height field: the box of the rotated local box.
+    ///
+    /// Rotated boxes are grown by a small rounding allowance (2⁻²⁶ of the
+    /// shape's extent plus 32 ulps) so that they also contain points rotated
+    /// through [`Transform::transform_point`].
+    pub fn aabb(&self, pose: &Transform) -> Aabb {
+        let t = pose.translation;
+        match self {
+            Shape::Sphere(s) => Aabb::from_center_half_extents(t, Vec3::splat(s.radius)),
+            Shape::Capsule(c) => {
+                let r = Mat3::from_quat(pose.rotation);
+                let axis = r.cols[1] * c.half_height;
+                let half = axis.abs() + Vec3::splat(c.radius + rotation_margin(c.half_height));
+                Aabb::from_center_half_extents(t, half)
+            }
+            Shape::Cuboid(b) => {
+                let h = b.half_extents;
+                let r = Mat3::from_quat(pose.rotation);
+                let half =
+                    rotated_half_extents(&r, h) + Vec3::splat(rotation_margin(h.x + h.y + h.z));
+                Aabb::from_center_half_extents(t, half)
+            }
+            Shape::ConvexHull(h) => h.aabb(pose),
+            Shape::TriMesh(m) => posed_box(&m.local_aabb(), pose),
+            Shape::HeightField(f) => posed_box(&f.local_aabb(), pose),
+        }
+    }
+
+    /// The volume (rounded once from the exact value); zero for the
+    /// static-only shapes, which enclose none.
+    pub fn volume(&self) -> Scalar {
+        match self {
+            Shape::Sphere(s) => s.volume(),
+            Shape::Capsule(c) => c.volume(),
+            Shape::Cuboid(b) => b.volume(),
+            Shape::ConvexHull(h) => h.volume(),
+            Shape::TriMesh(_) | Shape::HeightField(_) => Scalar::ZERO,
+        }
+    }
+
+    /// Mass, centre of mass and inertia of the shape filled at `density`
+    /// (kg/m³), each number within half an ulp of the exact value.
+    ///
+    /// # Errors
+    /// * [`ShapeError::StaticOnly`] for triangle meshes and height fields;
+    /// * [`ShapeError::InvalidDensity`] unless `density > 0`;
+    /// * [`ShapeError::MassOutOfRange`] when a value does not fit Q32.32 or
+    ///   the mass rounds to zero.
+    pub fn mass_properties(&self, density: Scalar) -> Result<MassProperties, ShapeError> {
+        match self {
+            Shape::Sphere(s) => s.mass_properties(density),
+            Shape::Capsule(c) => c.mass_properties(density),
+            Shape::Cuboid(b) => b.mass_properties(density),
+            Shape::ConvexHull(h) => h.mass_properties(density),
+            Shape::TriMesh(_) | Shape::HeightField(_) => {
+                Err(ShapeError::StaticOnly { kind: self.kind() })
+            }
+        }
+    }
+}
+
+impl From<Sphere> for Shape {
+    fn from(s: Sphere) -> Shape {
+        Shape::Sphere(s)
+    }
+}
+
+impl From<Capsule> for Shape {
+    fn from(c: Capsule) -> Shape {
+        Shape::Capsule(c)
+    }
+}
+
+impl From<Cuboid> for Shape {
+    fn from(b: Cuboid) -> Shape {
+        Shape::Cuboid(b)
+    }
+}
+
+impl From<ConvexHull> for Shape {
+    fn from(h: ConvexHull) -> Shape {
+        Shape::ConvexHull(Arc::new(h))
+    }
+}
+
+impl From<TriMesh> for Shape {
+    fn from(m: TriMesh) -> Shape {
+        Shape::TriMesh(Arc::new(m))
+    }
+}
+
+impl From<HeightField> for Shape {
+    fn from(f: HeightField) -> Shape {
+        Shape::HeightField(Arc::new(f))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Quat;
+
+    fn s(v: f64) -> Scalar {
+        Scalar::from_f64_lossy(v)
+    }
+
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn random_pose(state: &mut u64) -> Transform {
+        let axis = Vec3::new(
+            s(lcg(state) - 0.5),
+            s(lcg(state) - 0.5),
+            s(lcg(state) - 0.5),
+        )
+        .try_normalize()
+        .unwrap_or(Vec3::X);
+        let q = Quat::from_axis_angle(axis, s(lcg(state) * 6.3)).normalize();
+        let t = Vec3::new(
+            s(lcg(state) * 200.0 - 100.0),
+            s(lcg(state) * 20.0),
+            s(lcg(state) * 200.0 - 100.0),
+        );
+        Transform::new(t, q)
+    }
+
+    fn shapes() -> Vec<Shape> {
+        let mesh = TriMesh::new(
+            vec![
+                Vec3::ZERO,
+                Vec3::from_ints(4, 0, 0),
+                Vec3::from_ints(0, 1, 3),
+            ],
+            vec![[0, 2, 1]],
+        )
+        .unwrap();
+        let field = HeightField::new(
+            2,
+            2,
+            vec![Scalar::ZERO, Scalar::ONE, Scalar::TWO, Scalar::NEG_ONE],
+            Vec3::splat(Scalar::ONE),
+        )
+        .unwrap();
+        let hull = ConvexHull::from_points(&[
+            Vec3::from_ints(0, 0, 0),
+            Vec3::from_ints(2, 0, 0),
+            Vec3::from_ints(0, 3, 0),
+            Vec3::from_ints(0, 0, 1),
+        ])
+        .unwrap();
+        vec![
+            Sphere::new(s(0.5)).unwrap().into(),
+            Capsule::new(s(1.0), s(0.25)).unwrap().into(),
+            Cuboid::new(Vec3::new(s(1.5), s(0.5), s(0.25)))
+                .unwrap()
+                .into(),
+            hull.into(),
+            mesh.into(),
+            field.into(),
+        ]
+    }
+
+    #[test]
+    fn kinds_have_stable_names_and_static_flags() {
+        let names: Vec<&str> = shapes().iter().map(|x| x.kind().name()).collect();
+        assert_eq!(
+            names,
+            [
+                "sphere",
+                "capsule",
+                "box",
+                "convex_hull",
+                "trimesh",
+                "heightfield"
+            ]
+        );
+        let statics: Vec<bool> = shapes().iter().map(Shape::is_static_only).collect();
+        assert_eq!(statics, [false, false, false, false, true, true]);
+    }
+
+    #[test]
+    fn static_shapes_and_bad_densities_have_no_mass() {
+        let all = shapes();
+        assert_eq!(
+            all[4].mass_properties(Scalar::ONE),
+            Err(ShapeError::StaticOnly {
+                kind: ShapeKind::TriMesh
+            })
+        );
+        assert_eq!(
+            all[5].mass_properties(Scalar::ONE).unwrap_err().to_string(),
+            "a heightfield shape is static-only: it has no mass properties"
+        );
+        for shape in &all[..4] {
+            assert_eq!(
+                shape.mass_properties(-Scalar::ONE),
+                Err(ShapeError::InvalidDensity {
+                    density: -Scalar::ONE
+                })
+            );
+            assert_eq!(
+                shape.mass_properties(Scalar::ZERO),
+                Err(ShapeError::InvalidDensity {
+                    density: Scalar::ZERO
+                })
+            );
+            assert!(shape.volume().is_positive());
+        }
+        assert_eq!(all[4].volume(), Scalar::ZERO);
+        // The hull tetrahedron: 2·3·1/6 = 1 m³.
+        assert_eq!(all[3].volume(), Scalar::ONE);
+    }
+
+    #[test]
+    fn sphere_and_capsule_boxes_are_tight() {
+        let all = shapes();
+        let t = Vec3::from_ints(10, -3, 7);
+        let pose = Transform::from_translation(t);
+        assert_eq!(
+            all[0].aabb(&pose),
+            Aabb::from_center_half_extents(t, Vec3::splat(s(0.5)))
+        );
+        // Lying along x after a quarter turn about z: extents (h + r, r, r).
+        let quarter = Transform::new(
+            t,
+            Quat::from_axis_angle(Vec3::Z, Scalar::FRAC_PI_2).normalize(),
+        );
+        let b = all[1].aabb(&quarter);
+        let want = Aabb::from_center_half_extents(t, Vec3::new(s(1.25), s(0.25), s(0.25)));
+        let slack = (b.max - want.max).max(want.min - b.min);
+        assert!(b.contains(&want), "{b:?}");
+        assert!(slack.max_element() <= Scalar::from_bits(128), "{slack:?}");
+        // Unrotated: exactly the local box plus the 32-ulp allowance on the
+        // rotated axis.
+        assert_eq!(
+            all[1].aabb(&Transform::IDENTITY).max.y,
+            s(1.25) + rotation_margin(Scalar::ONE)
+        );
+    }
+
+    #[test]
+    fn world_boxes_contain_the_posed_shape_for_random_rotations() {
+        let mut st = 11u64;
+        let all = shapes();
+        for _ in 0..500 {
+            let pose = random_pose(&mut st);
+            for shape in &all {
+                let b = shape.aabb(&pose);
+                let points: Vec<Vec3> = match shape {
+                    Shape::Sphere(sp) => {
+                        // Six extreme points of the sphere.
+                        let r = sp.radius;
+                        [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z]
+                            .iter()
+                            .map(|d| pose.translation + *d * r)
+                            .collect()
+                    }
+                    Shape::Capsule(c) => c
+                        .segment()
+                        .iter()
+                        .flat_map(|&e| {
+                            let w = pose.transform_point(e);
+                            let r = c.radius;
+                            [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z]
+                                .map(|d| w + d * r)
+                        })
+                        .collect(),
+                    Shape::Cuboid(bx) => bx
+                        .corners()
+                        .iter()
+                        .map(|&c| pose.transform_point(c))
+                        .collect(),
+                    Shape::ConvexHull(h) => h
+                        .vertices()
+                        .iter()
+                        .map(|&v| pose.transform_point(v))
+                        .collect(),
+                    Shape::TriMesh(m) => m
+                        .vertices()
+                        .iter()
+                        .map(|&v| pose.transform_point(v))
+                        .collect(),
+                    Shape::HeightField(f) => (0..2)
+                        .flat_map(|r| (0..2).map(move |c| (r, c)))
+                        .map(|(r, c)| pose.transform_point(f.vertex(r, c).unwrap()))
+                        .collect(),
+                };
+                for p in points {
+                    assert!(
+                        b.contains_point(p),
+                        "{:?} at {pose:?}: {p:?} outside {b:?}",
+                        shape.kind()
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn box_world_box_is_tight_up_to_the_allowance() {
+        // 45° about z: the x and y extents become (hx + hy)/√2.
+        let b: Shape = Cuboid::new(Vec3::new(s(2.0), s(1.0), s(0.5)))
+            .unwrap()
+            .into();
+        let q = Quat::from_axis_angle(Vec3::Z, Scalar::PI.div_int(4)).normalize();
+        let a = b.aabb(&Transform::new(Vec3::ZERO, q));
+        let want = 3.0 / 2f64.sqrt();
+        for got in [a.max.x, a.max.y, -a.min.x] {
+            let err = got.to_f64() - want;
+            assert!((0.0..1e-7).contains(&err), "{got} vs {want}");
+        }
+        assert!((a.max.z.to_f64() - 0.5).abs() < 1e-7);
+    }
+
+    #[test]
+    fn shapes_survive_a_serde_round_trip() {
+        let cfg = bincode::config::standard();
+        for shape in shapes() {
+            let bytes = bincode::serde::encode_to_vec(&shape, cfg).unwrap();
+            let (back, _): (Shape, usize) = bincode::serde::decode_from_slice(&bytes, cfg).unwrap();
+            assert_eq!(back, shape);
+        }
+        // Invalid data is rejected on the way in.
+        #[derive(Serialize)]
+        enum Fake {
+            Sphere { radius: Scalar },
+        }
+        let bytes = bincode::serde::encode_to_vec(
+            Fake::Sphere {
+                radius: -Scalar::ONE,
+            },
+            cfg,
+        )
+        .unwrap();
+        assert!(bincode::serde::decode_from_slice::<Shape, _>(&bytes, cfg).is_err());
+    }
+}
