@@ -25,11 +25,11 @@ pub const MAX_PLAYERS: usize = 16;
 
 /// Largest encoded size of a datagram-channel message (inputs, bundles, ping,
 /// pong). QUIC guarantees 1200-byte UDP payloads on every path; a 1-RTT
-/// packet spends at most 1 (flags) + 20 (connection id) + 4 (packet number)
-/// + 16 (AEAD tag) + 9 (DATAGRAM frame header) = 50 bytes of that, so a
+/// packet spends at most 50 bytes of that on itself (flags 1, connection id
+/// 20, packet number 4, AEAD tag 16, DATAGRAM frame header 9), so a
 /// 1150-byte datagram can be sent on any path by any QUIC stack (quinn
-/// reports 1162 with its 8-byte connection ids). Encoders stay within it
-/// and decoders refuse anything larger.
+/// reports 1162 with its 8-byte connection ids). Encoders stay within it and
+/// decoders refuse anything larger.
 pub const MAX_DATAGRAM_BYTES: usize = 1150;
 
 /// Most inputs one input datagram repeats. At the largest input size

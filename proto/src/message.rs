@@ -185,7 +185,7 @@ pub struct Welcome {
     /// the client never sends further ahead.
     pub input_window: u16,
     /// Largest input the room accepts, at most
-    /// [`MAX_INPUT_BYTES`](crate::MAX_INPUT_BYTES).
+    /// [`MAX_INPUT_BYTES`].
     pub max_input_bytes: u8,
     /// First tick whose bundle includes this player.
     pub start_tick: u64,
@@ -454,7 +454,7 @@ pub enum Violation {
         /// Allowed length.
         max: usize,
     },
-    /// An input is larger than [`MAX_INPUT_BYTES`](crate::MAX_INPUT_BYTES).
+    /// An input is larger than [`MAX_INPUT_BYTES`].
     #[error("input of {len} bytes exceeds {max}")]
     InputTooLarge {
         /// Actual length in bytes.
@@ -486,7 +486,7 @@ pub enum Violation {
         /// Allowed length.
         max: usize,
     },
-    /// A slot number is not below [`MAX_PLAYERS`](crate::MAX_PLAYERS).
+    /// A slot number is not below [`MAX_PLAYERS`].
     #[error("slot {0} is out of range")]
     SlotOutOfRange(u8),
     /// Slots in a list are not strictly ascending (duplicates or disorder).

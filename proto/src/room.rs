@@ -11,15 +11,17 @@
 
 mod arbiter;
 mod config;
+mod errors;
+mod events;
 mod history;
 mod player;
 
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use thiserror::Error;
-
 pub use config::{ConfigError, RoomConfig};
+pub use errors::{AlreadyStarted, JoinError, Rejection};
+pub use events::{LeaveReason, PlayerId, RoomEvent, RoomStats, Transmit};
 pub use player::PlayerStats;
 
 use crate::codec::body_len;
@@ -27,237 +29,13 @@ use crate::limits::{
     MAX_BUNDLES_PER_DATAGRAM, MAX_DATAGRAM_BYTES, PROTOCOL_VERSION, VERSION_HEADER_BYTES,
 };
 use crate::message::{
-    BundleDatagram, Channel, ClientMessage, Close, CloseReason, DesyncNotice, HashReport,
-    InputDatagram, Join, Ping, PlayerInput, ServerMessage, Slot, TickBundle, Welcome,
+    BundleDatagram, ClientMessage, Close, CloseReason, HashReport, InputDatagram, Join, Ping,
+    PlayerInput, ServerMessage, Slot, TickBundle, Welcome,
 };
 use arbiter::{Arbiter, Comparison, Recorded, SlotMask, bit, slots};
+use errors::close;
 use history::{FellBehind, History};
 use player::Player;
-
-/// Handle of a seated player: the slot plus a generation, so a message or
-/// transmit meant for a player who left is never confused with the next
-/// occupant of the same slot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct PlayerId {
-    /// The seat.
-    pub slot: Slot,
-    /// How many times the seat had been taken before this player.
-    pub generation: u32,
-}
-
-/// A message the caller must send to one player.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Transmit {
-    /// Recipient.
-    pub to: PlayerId,
-    /// The message; encode it with [`ServerMessage::encode`].
-    pub message: ServerMessage,
-}
-
-impl Transmit {
-    /// Channel to send it on.
-    pub fn channel(&self) -> Channel {
-        self.message.channel()
-    }
-}
-
-/// Why a player is no longer in the room.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LeaveReason {
-    /// The client sent [`ClientMessage::Leave`].
-    Left,
-    /// The caller reported the connection lost ([`Room::disconnect`]).
-    Disconnected,
-    /// Nothing was heard for [`RoomConfig::silence_timeout`].
-    TimedOut,
-    /// The client stopped acknowledging bundles until the ones it needs were
-    /// dropped from the history.
-    FellBehind,
-    /// The caller removed the player ([`Room::kick`]).
-    Kicked,
-}
-
-/// Something the caller may want to log, record or act on.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum RoomEvent {
-    /// A player took a seat.
-    PlayerJoined {
-        /// Their handle.
-        id: PlayerId,
-        /// Their display name.
-        name: String,
-    },
-    /// A player left; bundles from `from_tick` on no longer include them.
-    PlayerLeft {
-        /// Their handle.
-        id: PlayerId,
-        /// Why.
-        reason: LeaveReason,
-        /// First tick without them.
-        from_tick: u64,
-    },
-    /// A tick closed; this is exactly what every client will apply, so a
-    /// server recording a replay stores these.
-    TickClosed(TickBundle),
-    /// An input arrived after its tick had closed with a substitute.
-    LateInput {
-        /// Whose.
-        id: PlayerId,
-        /// For which tick.
-        tick: u64,
-    },
-    /// Players' hashes differ; the same notice was queued to every player.
-    Desync(DesyncNotice),
-}
-
-/// Room-wide counters.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct RoomStats {
-    /// Ticks closed so far.
-    pub ticks_closed: u64,
-    /// Ticks whose hashes were compared.
-    pub ticks_compared: u64,
-    /// Compared ticks whose hashes differed.
-    pub mismatched_ticks: u64,
-    /// Desync notices raised (one per divergence, not per tick).
-    pub desync_notices: u64,
-}
-
-/// Why a join was refused. Send [`JoinError::to_close`] and close.
-#[derive(Clone, Debug, PartialEq, Eq, Error)]
-pub enum JoinError {
-    /// The client speaks another protocol version.
-    #[error("client protocol version {client}, server {server}")]
-    VersionMismatch {
-        /// The client's version.
-        client: u16,
-        /// [`PROTOCOL_VERSION`].
-        server: u16,
-    },
-    /// The join named another room.
-    #[error("no room named {0:?} here")]
-    WrongRoom(String),
-    /// Every seat is taken.
-    #[error("room is full ({0} players)")]
-    RoomFull(u8),
-    /// The match started; joining now would need a world snapshot.
-    #[error("match already in progress")]
-    MatchInProgress,
-}
-
-impl JoinError {
-    /// The close message telling the client why.
-    pub fn to_close(&self) -> Close {
-        let reason = match self {
-            Self::VersionMismatch { .. } => CloseReason::VersionMismatch,
-            Self::WrongRoom(_) => CloseReason::WrongRoom,
-            Self::RoomFull(_) => CloseReason::RoomFull,
-            Self::MatchInProgress => CloseReason::MatchInProgress,
-        };
-        close(reason, self.to_string())
-    }
-}
-
-/// Why a message from a seated player was refused. Nothing of a refused
-/// message is applied. A compliant [`Session`](crate::Session) never causes
-/// one; the server should log it and may close the client with
-/// [`Rejection::to_close`].
-#[derive(Clone, Debug, PartialEq, Eq, Error)]
-pub enum Rejection {
-    /// The handle names no current player (left, or never joined).
-    #[error("no such player {0:?}")]
-    UnknownPlayer(PlayerId),
-    /// An input datagram names another player's slot.
-    #[error("input for slot {claimed:?} from the player in slot {actual:?}")]
-    WrongSlot {
-        /// Slot named in the datagram.
-        claimed: Slot,
-        /// Slot of the sender.
-        actual: Slot,
-    },
-    /// An input for a tick beyond the acceptance window.
-    #[error("input for tick {tick} outside the window {lowest}..={highest}")]
-    TickOutOfWindow {
-        /// The offending tick.
-        tick: u64,
-        /// Next open tick.
-        lowest: u64,
-        /// Last tick accepted.
-        highest: u64,
-    },
-    /// An input larger than [`RoomConfig::max_input_bytes`].
-    #[error("input of {len} bytes for tick {tick} exceeds {max}")]
-    InputTooLarge {
-        /// Its tick.
-        tick: u64,
-        /// Its size.
-        len: usize,
-        /// The room's limit.
-        max: usize,
-    },
-    /// A different input for a tick whose input was already received.
-    #[error("conflicting input for tick {tick}")]
-    InputConflict {
-        /// The tick.
-        tick: u64,
-    },
-    /// A bundle acknowledgement for a tick that has not closed.
-    #[error("ack of bundle {ack} before it closed (next tick {next_tick})")]
-    AckFromFuture {
-        /// The acknowledged tick.
-        ack: u64,
-        /// Next tick to close.
-        next_tick: u64,
-    },
-    /// A hash for a tick that has not closed: the client cannot have
-    /// applied it.
-    #[error("hash for tick {tick} which has not closed (next tick {next_tick})")]
-    HashForUnclosedTick {
-        /// The tick.
-        tick: u64,
-        /// Next tick to close.
-        next_tick: u64,
-    },
-    /// A hash for a tick whose bundle did not include the player.
-    #[error("hash for tick {tick} which the player was not part of")]
-    HashForTickNotPlayed {
-        /// The tick.
-        tick: u64,
-    },
-    /// A second, different hash for the same tick.
-    #[error("conflicting hash for tick {tick}")]
-    HashConflict {
-        /// The tick.
-        tick: u64,
-    },
-    /// A message that makes no sense now (e.g. a second join).
-    #[error("unexpected {0} message")]
-    UnexpectedMessage(&'static str),
-}
-
-impl Rejection {
-    /// A close message naming the violation.
-    pub fn to_close(&self) -> Close {
-        close(CloseReason::ProtocolViolation, self.to_string())
-    }
-}
-
-/// [`Room::start`] was called twice.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Error)]
-#[error("the room has already started")]
-pub struct AlreadyStarted;
-
-fn close(reason: CloseReason, mut detail: String) -> Close {
-    let max = crate::limits::MAX_DETAIL_BYTES;
-    if detail.len() > max {
-        let mut cut = max;
-        while !detail.is_char_boundary(cut) {
-            cut -= 1;
-        }
-        detail.truncate(cut);
-    }
-    Close { reason, detail }
-}
 
 /// A lockstep room: see the module documentation for how to drive it.
 #[derive(Debug)]

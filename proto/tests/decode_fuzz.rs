@@ -185,6 +185,7 @@ fn random_bytes_never_panic_and_die_at_the_version_header() {
         let len = rng.below(400) as usize;
         check(&rng.bytes(len), &mut c, &mut s);
     }
+    eprintln!("random bytes: client {c:?}\nserver {s:?}");
     // Only 1 in 65 536 random headers is the right version.
     assert!(c.wrong_version > 19_800, "{c:?}");
     assert!(c.truncated > 0, "{c:?}");
@@ -200,6 +201,7 @@ fn random_bodies_behind_a_valid_header_never_panic() {
         bytes.extend(rng.bytes(len));
         check(&bytes, &mut c, &mut s);
     }
+    eprintln!("random bodies: client {c:?}\nserver {s:?}");
     assert_eq!(c.ok + c.malformed + c.trailing + c.invalid, 30_000, "{c:?}");
     assert!(c.malformed > 20_000, "{c:?}");
     assert!(c.trailing > 0 && s.trailing > 0, "{c:?} {s:?}");
@@ -224,6 +226,7 @@ fn every_truncation_of_a_valid_message_is_refused() {
             cases += 1;
         }
     }
+    eprintln!("{cases} truncations: client {c:?}\nserver {s:?}");
     assert!(cases > 1500, "{cases}");
 }
 
@@ -255,6 +258,7 @@ fn bit_flips_and_byte_mutations_never_panic() {
         }
     }
     let total = samples.len() as u32 * 3_000;
+    eprintln!("{total} mutations: client {c:?}\nserver {s:?}");
     assert_eq!(
         c.ok + c.too_large + c.truncated + c.wrong_version + c.malformed + c.trailing + c.invalid,
         total
