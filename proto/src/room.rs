@@ -1,0 +1,582 @@
+//! The server side of lockstep as a state machine: seats, the tick clock,
+//! input collection and substitution, bundle broadcast with redundancy, and
+//! hash arbitration.
+//!
+//! Like `quinn-proto`, a [`Room`] owns no socket and reads no clock. The
+//! caller feeds it decoded messages with [`Room::handle_message`], tells it
+//! the time with [`Room::handle_timeout`] (at the latest by
+//! [`Room::poll_timeout`]), and drains [`Room::poll_transmit`] and
+//! [`Room::poll_event`] after every call. Every piece of per-tick state is in
+//! a fixed-size ring, so memory does not grow with the length of a match.
+
+mod arbiter;
+mod config;
+mod errors;
+mod events;
+mod history;
+mod player;
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+pub use config::{ConfigError, RoomConfig};
+pub use errors::{AlreadyStarted, JoinError, Rejection};
+pub use events::{LeaveReason, PlayerId, RoomEvent, RoomStats, Transmit};
+pub use player::PlayerStats;
+
+use crate::codec::body_len;
+use crate::limits::{
+    MAX_BUNDLES_PER_DATAGRAM, MAX_DATAGRAM_BYTES, PROTOCOL_VERSION, VERSION_HEADER_BYTES,
+};
+use crate::message::{
+    BundleDatagram, ClientMessage, Close, CloseReason, HashReport, InputDatagram, Join, Ping,
+    PlayerInput, ServerMessage, Slot, TickBundle, Welcome,
+};
+use arbiter::{Arbiter, Comparison, Recorded, SlotMask, bit, slots};
+use errors::close;
+use history::{FellBehind, History};
+use player::Player;
+
+/// A lockstep room: see the module documentation for how to drive it.
+#[derive(Debug)]
+pub struct Room {
+    config: RoomConfig,
+    players: Vec<Option<Player>>,
+    generations: Vec<u32>,
+    /// Time of `start`; tick `t` closes at `epoch + config.deadline_offset(t)`.
+    epoch: Option<Duration>,
+    next_tick: u64,
+    history: History,
+    arbiter: Arbiter,
+    transmits: VecDeque<Transmit>,
+    events: VecDeque<RoomEvent>,
+    ping_nonce: u64,
+    stats: RoomStats,
+}
+
+impl Room {
+    /// Creates an empty room in its lobby: players may join, no tick closes
+    /// until [`Room::start`].
+    ///
+    /// # Errors
+    /// [`ConfigError`] if `config` fails [`RoomConfig::validate`].
+    pub fn new(config: RoomConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let seats = usize::from(config.max_players);
+        Ok(Self {
+            history: History::new(config.history_ticks as usize),
+            arbiter: Arbiter::new(config.hash_window_ticks as usize, config.hash_timeout),
+            players: (0..seats).map(|_| None).collect(),
+            generations: vec![0; seats],
+            config,
+            epoch: None,
+            next_tick: 0,
+            transmits: VecDeque::new(),
+            events: VecDeque::new(),
+            ping_nonce: 0,
+            stats: RoomStats::default(),
+        })
+    }
+
+    /// Seats a player in the lowest free slot and queues their
+    /// [`Welcome`]. Joining is only possible before the match starts: a late
+    /// joiner would need a world snapshot, which the server does not have.
+    ///
+    /// # Errors
+    /// [`JoinError`]; the caller sends its [`JoinError::to_close`].
+    pub fn join(&mut self, now: Duration, join: &Join) -> Result<PlayerId, JoinError> {
+        if join.protocol_version != PROTOCOL_VERSION {
+            return Err(JoinError::VersionMismatch {
+                client: join.protocol_version,
+                server: PROTOCOL_VERSION,
+            });
+        }
+        if join.room != self.config.name {
+            return Err(JoinError::WrongRoom(join.room.clone()));
+        }
+        if self.epoch.is_some() {
+            return Err(JoinError::MatchInProgress);
+        }
+        let Some(index) = self.players.iter().position(Option::is_none) else {
+            return Err(JoinError::RoomFull(self.config.max_players));
+        };
+        // The index is below max_players, a u8.
+        let slot = Slot(index as u8);
+        let id = PlayerId {
+            slot,
+            generation: self.generations[index],
+        };
+        let window = usize::from(self.config.input_window);
+        self.players[index] = Some(Player::new(
+            join.player_name.clone(),
+            self.next_tick,
+            window,
+            now,
+        ));
+        self.transmits.push_back(Transmit {
+            to: id,
+            message: ServerMessage::Welcome(Welcome {
+                slot,
+                tick_rate: self.config.tick_rate,
+                input_delay: self.config.input_delay,
+                input_window: self.config.input_window,
+                // validate() keeps max_input_bytes within MAX_INPUT_BYTES (64).
+                max_input_bytes: self.config.max_input_bytes as u8,
+                start_tick: self.next_tick,
+                scene_hash: self.config.scene_hash,
+                scene: self.config.scene.clone(),
+            }),
+        });
+        self.events.push_back(RoomEvent::PlayerJoined {
+            id,
+            name: join.player_name.clone(),
+        });
+        Ok(id)
+    }
+
+    /// Whether every seated player (at least one) has already sent its input
+    /// for the first tick. A server that calls [`Room::start`] only then
+    /// does not substitute anyone's first inputs because their welcome was
+    /// still in flight.
+    pub fn all_ready(&self) -> bool {
+        let mut seated = self.players.iter().flatten().peekable();
+        seated.peek().is_some() && seated.all(|p| p.pending.contains(self.next_tick))
+    }
+
+    /// Starts the tick clock: tick 0 closes one tick period after `now`.
+    ///
+    /// # Errors
+    /// [`AlreadyStarted`] on a second call.
+    pub fn start(&mut self, now: Duration) -> Result<(), AlreadyStarted> {
+        if self.epoch.is_some() {
+            return Err(AlreadyStarted);
+        }
+        self.epoch = Some(now);
+        Ok(())
+    }
+
+    /// Applies one decoded message from a seated player. Any message counts
+    /// as a sign of life, even a refused one.
+    ///
+    /// # Errors
+    /// [`Rejection`] saying why the message was refused; nothing of it was
+    /// applied.
+    pub fn handle_message(
+        &mut self,
+        now: Duration,
+        from: PlayerId,
+        message: ClientMessage,
+    ) -> Result<(), Rejection> {
+        let player = self.player_mut(from)?;
+        player.last_heard = player.last_heard.max(now);
+        match message {
+            ClientMessage::Join(_) => Err(Rejection::UnexpectedMessage("join")),
+            ClientMessage::Input(d) => self.on_input(from, d),
+            ClientMessage::HashReport(h) => self.on_hash(now, from, h),
+            ClientMessage::Pong(p) => {
+                if let Some((nonce, sent)) = player.ping
+                    && nonce == p.nonce
+                {
+                    player.rtt_sample(now.saturating_sub(sent));
+                    player.ping = None;
+                }
+                Ok(())
+            }
+            ClientMessage::Leave => {
+                self.remove(now, from, LeaveReason::Left, None);
+                Ok(())
+            }
+        }
+    }
+
+    /// The caller lost the player's connection.
+    pub fn disconnect(&mut self, now: Duration, id: PlayerId) {
+        self.remove(now, id, LeaveReason::Disconnected, None);
+    }
+
+    /// Removes a player, queuing a [`Close`] with `reason` and `detail`
+    /// (e.g. after a [`Rejection`]).
+    pub fn kick(&mut self, now: Duration, id: PlayerId, reason: CloseReason, detail: &str) {
+        let c = close(reason, detail.to_owned());
+        self.remove(now, id, LeaveReason::Kicked, Some(c));
+    }
+
+    /// Advances the room to `now`: drops silent players, closes every tick
+    /// whose deadline has passed and broadcasts bundles, compares hashes that
+    /// are complete or timed out, and sends due pings.
+    pub fn handle_timeout(&mut self, now: Duration) {
+        for index in 0..self.players.len() {
+            let Some(p) = &self.players[index] else {
+                continue;
+            };
+            if now.saturating_sub(p.last_heard) >= self.config.silence_timeout {
+                let id = self.id_of(index);
+                let c = close(
+                    CloseReason::TimedOut,
+                    "nothing heard from the client".into(),
+                );
+                self.remove(now, id, LeaveReason::TimedOut, Some(c));
+            }
+        }
+        if let Some(epoch) = self.epoch {
+            let mut closed = false;
+            while now >= epoch.saturating_add(self.config.deadline_offset(self.next_tick)) {
+                self.close_tick(now);
+                closed = true;
+            }
+            if closed {
+                self.send_bundles(now);
+            }
+        }
+        self.run_arbiter(now);
+        for index in 0..self.players.len() {
+            let nonce = self.ping_nonce;
+            let Some(p) = &mut self.players[index] else {
+                continue;
+            };
+            if now >= p.next_ping_at {
+                p.ping = Some((nonce, now));
+                p.next_ping_at = now.saturating_add(self.config.ping_interval);
+                self.ping_nonce += 1;
+                let to = self.id_of(index);
+                self.transmits.push_back(Transmit {
+                    to,
+                    message: ServerMessage::Ping(Ping { nonce }),
+                });
+            }
+        }
+    }
+
+    /// The next time [`Room::handle_timeout`] has work to do: a tick
+    /// deadline, a silence timeout, a ping, or a hash comparison timeout.
+    pub fn poll_timeout(&self) -> Option<Duration> {
+        let tick = self
+            .epoch
+            .map(|e| e.saturating_add(self.config.deadline_offset(self.next_tick)));
+        let players = self.players.iter().flatten().flat_map(|p| {
+            [
+                p.last_heard.saturating_add(self.config.silence_timeout),
+                p.next_ping_at,
+            ]
+        });
+        tick.into_iter()
+            .chain(players)
+            .chain(self.arbiter.next_deadline())
+            .min()
+    }
+
+    /// Next message to send, in the order they were produced.
+    pub fn poll_transmit(&mut self) -> Option<Transmit> {
+        self.transmits.pop_front()
+    }
+
+    /// Next event. Drain after every call; events queue until taken.
+    pub fn poll_event(&mut self) -> Option<RoomEvent> {
+        self.events.pop_front()
+    }
+
+    /// The configuration the room runs with.
+    pub fn config(&self) -> &RoomConfig {
+        &self.config
+    }
+
+    /// Whether [`Room::start`] was called.
+    pub fn is_started(&self) -> bool {
+        self.epoch.is_some()
+    }
+
+    /// Next tick to close; every tick below it is closed.
+    pub fn next_tick(&self) -> u64 {
+        self.next_tick
+    }
+
+    /// Seated players and their names, ascending by slot.
+    pub fn players(&self) -> impl Iterator<Item = (PlayerId, &str)> + '_ {
+        self.players
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| p.as_ref().map(|p| (self.id_of(i), p.name.as_str())))
+    }
+
+    /// Number of seated players.
+    pub fn player_count(&self) -> usize {
+        self.players.iter().flatten().count()
+    }
+
+    /// Counters of a seated player.
+    pub fn player_stats(&self, id: PlayerId) -> Option<&PlayerStats> {
+        self.player(id).map(|p| &p.stats)
+    }
+
+    /// Room-wide counters.
+    pub fn stats(&self) -> &RoomStats {
+        &self.stats
+    }
+
+    /// The bundle of a closed tick, while it is still in the history.
+    pub fn bundle(&self, tick: u64) -> Option<&TickBundle> {
+        self.history.get(tick)
+    }
+
+    // -- internals ----------------------------------------------------------
+
+    fn id_of(&self, index: usize) -> PlayerId {
+        PlayerId {
+            slot: Slot(index as u8),
+            generation: self.generations[index],
+        }
+    }
+
+    fn player(&self, id: PlayerId) -> Option<&Player> {
+        let index = id.slot.index();
+        match self.players.get(index) {
+            Some(Some(p)) if self.generations[index] == id.generation => Some(p),
+            _ => None,
+        }
+    }
+
+    fn player_mut(&mut self, id: PlayerId) -> Result<&mut Player, Rejection> {
+        let index = id.slot.index();
+        match self.players.get_mut(index) {
+            Some(Some(p)) if self.generations[index] == id.generation => Ok(p),
+            _ => Err(Rejection::UnknownPlayer(id)),
+        }
+    }
+
+    fn present_mask(&self) -> SlotMask {
+        (0..self.players.len())
+            .filter(|&i| self.players[i].is_some())
+            .fold(0, |m, i| m | bit(Slot(i as u8)))
+    }
+
+    fn remove(&mut self, now: Duration, id: PlayerId, reason: LeaveReason, close: Option<Close>) {
+        if self.player(id).is_none() {
+            return;
+        }
+        let index = id.slot.index();
+        self.players[index] = None;
+        self.generations[index] = self.generations[index].wrapping_add(1);
+        if let Some(c) = close {
+            self.transmits.push_back(Transmit {
+                to: id,
+                message: ServerMessage::Close(c),
+            });
+        }
+        self.events.push_back(RoomEvent::PlayerLeft {
+            id,
+            reason,
+            from_tick: self.next_tick,
+        });
+        // Ticks that were only waiting for this player's hash can be compared.
+        self.run_arbiter(now);
+    }
+
+    fn on_input(&mut self, from: PlayerId, d: InputDatagram) -> Result<(), Rejection> {
+        if d.slot != from.slot {
+            return Err(Rejection::WrongSlot {
+                claimed: d.slot,
+                actual: from.slot,
+            });
+        }
+        if let Some(ack) = d.ack_bundle
+            && ack >= self.next_tick
+        {
+            return Err(Rejection::AckFromFuture {
+                ack,
+                next_tick: self.next_tick,
+            });
+        }
+        let lowest = self.next_tick;
+        let highest = lowest + u64::from(self.config.input_window) - 1;
+        let max = self.config.max_input_bytes;
+        let index = from.slot.index();
+        let Some(player) = self.players[index].as_mut() else {
+            return Err(Rejection::UnknownPlayer(from));
+        };
+        // Validate everything before applying anything.
+        for (i, input) in d.inputs.iter().enumerate() {
+            let tick = d.first_tick.saturating_add(i as u64);
+            if tick > highest {
+                return Err(Rejection::TickOutOfWindow {
+                    tick,
+                    lowest,
+                    highest,
+                });
+            }
+            if input.len() > max {
+                return Err(Rejection::InputTooLarge {
+                    tick,
+                    len: input.len(),
+                    max,
+                });
+            }
+            let conflict = if tick >= lowest {
+                player.pending.get(tick).is_some_and(|prev| prev != input)
+            } else {
+                self.history.get(tick).is_some_and(|b| {
+                    b.inputs
+                        .iter()
+                        .any(|p| p.slot == from.slot && !p.substituted && p.input != *input)
+                })
+            };
+            if conflict {
+                return Err(Rejection::InputConflict { tick });
+            }
+        }
+        player.bundle_ack = player.bundle_ack.max(d.ack_bundle);
+        for (tick, input) in (d.first_tick..).zip(d.inputs) {
+            if tick < player.start_tick {
+                player.stats.redundant_inputs += 1;
+            } else if tick >= lowest {
+                if player.pending.contains(tick) {
+                    player.stats.redundant_inputs += 1;
+                } else {
+                    player.pending.insert(tick, input);
+                }
+            } else if self.history.mark_late(tick, from.slot) {
+                player.stats.late_inputs += 1;
+                self.events
+                    .push_back(RoomEvent::LateInput { id: from, tick });
+            } else {
+                player.stats.redundant_inputs += 1;
+            }
+        }
+        Ok(())
+    }
+
+    fn on_hash(&mut self, now: Duration, from: PlayerId, h: HashReport) -> Result<(), Rejection> {
+        if h.tick >= self.next_tick {
+            return Err(Rejection::HashForUnclosedTick {
+                tick: h.tick,
+                next_tick: self.next_tick,
+            });
+        }
+        match self.arbiter.record(h.tick, from.slot, h.hash) {
+            Recorded::Stored => {
+                if let Ok(p) = self.player_mut(from) {
+                    p.stats.hash_reports += 1;
+                }
+                self.run_arbiter(now);
+                Ok(())
+            }
+            Recorded::Stale => Ok(()),
+            Recorded::NotExpected => Err(Rejection::HashForTickNotPlayed { tick: h.tick }),
+            Recorded::Conflict => Err(Rejection::HashConflict { tick: h.tick }),
+        }
+    }
+
+    /// Closes `next_tick`: each present player's input, or their last input
+    /// marked as substituted.
+    fn close_tick(&mut self, now: Duration) {
+        let tick = self.next_tick;
+        let mut inputs = Vec::with_capacity(self.players.len());
+        let mut expected: SlotMask = 0;
+        // Determinism: inputs are listed in ascending slot order.
+        for (index, p) in self.players.iter_mut().enumerate() {
+            let Some(p) = p else { continue };
+            if p.start_tick > tick {
+                continue;
+            }
+            let slot = Slot(index as u8);
+            let substituted = match p.pending.remove(tick) {
+                Some(input) => {
+                    p.last_input = input;
+                    p.stats.inputs_on_time += 1;
+                    false
+                }
+                None => {
+                    p.stats.inputs_substituted += 1;
+                    true
+                }
+            };
+            expected |= bit(slot);
+            inputs.push(PlayerInput {
+                slot,
+                input: p.last_input.clone(),
+                substituted,
+            });
+        }
+        let bundle = TickBundle { tick, inputs };
+        self.history.push(bundle.clone());
+        self.events.push_back(RoomEvent::TickClosed(bundle));
+        self.next_tick += 1;
+        self.stats.ticks_closed += 1;
+        if let Some((t, c)) = self.arbiter.open(tick, now, expected) {
+            self.apply_comparison(t, c);
+        }
+    }
+
+    /// The last tick for which the room needs no more input from `p`: every
+    /// closed tick, then every open tick received contiguously.
+    fn input_ack(&self, p: &Player) -> Option<u64> {
+        let mut t = self.next_tick.max(p.start_tick);
+        while p.pending.contains(t) {
+            t += 1;
+        }
+        t.checked_sub(1)
+    }
+
+    fn send_bundles(&mut self, now: Duration) {
+        for index in 0..self.players.len() {
+            let Some(p) = &self.players[index] else {
+                continue;
+            };
+            let from = p
+                .bundle_ack
+                .map_or(p.start_tick, |a| (a + 1).max(p.start_tick));
+            let ack_input = self.input_ack(p);
+            let empty = ServerMessage::Bundles(BundleDatagram {
+                ack_input,
+                bundles: Vec::new(),
+            });
+            // The bundle count prefix stays one byte for up to 250 entries,
+            // so the empty message's size is the exact header size.
+            let header = VERSION_HEADER_BYTES + body_len(&empty);
+            let budget = MAX_DATAGRAM_BYTES.saturating_sub(header);
+            let id = self.id_of(index);
+            match self.history.select(from, budget, MAX_BUNDLES_PER_DATAGRAM) {
+                Ok(bundles) => self.transmits.push_back(Transmit {
+                    to: id,
+                    message: ServerMessage::Bundles(BundleDatagram { ack_input, bundles }),
+                }),
+                Err(FellBehind) => {
+                    let detail = format!("bundle {from} is no longer in the history");
+                    let c = close(CloseReason::FellBehind, detail);
+                    self.remove(now, id, LeaveReason::FellBehind, Some(c));
+                }
+            }
+        }
+    }
+
+    fn run_arbiter(&mut self, now: Duration) {
+        let connected = self.present_mask();
+        for (tick, c) in self.arbiter.finalize(now, connected) {
+            self.apply_comparison(tick, c);
+        }
+    }
+
+    fn apply_comparison(&mut self, _tick: u64, c: Comparison) {
+        self.stats.ticks_compared += 1;
+        if c.mismatch {
+            self.stats.mismatched_ticks += 1;
+        }
+        for slot in slots(c.missing) {
+            if let Some(Some(p)) = self.players.get_mut(slot.index()) {
+                p.stats.missing_hash_reports += 1;
+            }
+        }
+        if let Some(notice) = c.notice {
+            self.stats.desync_notices += 1;
+            for index in 0..self.players.len() {
+                if self.players[index].is_some() {
+                    let to = self.id_of(index);
+                    self.transmits.push_back(Transmit {
+                        to,
+                        message: ServerMessage::Desync(notice.clone()),
+                    });
+                }
+            }
+            self.events.push_back(RoomEvent::Desync(notice));
+        }
+    }
+}

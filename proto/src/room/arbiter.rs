@@ -1,0 +1,332 @@
+//! Per-tick hash comparison and majority arbitration.
+//!
+//! Each closed tick opens an entry listing the players expected to report a
+//! hash for it. The entry is compared as soon as every expected player that
+//! is still connected has reported, or when the hash timeout passes, or when
+//! the ring needs its slot back. A mismatch yields a [`DesyncNotice`] with a
+//! strict-majority verdict; a divergence that persists tick after tick is
+//! reported once, on the tick it started.
+
+use std::time::Duration;
+
+use crate::limits::MAX_PLAYERS;
+use crate::message::{DesyncNotice, PlayerHash, Slot, Verdict};
+use crate::ring::TickRing;
+
+/// Bit set of slots; `MAX_PLAYERS` is at most 32.
+pub(crate) type SlotMask = u32;
+
+const _: () = assert!(MAX_PLAYERS <= 32, "SlotMask must hold every slot");
+
+pub(crate) fn bit(slot: Slot) -> SlotMask {
+    1 << slot.0
+}
+
+#[derive(Debug)]
+struct Entry {
+    closed_at: Duration,
+    expected: SlotMask,
+    reported: SlotMask,
+    hashes: [u64; MAX_PLAYERS],
+    done: bool,
+}
+
+/// What comparing one tick's hashes produced.
+#[derive(Debug)]
+pub(crate) struct Comparison {
+    /// Expected players that never reported.
+    pub missing: SlotMask,
+    /// Whether the reported hashes differed.
+    pub mismatch: bool,
+    /// The notice to raise; `None` when the hashes agree, or when this tick
+    /// continues a divergence already reported.
+    pub notice: Option<DesyncNotice>,
+}
+
+/// Outcome of recording one report.
+#[derive(Debug, PartialEq, Eq)]
+pub(crate) enum Recorded {
+    /// Stored (or an identical duplicate).
+    Stored,
+    /// The tick has already left the ring or been compared; ignored.
+    Stale,
+    /// The player was not part of that tick's bundle.
+    NotExpected,
+    /// The player already reported a different hash for this tick.
+    Conflict,
+}
+
+/// Hash entries for the most recent ticks, and the state that suppresses
+/// repeated notices for one divergence.
+#[derive(Debug)]
+pub(crate) struct Arbiter {
+    ring: TickRing<Entry>,
+    /// No entry below this tick is pending.
+    oldest_pending: u64,
+    /// One past the newest opened tick.
+    end: u64,
+    timeout: Duration,
+    /// Groups (slot masks) of the last reported divergence.
+    last_groups: Option<Vec<SlotMask>>,
+}
+
+impl Arbiter {
+    pub(crate) fn new(capacity: usize, timeout: Duration) -> Self {
+        Self {
+            ring: TickRing::new(capacity),
+            oldest_pending: 0,
+            end: 0,
+            timeout,
+            last_groups: None,
+        }
+    }
+
+    /// Opens tick `tick` (ticks are opened in order). If its slot held an
+    /// entry that was never compared, that entry is compared now.
+    pub(crate) fn open(
+        &mut self,
+        tick: u64,
+        closed_at: Duration,
+        expected: SlotMask,
+    ) -> Option<(u64, Comparison)> {
+        let entry = Entry {
+            closed_at,
+            expected,
+            reported: 0,
+            hashes: [0; MAX_PLAYERS],
+            done: expected == 0,
+        };
+        self.end = tick + 1;
+        let evicted = self.ring.insert(tick, entry);
+        match evicted {
+            Some((t, e)) if !e.done => Some((t, self.compare(t, &e))),
+            _ => None,
+        }
+    }
+
+    /// Records `slot`'s hash for `tick`; the caller checked that the tick is
+    /// closed.
+    pub(crate) fn record(&mut self, tick: u64, slot: Slot, hash: u64) -> Recorded {
+        let Some(e) = self.ring.get_mut(tick) else {
+            return Recorded::Stale;
+        };
+        if e.expected & bit(slot) == 0 {
+            return Recorded::NotExpected;
+        }
+        if e.reported & bit(slot) != 0 {
+            return if e.hashes[slot.index()] == hash {
+                Recorded::Stored
+            } else {
+                Recorded::Conflict
+            };
+        }
+        if e.done {
+            return Recorded::Stale;
+        }
+        e.reported |= bit(slot);
+        e.hashes[slot.index()] = hash;
+        Recorded::Stored
+    }
+
+    /// Compares every pending entry that is complete (all expected players
+    /// in `connected` reported) or whose timeout passed, in tick order.
+    pub(crate) fn finalize(
+        &mut self,
+        now: Duration,
+        connected: SlotMask,
+    ) -> Vec<(u64, Comparison)> {
+        let mut out = Vec::new();
+        let first = self
+            .oldest_pending
+            .max(self.end.saturating_sub(self.ring.capacity() as u64));
+        let mut all_done_so_far = true;
+        for tick in first..self.end {
+            let Some(e) = self.ring.get(tick) else {
+                continue;
+            };
+            let (expected, reported, hashes) = (e.expected, e.reported, e.hashes);
+            let ready = e.done
+                || expected & connected & !reported == 0
+                || now >= e.closed_at.saturating_add(self.timeout);
+            if !ready {
+                all_done_so_far = false;
+                continue;
+            }
+            if !e.done {
+                let c = self.compare_parts(tick, expected, reported, &hashes);
+                if let Some(e) = self.ring.get_mut(tick) {
+                    e.done = true;
+                }
+                out.push((tick, c));
+            }
+            if all_done_so_far {
+                self.oldest_pending = tick + 1;
+            }
+        }
+        out
+    }
+
+    /// Earliest time at which a pending entry times out.
+    pub(crate) fn next_deadline(&self) -> Option<Duration> {
+        let first = self
+            .oldest_pending
+            .max(self.end.saturating_sub(self.ring.capacity() as u64));
+        (first..self.end)
+            .filter_map(|t| self.ring.get(t))
+            .find(|e| !e.done)
+            .map(|e| e.closed_at.saturating_add(self.timeout))
+    }
+
+    fn compare(&mut self, tick: u64, e: &Entry) -> Comparison {
+        self.compare_parts(tick, e.expected, e.reported, &e.hashes)
+    }
+
+    fn compare_parts(
+        &mut self,
+        tick: u64,
+        expected: SlotMask,
+        reported: SlotMask,
+        hashes: &[u64; MAX_PLAYERS],
+    ) -> Comparison {
+        let missing = expected & !reported;
+        // Determinism: groups are built in ascending slot order, so the same
+        // reports always give the same groups and verdict.
+        let mut groups: Vec<(u64, SlotMask)> = Vec::new();
+        for (s, &h) in hashes.iter().enumerate() {
+            if reported & (1 << s) == 0 {
+                continue;
+            }
+            match groups.iter_mut().find(|(gh, _)| *gh == h) {
+                Some((_, m)) => *m |= 1 << s,
+                None => groups.push((h, 1 << s)),
+            }
+        }
+        if groups.len() <= 1 {
+            self.last_groups = None;
+            return Comparison {
+                missing,
+                mismatch: false,
+                notice: None,
+            };
+        }
+        let masks: Vec<SlotMask> = groups.iter().map(|g| g.1).collect();
+        let same_divergence = self
+            .last_groups
+            .as_ref()
+            .is_some_and(|old| refines(&masks, old));
+        self.last_groups = Some(masks);
+        if same_divergence {
+            return Comparison {
+                missing,
+                mismatch: true,
+                notice: None,
+            };
+        }
+        let reporters = reported.count_ones();
+        let verdict = match groups.iter().find(|(_, m)| m.count_ones() * 2 > reporters) {
+            Some(&(majority_hash, m)) => Verdict::Majority {
+                majority_hash,
+                wrong: slots(reported & !m),
+            },
+            None => Verdict::Undecided,
+        };
+        let notice = DesyncNotice {
+            tick,
+            hashes: slots(expected)
+                .into_iter()
+                .map(|slot| PlayerHash {
+                    slot,
+                    hash: (reported & bit(slot) != 0).then(|| hashes[slot.index()]),
+                })
+                .collect(),
+            verdict,
+        };
+        Comparison {
+            missing,
+            mismatch: true,
+            notice: Some(notice),
+        }
+    }
+}
+
+/// True when every group of `new` lies inside a distinct group of `old`: the
+/// same players still disagree the same way (some may just not have
+/// reported), so this is the divergence already announced.
+fn refines(new: &[SlotMask], old: &[SlotMask]) -> bool {
+    let mut used: SlotMask = 0;
+    for &g in new {
+        match old.iter().position(|&o| g & !o == 0) {
+            Some(i) if used & (1 << i) == 0 => used |= 1 << i,
+            _ => return false,
+        }
+    }
+    true
+}
+
+/// The slots of a mask, ascending.
+pub(crate) fn slots(mask: SlotMask) -> Vec<Slot> {
+    (0..MAX_PLAYERS as u8)
+        .map(Slot)
+        .filter(|s| mask & bit(*s) != 0)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const T: Duration = Duration::from_secs(2);
+
+    #[test]
+    fn divergence_is_announced_once_and_again_after_recovery() {
+        let mut a = Arbiter::new(16, T);
+        let now = Duration::ZERO;
+        let mut notices = Vec::new();
+        for tick in 0..10u64 {
+            a.open(tick, now, 0b111);
+            let bad = (3..6).contains(&tick) || tick >= 8;
+            a.record(tick, Slot(0), 5);
+            a.record(tick, Slot(1), if bad { 6 } else { 5 });
+            a.record(tick, Slot(2), 5);
+            for (t, c) in a.finalize(now, 0b111) {
+                assert_eq!(c.mismatch, bad);
+                if let Some(n) = c.notice {
+                    notices.push((t, n.verdict));
+                }
+            }
+        }
+        let wrong1 = Verdict::Majority {
+            majority_hash: 5,
+            wrong: vec![Slot(1)],
+        };
+        assert_eq!(notices, vec![(3, wrong1.clone()), (8, wrong1)]);
+    }
+
+    #[test]
+    fn evicted_entry_is_compared_before_its_slot_is_reused() {
+        let mut a = Arbiter::new(2, T);
+        a.open(0, Duration::ZERO, 0b11);
+        a.record(0, Slot(0), 1);
+        a.record(0, Slot(1), 2);
+        a.open(1, Duration::ZERO, 0b11);
+        let (t, c) = a.open(2, Duration::ZERO, 0b11).expect("tick 0 evicted");
+        assert_eq!(t, 0);
+        assert_eq!(c.notice.map(|n| n.verdict), Some(Verdict::Undecided));
+        assert_eq!(a.record(0, Slot(0), 1), Recorded::Stale);
+    }
+
+    #[test]
+    fn timeout_compares_with_missing_reporters_listed() {
+        let mut a = Arbiter::new(8, T);
+        a.open(0, Duration::ZERO, 0b111);
+        a.record(0, Slot(0), 1);
+        a.record(0, Slot(2), 1);
+        assert!(a.finalize(Duration::from_millis(1999), 0b111).is_empty());
+        assert_eq!(a.next_deadline(), Some(T));
+        let out = a.finalize(T, 0b111);
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].1.missing, 0b010);
+        assert!(!out[0].1.mismatch);
+        assert_eq!(a.next_deadline(), None);
+    }
+}

@@ -1,0 +1,212 @@
+//! Room settings, their defaults, and the checks that keep them coherent.
+
+use std::time::Duration;
+
+use thiserror::Error;
+
+use crate::limits::{
+    MAX_INPUT_BYTES, MAX_INPUT_WINDOW, MAX_NAME_BYTES, MAX_PLAYERS, MAX_SCENE_BYTES,
+};
+
+/// Everything a room needs to know up front. Capacities are fixed here (as in
+/// Jolt) so a room's memory does not grow with the length of a match.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RoomConfig {
+    /// Name clients put in [`Join::room`](crate::Join::room).
+    pub name: String,
+    /// Ticks per second. Default 60.
+    pub tick_rate: u16,
+    /// Ticks between a client sampling an input and the tick it applies to.
+    /// The round trip must stay under `(input_delay + 1)` ticks for inputs
+    /// to arrive on time. Default 4 (83 ms of round trip at 60 Hz).
+    pub input_delay: u16,
+    /// How far ahead of the next open tick inputs are accepted; anything
+    /// further is a protocol violation. Must exceed `input_delay`. Default 64.
+    pub input_window: u16,
+    /// Seats in the room, at most [`MAX_PLAYERS`]. Default 8.
+    pub max_players: u8,
+    /// Largest input accepted, at most [`MAX_INPUT_BYTES`]. Default 64.
+    pub max_input_bytes: usize,
+    /// Closed bundles kept for resending. A client whose next needed bundle
+    /// is older than this is dropped as fallen behind. Default 512 (8.5 s),
+    /// longer than the silence timeout, so a client that went silent is
+    /// reported as timed out rather than as fallen behind.
+    pub history_ticks: u32,
+    /// Ticks of hash reports kept for comparison. Must cover `hash_timeout`.
+    /// Default 256.
+    pub hash_window_ticks: u32,
+    /// How long after a tick closes the room waits for every connected
+    /// player's hash before comparing the hashes it has. Default 2 s.
+    pub hash_timeout: Duration,
+    /// A player heard from for this long is dropped. Default 5 s.
+    pub silence_timeout: Duration,
+    /// Interval between pings to each player (RTT and liveness). Default 1 s.
+    pub ping_interval: Duration,
+    /// Scene sent to each player in the welcome, opaque to the room.
+    pub scene: Vec<u8>,
+    /// Hash of `scene`, sent alongside it.
+    pub scene_hash: u64,
+}
+
+impl RoomConfig {
+    /// A configuration with the defaults documented on each field.
+    pub fn new(name: impl Into<String>, scene: Vec<u8>, scene_hash: u64) -> Self {
+        Self {
+            name: name.into(),
+            tick_rate: 60,
+            input_delay: 4,
+            input_window: 64,
+            max_players: 8,
+            max_input_bytes: MAX_INPUT_BYTES,
+            history_ticks: 512,
+            hash_window_ticks: 256,
+            hash_timeout: Duration::from_secs(2),
+            silence_timeout: Duration::from_secs(5),
+            ping_interval: Duration::from_secs(1),
+            scene,
+            scene_hash,
+        }
+    }
+
+    /// Checks every field against the protocol bounds and the others.
+    ///
+    /// # Errors
+    /// The first inconsistency found, as a [`ConfigError`].
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.name.len() > MAX_NAME_BYTES {
+            return Err(ConfigError::NameTooLong(self.name.len()));
+        }
+        if self.tick_rate == 0 {
+            return Err(ConfigError::ZeroTickRate);
+        }
+        if self.max_players == 0 || usize::from(self.max_players) > MAX_PLAYERS {
+            return Err(ConfigError::MaxPlayers(self.max_players));
+        }
+        if self.max_input_bytes > MAX_INPUT_BYTES {
+            return Err(ConfigError::MaxInputBytes(self.max_input_bytes));
+        }
+        if self.input_window <= self.input_delay || self.input_window > MAX_INPUT_WINDOW {
+            return Err(ConfigError::InputWindow {
+                window: self.input_window,
+                delay: self.input_delay,
+            });
+        }
+        if self.history_ticks < 2 {
+            return Err(ConfigError::HistoryTooShort(self.history_ticks));
+        }
+        let needed = self.ticks_in(self.hash_timeout).saturating_add(2);
+        if u64::from(self.hash_window_ticks) < needed {
+            return Err(ConfigError::HashWindowTooShort {
+                window: self.hash_window_ticks,
+                needed,
+            });
+        }
+        if self.silence_timeout.is_zero() || self.ping_interval.is_zero() {
+            return Err(ConfigError::ZeroInterval);
+        }
+        if self.scene.len() > MAX_SCENE_BYTES {
+            return Err(ConfigError::SceneTooLarge(self.scene.len()));
+        }
+        Ok(())
+    }
+
+    /// Time from the start of the match to the deadline of `tick`, when the
+    /// room closes it: `(tick + 1) / tick_rate` seconds, computed in integer
+    /// nanoseconds from the start so it never drifts.
+    pub fn deadline_offset(&self, tick: u64) -> Duration {
+        let nanos = (u128::from(tick) + 1) * 1_000_000_000 / u128::from(self.tick_rate.max(1));
+        Duration::from_nanos(u64::try_from(nanos).unwrap_or(u64::MAX))
+    }
+
+    /// Whole ticks (rounded up) spanned by `d`.
+    pub fn ticks_in(&self, d: Duration) -> u64 {
+        let ticks = (d.as_nanos() * u128::from(self.tick_rate)).div_ceil(1_000_000_000);
+        u64::try_from(ticks).unwrap_or(u64::MAX)
+    }
+}
+
+/// A [`RoomConfig`] that cannot work.
+#[derive(Clone, Debug, PartialEq, Eq, Error)]
+pub enum ConfigError {
+    /// The room name is longer than [`MAX_NAME_BYTES`].
+    #[error("room name of {0} bytes is too long")]
+    NameTooLong(usize),
+    /// A tick rate of zero never closes a tick.
+    #[error("tick rate must be positive")]
+    ZeroTickRate,
+    /// `max_players` is zero or above [`MAX_PLAYERS`].
+    #[error("max_players {0} is outside 1..=MAX_PLAYERS")]
+    MaxPlayers(u8),
+    /// `max_input_bytes` is above [`MAX_INPUT_BYTES`].
+    #[error("max_input_bytes {0} exceeds MAX_INPUT_BYTES")]
+    MaxInputBytes(usize),
+    /// The input window does not exceed the input delay, or is too large.
+    #[error(
+        "input window {window} must exceed input delay {delay} and be at most MAX_INPUT_WINDOW"
+    )]
+    InputWindow {
+        /// Configured window.
+        window: u16,
+        /// Configured delay.
+        delay: u16,
+    },
+    /// The history cannot hold even two bundles.
+    #[error("history of {0} ticks is too short")]
+    HistoryTooShort(u32),
+    /// The hash window is shorter than the hash timeout, so reports would be
+    /// evicted before the room waited for them.
+    #[error("hash window of {window} ticks is shorter than the {needed} the timeout needs")]
+    HashWindowTooShort {
+        /// Configured window.
+        window: u32,
+        /// Ticks the timeout spans, plus margin.
+        needed: u64,
+    },
+    /// A zero silence timeout or ping interval.
+    #[error("silence timeout and ping interval must be positive")]
+    ZeroInterval,
+    /// The scene is larger than [`MAX_SCENE_BYTES`].
+    #[error("scene of {0} bytes is too large")]
+    SceneTooLarge(usize),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_deadlines_do_not_drift() {
+        let c = RoomConfig::new("r", vec![], 0);
+        assert_eq!(c.validate(), Ok(()));
+        assert_eq!(c.deadline_offset(0), Duration::from_nanos(16_666_666));
+        assert_eq!(c.deadline_offset(59), Duration::from_secs(1));
+        assert_eq!(c.deadline_offset(215_999), Duration::from_secs(3600));
+        assert_eq!(c.ticks_in(Duration::from_secs(2)), 120);
+        assert_eq!(c.ticks_in(Duration::from_millis(17)), 2);
+    }
+
+    #[test]
+    fn incoherent_configs_are_refused() {
+        let mut c = RoomConfig::new("r", vec![], 0);
+        c.input_window = 4;
+        assert_eq!(
+            c.validate(),
+            Err(ConfigError::InputWindow {
+                window: 4,
+                delay: 4
+            })
+        );
+        let mut c = RoomConfig::new("r", vec![], 0);
+        c.hash_window_ticks = 100;
+        assert_eq!(
+            c.validate(),
+            Err(ConfigError::HashWindowTooShort {
+                window: 100,
+                needed: 122
+            })
+        );
+        let mut c = RoomConfig::new("r", vec![], 0);
+        c.max_players = 17;
+        assert_eq!(c.validate(), Err(ConfigError::MaxPlayers(17)));
+    }
+}

@@ -1,0 +1,93 @@
+//! What the room hands back to its caller: transmits, events, counters, and
+//! the player handle they are addressed with.
+
+use crate::message::{Channel, DesyncNotice, ServerMessage, Slot, TickBundle};
+
+/// Handle of a seated player: the slot plus a generation, so a message or
+/// transmit meant for a player who left is never confused with the next
+/// occupant of the same slot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PlayerId {
+    /// The seat.
+    pub slot: Slot,
+    /// How many times the seat had been taken before this player.
+    pub generation: u32,
+}
+
+/// A message the caller must send to one player.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Transmit {
+    /// Recipient.
+    pub to: PlayerId,
+    /// The message; encode it with [`ServerMessage::encode`].
+    pub message: ServerMessage,
+}
+
+impl Transmit {
+    /// Channel to send it on.
+    pub fn channel(&self) -> Channel {
+        self.message.channel()
+    }
+}
+
+/// Why a player is no longer in the room.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeaveReason {
+    /// The client sent [`ClientMessage::Leave`](crate::ClientMessage::Leave).
+    Left,
+    /// The caller reported the connection lost ([`Room::disconnect`](super::Room::disconnect)).
+    Disconnected,
+    /// Nothing was heard for [`RoomConfig::silence_timeout`](super::RoomConfig::silence_timeout).
+    TimedOut,
+    /// The client stopped acknowledging bundles until the ones it needs were
+    /// dropped from the history.
+    FellBehind,
+    /// The caller removed the player ([`Room::kick`](super::Room::kick)).
+    Kicked,
+}
+
+/// Something the caller may want to log, record or act on.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum RoomEvent {
+    /// A player took a seat.
+    PlayerJoined {
+        /// Their handle.
+        id: PlayerId,
+        /// Their display name.
+        name: String,
+    },
+    /// A player left; bundles from `from_tick` on no longer include them.
+    PlayerLeft {
+        /// Their handle.
+        id: PlayerId,
+        /// Why.
+        reason: LeaveReason,
+        /// First tick without them.
+        from_tick: u64,
+    },
+    /// A tick closed; this is exactly what every client will apply, so a
+    /// server recording a replay stores these.
+    TickClosed(TickBundle),
+    /// An input arrived after its tick had closed with a substitute.
+    LateInput {
+        /// Whose.
+        id: PlayerId,
+        /// For which tick.
+        tick: u64,
+    },
+    /// Players' hashes differ; the same notice was queued to every player.
+    Desync(DesyncNotice),
+}
+
+/// Room-wide counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RoomStats {
+    /// Ticks closed so far.
+    pub ticks_closed: u64,
+    /// Ticks whose hashes were compared.
+    pub ticks_compared: u64,
+    /// Compared ticks whose hashes differed.
+    pub mismatched_ticks: u64,
+    /// Desync notices raised (one per divergence, not per tick).
+    pub desync_notices: u64,
+}

@@ -1,0 +1,69 @@
+//! One seated player: pending inputs, acknowledgements, liveness and counters.
+
+use std::time::Duration;
+
+use crate::ring::TickRing;
+
+/// Counters the server can log or export per player. They explain a bad
+/// experience after the fact (was it loss, lateness, or a slow client?).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PlayerStats {
+    /// Ticks whose input arrived before the deadline.
+    pub inputs_on_time: u64,
+    /// Ticks where the previous input was substituted.
+    pub inputs_substituted: u64,
+    /// Inputs that arrived after their tick closed with a substitute
+    /// (each tick counted once).
+    pub late_inputs: u64,
+    /// Redundant copies of inputs already received or no longer needed.
+    pub redundant_inputs: u64,
+    /// Hash reports accepted.
+    pub hash_reports: u64,
+    /// Ticks compared without this player's hash (timed out).
+    pub missing_hash_reports: u64,
+    /// Smoothed round-trip time from pings (7/8 old + 1/8 new sample).
+    pub rtt: Option<Duration>,
+}
+
+#[derive(Debug)]
+pub(crate) struct Player {
+    pub(crate) name: String,
+    /// First tick this player is part of.
+    pub(crate) start_tick: u64,
+    /// Inputs received for ticks not yet closed.
+    pub(crate) pending: TickRing<Vec<u8>>,
+    /// Input used for this player in the last closed tick (what a missing
+    /// input is replaced by); empty before the first input.
+    pub(crate) last_input: Vec<u8>,
+    /// Last contiguous bundle tick the client acknowledged.
+    pub(crate) bundle_ack: Option<u64>,
+    pub(crate) last_heard: Duration,
+    pub(crate) next_ping_at: Duration,
+    /// Nonce and send time of the ping awaiting its pong.
+    pub(crate) ping: Option<(u64, Duration)>,
+    pub(crate) stats: PlayerStats,
+}
+
+impl Player {
+    pub(crate) fn new(name: String, start_tick: u64, window: usize, now: Duration) -> Self {
+        Self {
+            name,
+            start_tick,
+            pending: TickRing::new(window),
+            last_input: Vec::new(),
+            bundle_ack: None,
+            last_heard: now,
+            next_ping_at: now,
+            ping: None,
+            stats: PlayerStats::default(),
+        }
+    }
+
+    /// Folds one RTT sample into the smoothed estimate.
+    pub(crate) fn rtt_sample(&mut self, sample: Duration) {
+        self.stats.rtt = Some(match self.stats.rtt {
+            None => sample,
+            Some(old) => (old * 7 + sample) / 8,
+        });
+    }
+}

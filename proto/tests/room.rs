@@ -1,0 +1,502 @@
+//! The room driven by hand: inputs, substitution, lateness, rejections,
+//! joins and datagram sizes, with exact ticks and times.
+
+use std::time::Duration;
+
+use lockstep_proto::{
+    BundleDatagram, ClientMessage, CloseReason, HashReport, InputDatagram, Join, JoinError,
+    LeaveReason, MAX_DATAGRAM_BYTES, MAX_INPUT_BYTES, MAX_PLAYERS, PROTOCOL_VERSION, PlayerId,
+    Rejection, Room, RoomConfig, RoomEvent, ServerMessage, Slot, TickBundle, Transmit,
+};
+
+const MS: Duration = Duration::from_millis(1);
+
+fn join_msg(name: &str) -> Join {
+    Join {
+        protocol_version: PROTOCOL_VERSION,
+        room: "arena".into(),
+        player_name: name.into(),
+    }
+}
+
+fn room_with(players: usize, config: RoomConfig) -> (Room, Vec<PlayerId>) {
+    let mut room = Room::new(config).unwrap();
+    let ids = (0..players)
+        .map(|i| {
+            room.join(Duration::ZERO, &join_msg(&format!("p{i}")))
+                .unwrap()
+        })
+        .collect();
+    room.start(Duration::ZERO).unwrap();
+    drain(&mut room);
+    (room, ids)
+}
+
+fn room(players: usize) -> (Room, Vec<PlayerId>) {
+    room_with(players, RoomConfig::new("arena", vec![], 1))
+}
+
+fn drain(room: &mut Room) -> (Vec<Transmit>, Vec<RoomEvent>) {
+    (
+        std::iter::from_fn(|| room.poll_transmit()).collect(),
+        std::iter::from_fn(|| room.poll_event()).collect(),
+    )
+}
+
+fn input(id: PlayerId, first_tick: u64, inputs: Vec<Vec<u8>>) -> ClientMessage {
+    ClientMessage::Input(InputDatagram {
+        slot: id.slot,
+        ack_bundle: None,
+        first_tick,
+        inputs,
+    })
+}
+
+/// Time at which `tick` has just closed.
+fn after(room: &Room, tick: u64) -> Duration {
+    room.config().deadline_offset(tick)
+}
+
+fn closed(events: &[RoomEvent]) -> Vec<TickBundle> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            RoomEvent::TickClosed(b) => Some(b.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_missing_input_is_replaced_by_the_last_input_and_flagged() {
+    let (mut room, ids) = room(2);
+    for tick in 0..6u64 {
+        room.handle_message(MS, ids[0], input(ids[0], tick, vec![vec![10 + tick as u8]]))
+            .unwrap();
+        if tick != 3 && tick != 4 {
+            room.handle_message(MS, ids[1], input(ids[1], tick, vec![vec![20 + tick as u8]]))
+                .unwrap();
+        }
+    }
+    room.handle_timeout(after(&room, 5));
+    let (_, events) = drain(&mut room);
+    let bundles = closed(&events);
+    assert_eq!(bundles.len(), 6);
+    let p1: Vec<(u8, bool)> = bundles
+        .iter()
+        .map(|b| (b.inputs[1].input[0], b.inputs[1].substituted))
+        .collect();
+    assert_eq!(
+        p1,
+        vec![
+            (20, false),
+            (21, false),
+            (22, false),
+            (22, true),
+            (22, true),
+            (25, false)
+        ]
+    );
+    assert_eq!(bundles[3].substituted(), vec![Slot(1)]);
+    assert!(bundles.iter().all(|b| !b.inputs[0].substituted));
+    let st = room.player_stats(ids[1]).unwrap();
+    assert_eq!((st.inputs_on_time, st.inputs_substituted), (4, 2));
+}
+
+#[test]
+fn a_player_with_no_input_yet_gets_an_empty_substitute() {
+    let (mut room, ids) = room(1);
+    room.handle_timeout(after(&room, 0));
+    let (_, events) = drain(&mut room);
+    let b = &closed(&events)[0];
+    assert_eq!(b.inputs[0].input, Vec::<u8>::new());
+    assert!(b.inputs[0].substituted);
+    assert_eq!(room.player_stats(ids[0]).unwrap().inputs_substituted, 1);
+}
+
+#[test]
+fn a_late_input_after_its_tick_closed_is_ignored_and_counted_once() {
+    let (mut room, ids) = room(1);
+    room.handle_message(MS, ids[0], input(ids[0], 0, vec![vec![1]]))
+        .unwrap();
+    room.handle_timeout(after(&room, 1));
+    drain(&mut room);
+    assert!(room.bundle(1).unwrap().inputs[0].substituted);
+    // Tick 1 arrives after closing; sent twice (redundancy), with tick 2.
+    let late = input(ids[0], 1, vec![vec![9], vec![2]]);
+    room.handle_message(after(&room, 1) + MS, ids[0], late.clone())
+        .unwrap();
+    room.handle_message(after(&room, 1) + MS, ids[0], late)
+        .unwrap();
+    let (_, events) = drain(&mut room);
+    assert_eq!(
+        events,
+        vec![RoomEvent::LateInput {
+            id: ids[0],
+            tick: 1
+        }]
+    );
+    let b1 = room.bundle(1).unwrap();
+    assert_eq!(
+        (b1.inputs[0].input.clone(), b1.inputs[0].substituted),
+        (vec![1], true)
+    );
+    let st = room.player_stats(ids[0]).unwrap();
+    assert_eq!(st.late_inputs, 1);
+    // Second copy of tick 1 and of tick 2 are redundant.
+    assert_eq!(st.redundant_inputs, 2);
+    room.handle_timeout(after(&room, 2));
+    assert_eq!(room.bundle(2).unwrap().inputs[0].input, vec![2]);
+}
+
+#[test]
+fn an_input_for_another_players_slot_is_rejected_with_wrong_slot() {
+    let (mut room, ids) = room(2);
+    let forged = input(ids[1], 0, vec![vec![6]]);
+    assert_eq!(
+        room.handle_message(MS, ids[0], forged),
+        Err(Rejection::WrongSlot {
+            claimed: Slot(1),
+            actual: Slot(0)
+        })
+    );
+    room.handle_timeout(after(&room, 0));
+    let (_, events) = drain(&mut room);
+    assert!(closed(&events)[0].inputs[1].substituted, "nothing applied");
+    let close = Rejection::WrongSlot {
+        claimed: Slot(1),
+        actual: Slot(0),
+    }
+    .to_close();
+    assert_eq!(close.reason, CloseReason::ProtocolViolation);
+}
+
+#[test]
+fn inputs_outside_the_window_oversized_or_conflicting_are_rejected_atomically() {
+    let (mut room, ids) = room(1);
+    let id = ids[0];
+    // Window is 64 ticks from the next open tick (0): 0..=63.
+    assert_eq!(
+        room.handle_message(MS, id, input(id, 60, vec![vec![1]; 5])),
+        Err(Rejection::TickOutOfWindow {
+            tick: 64,
+            lowest: 0,
+            highest: 63
+        })
+    );
+    assert_eq!(
+        room.handle_message(
+            MS,
+            id,
+            input(id, 0, vec![vec![1], vec![0; MAX_INPUT_BYTES + 1]])
+        ),
+        Err(Rejection::InputTooLarge {
+            tick: 1,
+            len: 65,
+            max: 64
+        })
+    );
+    room.handle_message(MS, id, input(id, 0, vec![vec![1], vec![2]]))
+        .unwrap();
+    assert_eq!(
+        room.handle_message(MS, id, input(id, 1, vec![vec![3]])),
+        Err(Rejection::InputConflict { tick: 1 })
+    );
+    room.handle_timeout(after(&room, 1));
+    // After closing, a different copy of an on-time input is still a conflict.
+    assert_eq!(
+        room.handle_message(after(&room, 1), id, input(id, 0, vec![vec![5]])),
+        Err(Rejection::InputConflict { tick: 0 })
+    );
+    // The first refused datagram's tick 60 was not stored.
+    room.handle_timeout(after(&room, 60));
+    assert!(room.bundle(60).unwrap().inputs[0].substituted);
+    let mut small = RoomConfig::new("arena", vec![], 1);
+    small.max_input_bytes = 4;
+    let (mut room, ids) = room_with(1, small);
+    assert_eq!(
+        room.handle_message(MS, ids[0], input(ids[0], 0, vec![vec![0; 5]])),
+        Err(Rejection::InputTooLarge {
+            tick: 0,
+            len: 5,
+            max: 4
+        })
+    );
+}
+
+#[test]
+fn hash_reports_for_unclosed_or_unplayed_ticks_and_conflicts_are_rejected() {
+    let (mut room, ids) = room(2);
+    let report = |tick, hash| {
+        ClientMessage::HashReport(HashReport {
+            tick,
+            hash,
+            body_hashes: None,
+        })
+    };
+    assert_eq!(
+        room.handle_message(MS, ids[0], report(0, 1)),
+        Err(Rejection::HashForUnclosedTick {
+            tick: 0,
+            next_tick: 0
+        })
+    );
+    room.handle_timeout(after(&room, 0));
+    room.handle_message(after(&room, 0), ids[0], report(0, 1))
+        .unwrap();
+    assert_eq!(
+        room.handle_message(after(&room, 0), ids[0], report(0, 2)),
+        Err(Rejection::HashConflict { tick: 0 })
+    );
+    assert_eq!(
+        room.handle_message(after(&room, 0), ids[0], ClientMessage::Join(join_msg("x"))),
+        Err(Rejection::UnexpectedMessage("join"))
+    );
+    let ack = ClientMessage::Input(InputDatagram {
+        slot: ids[0].slot,
+        ack_bundle: Some(1),
+        first_tick: 1,
+        inputs: vec![],
+    });
+    assert_eq!(
+        room.handle_message(after(&room, 0), ids[0], ack),
+        Err(Rejection::AckFromFuture {
+            ack: 1,
+            next_tick: 1
+        })
+    );
+}
+
+#[test]
+fn a_hash_compare_waits_for_all_then_times_out_with_the_missing_counted() {
+    let (mut room, ids) = room(3);
+    let report = |tick, hash| {
+        ClientMessage::HashReport(HashReport {
+            tick,
+            hash,
+            body_hashes: None,
+        })
+    };
+    room.handle_timeout(after(&room, 0));
+    room.handle_message(after(&room, 0), ids[0], report(0, 7))
+        .unwrap();
+    room.handle_message(after(&room, 0), ids[1], report(0, 8))
+        .unwrap();
+    assert_eq!(room.stats().ticks_compared, 0, "waits for slot 2");
+    // The default timeout is 2 s after the tick closed.
+    let timeout = after(&room, 0) + Duration::from_secs(2);
+    assert!(room.poll_timeout().unwrap() <= timeout);
+    room.handle_timeout(timeout);
+    let (transmits, events) = drain(&mut room);
+    let notice = events
+        .iter()
+        .find_map(|e| match e {
+            RoomEvent::Desync(n) => Some(n.clone()),
+            _ => None,
+        })
+        .unwrap();
+    assert_eq!(notice.tick, 0);
+    assert_eq!(
+        notice.hashes.iter().map(|h| h.hash).collect::<Vec<_>>(),
+        vec![Some(7), Some(8), None]
+    );
+    assert_eq!(notice.verdict, lockstep_proto::Verdict::Undecided);
+    let to: Vec<_> = transmits
+        .iter()
+        .filter(|t| matches!(t.message, ServerMessage::Desync(_)))
+        .map(|t| t.to)
+        .collect();
+    assert_eq!(to, ids);
+    assert_eq!(room.player_stats(ids[2]).unwrap().missing_hash_reports, 1);
+}
+
+#[test]
+fn joins_are_refused_when_full_wrong_version_wrong_room_or_started() {
+    let mut cfg = RoomConfig::new("arena", vec![], 1);
+    cfg.max_players = 2;
+    let mut room = Room::new(cfg).unwrap();
+    let a = room.join(Duration::ZERO, &join_msg("a")).unwrap();
+    room.join(Duration::ZERO, &join_msg("b")).unwrap();
+    assert_eq!(
+        room.join(Duration::ZERO, &join_msg("c")),
+        Err(JoinError::RoomFull(2))
+    );
+    let mut old = join_msg("d");
+    old.protocol_version = PROTOCOL_VERSION + 1;
+    assert_eq!(
+        room.join(Duration::ZERO, &old),
+        Err(JoinError::VersionMismatch {
+            client: PROTOCOL_VERSION + 1,
+            server: PROTOCOL_VERSION
+        })
+    );
+    let mut elsewhere = join_msg("e");
+    elsewhere.room = "lobby".into();
+    assert_eq!(
+        room.join(Duration::ZERO, &elsewhere),
+        Err(JoinError::WrongRoom("lobby".into()))
+    );
+    // A seat freed in the lobby is reused under a new generation; the old
+    // handle no longer reaches anyone.
+    room.handle_message(MS, a, ClientMessage::Leave).unwrap();
+    let a2 = room.join(MS, &join_msg("f")).unwrap();
+    assert_eq!((a2.slot, a2.generation), (Slot(0), 1));
+    assert_eq!(
+        room.handle_message(MS, a, ClientMessage::Leave),
+        Err(Rejection::UnknownPlayer(a))
+    );
+    room.start(MS).unwrap();
+    assert_eq!(room.start(MS), Err(lockstep_proto::AlreadyStarted));
+    room.handle_message(MS, a2, ClientMessage::Leave).unwrap();
+    assert_eq!(
+        room.join(MS, &join_msg("g")),
+        Err(JoinError::MatchInProgress)
+    );
+    assert_eq!(
+        JoinError::MatchInProgress.to_close().reason,
+        CloseReason::MatchInProgress
+    );
+}
+
+#[test]
+fn the_welcome_carries_the_room_parameters_and_scene() {
+    let mut room = Room::new(RoomConfig::new("arena", vec![1, 2, 3], 0x55)).unwrap();
+    let id = room.join(Duration::ZERO, &join_msg("a")).unwrap();
+    let (transmits, events) = drain(&mut room);
+    let ServerMessage::Welcome(w) = &transmits[0].message else {
+        panic!("expected a welcome");
+    };
+    assert_eq!(transmits[0].to, id);
+    assert_eq!(
+        (
+            w.slot,
+            w.tick_rate,
+            w.input_delay,
+            w.input_window,
+            w.start_tick
+        ),
+        (Slot(0), 60, 4, 64, 0)
+    );
+    assert_eq!(
+        (w.scene.clone(), w.scene_hash, w.max_input_bytes),
+        (vec![1, 2, 3], 0x55, 64)
+    );
+    assert_eq!(
+        events,
+        vec![RoomEvent::PlayerJoined {
+            id,
+            name: "a".into()
+        }]
+    );
+}
+
+#[test]
+fn a_client_that_never_acknowledges_falls_behind_and_is_dropped() {
+    let mut cfg = RoomConfig::new("arena", vec![], 1);
+    cfg.history_ticks = 32;
+    cfg.silence_timeout = Duration::from_secs(60);
+    let (mut room, ids) = room_with(2, cfg);
+    for tick in 0..40u64 {
+        // Player 0 acknowledges each bundle; player 1 never does.
+        let msg = ClientMessage::Input(InputDatagram {
+            slot: ids[0].slot,
+            ack_bundle: tick.checked_sub(1),
+            first_tick: tick,
+            inputs: vec![vec![0]],
+        });
+        let now = after(&room, tick.saturating_sub(1));
+        room.handle_message(now, ids[0], msg).unwrap();
+        room.handle_timeout(after(&room, tick));
+    }
+    let (transmits, events) = drain(&mut room);
+    let left: Vec<_> = events
+        .iter()
+        .filter_map(|e| match e {
+            RoomEvent::PlayerLeft {
+                id,
+                reason,
+                from_tick,
+            } => Some((*id, *reason, *from_tick)),
+            _ => None,
+        })
+        .collect();
+    // Bundle 0 leaves the 32-tick history when tick 32 closes.
+    assert_eq!(left, vec![(ids[1], LeaveReason::FellBehind, 33)]);
+    assert!(transmits.iter().any(|t| t.to == ids[1]
+        && matches!(&t.message, ServerMessage::Close(c) if c.reason == CloseReason::FellBehind)));
+    assert_eq!(room.player_count(), 1);
+}
+
+#[test]
+fn bundle_datagrams_stay_under_the_mtu_in_the_largest_room() {
+    let mut cfg = RoomConfig::new("arena", vec![], 1);
+    cfg.max_players = MAX_PLAYERS as u8;
+    let (mut room, ids) = room_with(MAX_PLAYERS, cfg);
+    // Every player sends maximal inputs; nobody acknowledges any bundle, so
+    // the room always has more to resend than fits.
+    let mut sizes = Vec::new();
+    for tick in 0..40u64 {
+        for &id in &ids {
+            let msg = input(id, tick, vec![vec![0xEE; MAX_INPUT_BYTES]]);
+            room.handle_message(after(&room, tick.saturating_sub(1)), id, msg)
+                .unwrap();
+        }
+        room.handle_timeout(after(&room, tick));
+        let (transmits, _) = drain(&mut room);
+        for t in transmits {
+            if let ServerMessage::Bundles(BundleDatagram { bundles, .. }) = &t.message {
+                let bytes = t.message.encode().unwrap();
+                assert!(bytes.len() <= MAX_DATAGRAM_BYTES, "{} bytes", bytes.len());
+                sizes.push((bundles.len(), bytes.len()));
+            }
+        }
+    }
+    // One full bundle: tick 1 + count 1 + 16 × (slot 1 + len 1 + 64 + flag 1)
+    // = 1074 bytes, so exactly one fits and it is the newest. The datagram
+    // adds version 2 + variant 1 + ack Some(t) 2 + bundle count 1 = 1080.
+    // Even with 9-byte ticks and ack (after 2^32 ticks) it is 1096 < 1150.
+    assert!(sizes.iter().all(|&(n, _)| n == 1));
+    let largest = sizes.iter().map(|s| s.1).max().unwrap();
+    assert_eq!(largest, 1080);
+}
+
+#[test]
+fn pings_measure_rtt_and_silence_drops_the_player() {
+    let (mut room, ids) = room(1);
+    room.handle_timeout(Duration::ZERO);
+    let (transmits, _) = drain(&mut room);
+    let nonce = transmits
+        .iter()
+        .find_map(|t| match t.message {
+            ServerMessage::Ping(p) => Some(p.nonce),
+            _ => None,
+        })
+        .unwrap();
+    room.handle_message(
+        Duration::from_millis(80),
+        ids[0],
+        ClientMessage::Pong(lockstep_proto::Pong { nonce }),
+    )
+    .unwrap();
+    assert_eq!(
+        room.player_stats(ids[0]).unwrap().rtt,
+        Some(Duration::from_millis(80))
+    );
+    // Heard at 80 ms; dropped at 5.08 s, not before.
+    room.handle_timeout(Duration::from_millis(5079));
+    assert_eq!(room.player_count(), 1);
+    room.handle_timeout(Duration::from_millis(5080));
+    assert_eq!(room.player_count(), 0);
+    let (_, events) = drain(&mut room);
+    assert!(events.iter().any(|e| matches!(
+        e,
+        RoomEvent::PlayerLeft {
+            reason: LeaveReason::TimedOut,
+            ..
+        }
+    )));
+    // The room keeps ticking with nobody in it.
+    let before = room.next_tick();
+    room.handle_timeout(Duration::from_secs(6));
+    assert!(room.next_tick() > before);
+}
