@@ -8,7 +8,9 @@ fn lockstep() -> Command {
 }
 
 fn scene(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenes")
+        .join(name)
 }
 
 fn temp_dir(tag: &str) -> PathBuf {
@@ -25,7 +27,11 @@ fn sim_prints_one_hash_line_per_hashed_tick() {
         .args(["--ticks", "120", "--hash-every", "30"])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines.len(), 4);
@@ -57,11 +63,19 @@ fn dump_state_writes_exact_decimals_for_every_body() {
         .arg(&dump)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&dump).unwrap()).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&dump).unwrap()).unwrap();
     assert_eq!(json["tick"], 60);
     let printed_hash = String::from_utf8(out.stdout).unwrap();
-    assert_eq!(printed_hash.trim(), format!("tick 60 {}", json["state_hash"].as_str().unwrap()));
+    assert_eq!(
+        printed_hash.trim(),
+        format!("tick 60 {}", json["state_hash"].as_str().unwrap())
+    );
     let bodies = json["bodies"].as_array().unwrap();
     assert!(!bodies.is_empty());
     for b in bodies {
@@ -85,7 +99,12 @@ fn a_bad_scene_file_is_a_clear_error_with_file_line_and_column() {
     let dir = temp_dir("bad");
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "[world]\ntick_rate = 60\n\n[[bodies]]\nname = \"ball\"\nkind = \"dynamic\"\n[[bodies.shapes]]\nkind = \"sphere\"\nradius = -1\n").unwrap();
-    let out = lockstep().args(["sim", "--scene"]).arg(&bad).args(["--ticks", "10"]).output().unwrap();
+    let out = lockstep()
+        .args(["sim", "--scene"])
+        .arg(&bad)
+        .args(["--ticks", "10"])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.starts_with("lockstep sim: error: "), "{err}");
@@ -93,11 +112,23 @@ fn a_bad_scene_file_is_a_clear_error_with_file_line_and_column() {
     assert!(err.contains("radius"), "{err}");
     assert!(out.stdout.is_empty());
 
-    let missing = lockstep().args(["sim", "--scene", "/nonexistent/scene.toml", "--ticks", "1"]).output().unwrap();
+    let missing = lockstep()
+        .args(["sim", "--scene", "/nonexistent/scene.toml", "--ticks", "1"])
+        .output()
+        .unwrap();
     assert_eq!(missing.status.code(), Some(2));
-    assert!(String::from_utf8(missing.stderr).unwrap().contains("/nonexistent/scene.toml"));
+    assert!(
+        String::from_utf8(missing.stderr)
+            .unwrap()
+            .contains("/nonexistent/scene.toml")
+    );
 
-    let zero = lockstep().args(["sim", "--scene"]).arg(scene("spin.toml")).args(["--ticks", "1", "--hash-every", "0"]).output().unwrap();
+    let zero = lockstep()
+        .args(["sim", "--scene"])
+        .arg(scene("spin.toml"))
+        .args(["--ticks", "1", "--hash-every", "0"])
+        .output()
+        .unwrap();
     assert_eq!(zero.status.code(), Some(2));
     std::fs::remove_dir_all(dir).ok();
 }

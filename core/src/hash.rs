@@ -105,12 +105,55 @@ impl StateHasher {
 }
 
 /// A fingerprint of a shape's geometry, computed once when a collider is
-/// added (shapes never change afterwards).
+/// added (shapes never change afterwards). The words, per kind, are listed
+/// in `docs/determinism.md`.
 pub fn shape_hash(shape: &crate::shape::Shape) -> u64 {
+    use crate::shape::Shape;
     let mut h = StateHasher::new();
-    let bytes =
-        bincode::serde::encode_to_vec(shape, bincode::config::standard()).unwrap_or_default();
-    h.bytes(&bytes);
+    match shape {
+        Shape::Sphere(s) => {
+            h.word(0);
+            h.scalar(s.radius);
+        }
+        Shape::Capsule(c) => {
+            h.word(1);
+            h.scalar(c.half_height);
+            h.scalar(c.radius);
+        }
+        Shape::Cuboid(b) => {
+            h.word(2);
+            h.vec3(b.half_extents);
+        }
+        Shape::ConvexHull(hull) => {
+            h.word(3);
+            h.word(hull.vertices().len() as u64);
+            for v in hull.vertices() {
+                h.vec3(*v);
+            }
+        }
+        Shape::TriMesh(mesh) => {
+            h.word(4);
+            h.word(mesh.vertices().len() as u64);
+            for v in mesh.vertices() {
+                h.vec3(*v);
+            }
+            h.word(mesh.indices().len() as u64);
+            for t in mesh.indices() {
+                for &i in t {
+                    h.word(i as u64);
+                }
+            }
+        }
+        Shape::HeightField(f) => {
+            h.word(5);
+            h.word(f.rows() as u64);
+            h.word(f.cols() as u64);
+            h.vec3(f.scale());
+            for &y in f.heights() {
+                h.scalar(y);
+            }
+        }
+    }
     h.finish()
 }
 

@@ -40,7 +40,13 @@ pub fn golden_lines(scene: &Path) -> String {
     let mut out = String::new();
     for _ in 0..GOLDEN_TICKS {
         let r = world.step();
-        assert!(r.faults.is_empty(), "{}: tick {}: {}", scene.display(), r.tick, r.faults);
+        assert!(
+            r.faults.is_empty(),
+            "{}: tick {}: {}",
+            scene.display(),
+            r.tick,
+            r.faults
+        );
         if r.tick.is_multiple_of(GOLDEN_EVERY) {
             out.push_str(&format!("tick {} {:016x}\n", r.tick, world.state_hash()));
         }

@@ -48,7 +48,9 @@ pub enum SimError {
     Scene(#[from] SceneError),
     /// The simulation raised an arithmetic fault: its results, and every
     /// hash from here on, cannot be trusted.
-    #[error("arithmetic fault at tick {tick}: {faults} (the scene is outside the fixed-point range)")]
+    #[error(
+        "arithmetic fault at tick {tick}: {faults} (the scene is outside the fixed-point range)"
+    )]
     Fault {
         /// The tick whose step raised it.
         tick: u64,
@@ -73,7 +75,10 @@ pub fn load_scene_file(path: &Path) -> Result<World, SimError> {
         path: path.to_path_buf(),
         source,
     })?;
-    Ok(lockstep_core::scene::load_world(&text, &path.display().to_string())?)
+    Ok(lockstep_core::scene::load_world(
+        &text,
+        &path.display().to_string(),
+    )?)
 }
 
 /// Runs `lockstep sim`, writing `tick <n> <hash>` lines to `out`.
@@ -82,7 +87,9 @@ pub fn load_scene_file(path: &Path) -> Result<World, SimError> {
 /// See [`SimError`].
 pub fn run_sim(opts: &SimOptions, out: &mut impl Write) -> Result<SimSummary, SimError> {
     if opts.hash_every == 0 {
-        return Err(SimError::InvalidArgument("--hash-every must be at least 1".into()));
+        return Err(SimError::InvalidArgument(
+            "--hash-every must be at least 1".into(),
+        ));
     }
     let mut world = load_scene_file(&opts.scene)?;
     for _ in 0..opts.ticks {
@@ -94,7 +101,8 @@ pub fn run_sim(opts: &SimOptions, out: &mut impl Write) -> Result<SimSummary, Si
             });
         }
         if report.tick.is_multiple_of(opts.hash_every) {
-            writeln!(out, "tick {} {:016x}", report.tick, world.state_hash()).map_err(SimError::Output)?;
+            writeln!(out, "tick {} {:016x}", report.tick, world.state_hash())
+                .map_err(SimError::Output)?;
         }
     }
     if let Some(path) = &opts.dump_state {

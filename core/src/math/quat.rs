@@ -9,7 +9,7 @@ use std::ops::Mul;
 use serde::{Deserialize, Serialize};
 
 use super::elem;
-use super::scalar::{Scalar, narrow, round_shift, saturated_product, wide_sum};
+use super::scalar::{Scalar, wide_sum};
 use super::vec3::Vec3;
 
 /// A quaternion `w + xi + yj + zk`; rotations use unit quaternions.
@@ -110,19 +110,8 @@ impl Quat {
         if sq == 0 {
             return Quat::IDENTITY;
         }
-        let shift = sq.leading_zeros().saturating_sub(2) & !1;
-        let half_shift = shift / 2;
-        let len_ext = elem::isqrt_u128(sq << shift) as u128;
-        let inv = ((1u128 << 126) / len_ext) as i128;
-        let unit = |c: Scalar| {
-            Scalar::from_bits(narrow(round_shift(
-                (c.to_bits() as i128)
-                    .checked_mul(inv)
-                    .unwrap_or_else(|| saturated_product(c)),
-                94 - half_shift,
-            )))
-        };
-        Quat::from_xyzw(unit(self.x), unit(self.y), unit(self.z), unit(self.w))
+        let ([x, y, z, w], _) = super::vec3::scale_to_unit([self.x, self.y, self.z, self.w], sq);
+        Quat::from_xyzw(x, y, z, w)
     }
 
     /// Rotates a vector: `q v q*`, as `v + w t + q×t` with `t = 2 q×v`.

@@ -149,23 +149,8 @@ impl Vec3 {
         if sq == 0 {
             return None;
         }
-        // Scale by an even power of two so the square root has 62-63 bits.
-        let shift = sq.leading_zeros().saturating_sub(2) & !1;
-        let half_shift = shift / 2;
-        let len_ext = elem::isqrt_u128(sq << shift) as u128; // in [2^62, 2^63)
-        let inv = ((1u128 << 126) / len_ext) as i128; // in (2^63, 2^64]
-        let unit = |c: Scalar| {
-            Scalar::from_bits(narrow(round_shift(
-                (c.to_bits() as i128)
-                    .checked_mul(inv)
-                    .unwrap_or_else(|| saturated_product(c)),
-                94 - half_shift,
-            )))
-        };
-        Some((
-            Vec3::new(unit(self.x), unit(self.y), unit(self.z)),
-            Scalar::from_bits((len_ext >> half_shift) as i64),
-        ))
+        let ([x, y, z], len) = scale_to_unit([self.x, self.y, self.z], sq);
+        Some((Vec3::new(x, y, z), len))
     }
 
     /// The unit vector in the same direction, or `None` for the zero vector.
@@ -323,6 +308,30 @@ impl MulAssign<Scalar> for Vec3 {
     fn mul_assign(&mut self, s: Scalar) {
         *self = *self * s;
     }
+}
+
+/// Divides `components` by the square root of `sq` (their exact sum of
+/// squares, Q64.64, non-zero), each to within 1 ulp; also returns that root
+/// (floor). The sum is scaled by an even power of two to 124-126 bits before
+/// the integer square root, so short vectors keep their precision; one
+/// 128-bit division gives a 64-bit reciprocal shared by all components.
+pub(crate) fn scale_to_unit<const N: usize>(
+    components: [Scalar; N],
+    sq: u128,
+) -> ([Scalar; N], Scalar) {
+    let shift = sq.leading_zeros().saturating_sub(2) & !1;
+    let half_shift = shift / 2;
+    let len_ext = elem::isqrt_u128(sq << shift) as u128; // in [2^62, 2^63)
+    let inv = ((1u128 << 126) / len_ext) as i128; // in (2^63, 2^64]
+    let unit = components.map(|c| {
+        Scalar::from_bits(narrow(round_shift(
+            (c.to_bits() as i128)
+                .checked_mul(inv)
+                .unwrap_or_else(|| saturated_product(c)),
+            94 - half_shift,
+        )))
+    });
+    (unit, Scalar::from_bits((len_ext >> half_shift) as i64))
 }
 
 #[cfg(test)]

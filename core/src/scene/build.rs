@@ -11,7 +11,7 @@ use crate::math::{Scalar, Transform};
 use crate::shape::{Capsule, ConvexHull, Cuboid, HeightField, Shape, Sphere, TriMesh};
 use crate::world::{World, WorldConfig};
 
-use super::desc::{BodyKindDesc, GeometryDesc, SceneDesc, ShapeDesc};
+use super::desc::{GeometryDesc, SceneDesc, ShapeDesc};
 use super::error::{SceneError, SceneErrorKind};
 use super::parse::parse_scene;
 
@@ -44,13 +44,10 @@ pub fn build_world(desc: &SceneDesc, file_name: &str) -> Result<World, SceneErro
         kind,
         message,
     };
-    let mut world = World::new(config).map_err(|e| at(1, SceneErrorKind::OutOfRange, e.to_string()))?;
+    let mut world =
+        World::new(config).map_err(|e| at(1, SceneErrorKind::OutOfRange, e.to_string()))?;
     for body in &desc.bodies {
-        let kind = match body.kind {
-            BodyKindDesc::Static => BodyKind::Static,
-            BodyKindDesc::Dynamic => BodyKind::Dynamic,
-            BodyKindDesc::Kinematic => BodyKind::Kinematic,
-        };
+        let kind = body.kind;
         let world_desc = WorldBodyDesc {
             kind,
             name: body.name.clone(),
@@ -64,19 +61,31 @@ pub fn build_world(desc: &SceneDesc, file_name: &str) -> Result<World, SceneErro
             asleep: body.asleep,
             user_data: 0,
         };
-        let handle = world
-            .create_body(&world_desc)
-            .map_err(|e| at(body.line, SceneErrorKind::OutOfRange, format!("body {:?}: {e}", body.name)))?;
+        let handle = world.create_body(&world_desc).map_err(|e| {
+            at(
+                body.line,
+                SceneErrorKind::OutOfRange,
+                format!("body {:?}: {e}", body.name),
+            )
+        })?;
         for shape in &body.shapes {
             let collider = collider_desc(shape).map_err(|e| {
                 at(
                     shape.line,
                     SceneErrorKind::BadGeometry,
-                    format!("body {:?}: {} shape: {e}", body.name, shape.geometry.kind_name()),
+                    format!(
+                        "body {:?}: {} shape: {e}",
+                        body.name,
+                        shape.geometry.kind_name()
+                    ),
                 )
             })?;
             world.add_collider(handle, collider).map_err(|e| {
-                at(shape.line, SceneErrorKind::BadGeometry, format!("body {:?}: {e}", body.name))
+                at(
+                    shape.line,
+                    SceneErrorKind::BadGeometry,
+                    format!("body {:?}: {e}", body.name),
+                )
             })?;
         }
         // Velocities were set before the colliders gave the body its
@@ -105,7 +114,9 @@ fn collider_desc(s: &ShapeDesc) -> Result<ColliderDesc, crate::shape::ShapeError
             radius,
         } => Shape::Capsule(Capsule::new(*half_height, *radius)?),
         GeometryDesc::Box { half_extents } => Shape::Cuboid(Cuboid::new(*half_extents)?),
-        GeometryDesc::ConvexHull { points } => Shape::ConvexHull(Arc::new(ConvexHull::from_points(points)?)),
+        GeometryDesc::ConvexHull { points } => {
+            Shape::ConvexHull(Arc::new(ConvexHull::from_points(points)?))
+        }
         GeometryDesc::TriMesh { vertices, indices } => {
             Shape::TriMesh(Arc::new(TriMesh::new(vertices.clone(), indices.clone())?))
         }
@@ -114,7 +125,12 @@ fn collider_desc(s: &ShapeDesc) -> Result<ColliderDesc, crate::shape::ShapeError
             cols,
             heights,
             scale,
-        } => Shape::HeightField(Arc::new(HeightField::new(*rows, *cols, heights.clone(), *scale)?)),
+        } => Shape::HeightField(Arc::new(HeightField::new(
+            *rows,
+            *cols,
+            heights.clone(),
+            *scale,
+        )?)),
     };
     Ok(ColliderDesc {
         shape,

@@ -108,29 +108,9 @@ pub const DEFAULT_RESTITUTION: Scalar = Scalar::ZERO;
 /// gives no density: 1000 kg/m³ (water).
 pub const DEFAULT_DENSITY: Scalar = Scalar::from_int(1000);
 
-/// How a body moves.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum BodyKindDesc {
-    /// Never moves; infinite mass. The only kind that may hold triangle
-    /// meshes and height fields.
-    Static,
-    /// Moved by forces, gravity and contacts.
-    Dynamic,
-    /// Moved only by its velocity (set by the game); pushes dynamic bodies
-    /// but is not pushed back.
-    Kinematic,
-}
-
-impl BodyKindDesc {
-    /// The name used in scene files: `static`, `dynamic` or `kinematic`.
-    pub fn name(self) -> &'static str {
-        match self {
-            BodyKindDesc::Static => "static",
-            BodyKindDesc::Dynamic => "dynamic",
-            BodyKindDesc::Kinematic => "kinematic",
-        }
-    }
-}
+/// How a body moves: the world's own type (the scene names it `kind =
+/// "static" | "dynamic" | "kinematic"`).
+pub use crate::body::BodyKind as BodyKindDesc;
 
 /// One `[[bodies]]` entry.
 #[derive(Clone, Debug, PartialEq)]

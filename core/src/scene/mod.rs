@@ -19,10 +19,10 @@ mod shape;
 #[cfg(test)]
 mod tests;
 
+pub use build::{build_world, load_world};
 pub use desc::{
     BodyDesc, BodyKindDesc, DEFAULT_DENSITY, DEFAULT_FRICTION, DEFAULT_RESTITUTION, GeometryDesc,
     MassSpec, MaterialDesc, SceneDesc, ShapeDesc, WorldDesc,
 };
-pub use build::{build_world, load_world};
 pub use error::{SceneError, SceneErrorKind};
 pub use parse::parse_scene;

@@ -324,9 +324,9 @@ impl World {
         hot.center = origin.transform_point(props.local_center);
         if hot.kind == BodyKind::Dynamic {
             cold.mass = props.mass;
-            hot.inv_mass = props.mass.recip();
+            hot.inv_mass = props.inverse_mass();
             hot.inertia = props.inertia;
-            hot.inv_inertia = props.inertia.try_inverse().unwrap_or(SymMat3::ZERO);
+            hot.inv_inertia = props.inverse_inertia().unwrap_or(SymMat3::ZERO);
             let i = &props.inertia;
             hot.isotropic =
                 i.xx == i.yy && i.yy == i.zz && i.xy.is_zero() && i.xz.is_zero() && i.yz.is_zero();
