@@ -137,7 +137,7 @@ pub struct PairStats {
     pub buffer_growths: u32,
 }
 
-/// One entry of the proxy table. 24 bytes.
+/// One entry of the proxy table. 16 bytes.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 struct Slot {
     key: ProxyKey,
@@ -149,6 +149,8 @@ struct Slot {
     /// the previous update): its old pairs are dropped, it queries anew.
     moved: bool,
 }
+
+const _: () = assert!(std::mem::size_of::<Slot>() == 16);
 
 /// A candidate pair, normalised so that `(a, ia) < (b, ib)`. The derived
 /// order (keys first, then ids) is total, so sorting is deterministic even

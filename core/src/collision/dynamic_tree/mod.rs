@@ -92,6 +92,8 @@ struct Node {
     height: u32,
 }
 
+const _: () = assert!(std::mem::size_of::<Node>() == 72);
+
 impl Node {
     const EMPTY: Node = Node {
         aabb: Aabb::new(Vec3::ZERO, Vec3::ZERO),

@@ -458,6 +458,13 @@ fn a_restored_snapshot_continues_with_the_same_pairs() {
 
 /// Timing figure: `cargo test --release -p lockstep-core -- --ignored
 /// --nocapture broad`.
+///
+/// Measured on the 2-vCPU dev machine (shared with other builds, load ~5):
+/// best 422 ms for the 100 steps (4.2 ms/step: 2.7 ms in `move_proxy` for
+/// ~2,900 reinsertions, 1.5 ms in `update_pairs` for ~5,750 tree queries and
+/// ~2,900 pairs), 6–9 ms/step when the machine is busy; CPU time 4.2
+/// ms/step. First update (10,001 proxies, all new) 5–6 ms. Moving-tree
+/// height 19.
 #[test]
 #[ignore]
 fn broad_phase_timing_10000_moving_proxies_100_steps() {
