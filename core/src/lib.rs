@@ -9,6 +9,7 @@
 pub mod arena;
 pub mod body;
 pub mod collider;
+pub mod collision;
 pub mod hash;
 pub mod math;
 pub mod scene;
