@@ -353,6 +353,7 @@ impl Div for Scalar {
     /// toward the dividend's sign and raises `DIV_BY_ZERO`; overflow
     /// saturates and raises `OVERFLOW`.
     #[inline]
+    #[allow(clippy::suspicious_arithmetic_impl)] // the << 32 is the Q32.32 rescale
     fn div(self, rhs: Scalar) -> Scalar {
         if rhs.is_zero() {
             faults::raise(Faults::DIV_BY_ZERO);
