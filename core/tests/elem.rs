@@ -429,3 +429,36 @@ fn asin_and_acos_clamp_out_of_range_inputs_and_raise_domain() {
         (Scalar::PI, Faults::NONE)
     );
 }
+
+#[test]
+fn results_are_bit_identical_to_the_reference_digest() {
+    // Determinism pin: an FNV-1a digest of every function's result bits over
+    // 300,000 pseudo-random inputs. The value was produced on x86_64 and
+    // checked identical on i686 and aarch64 (under qemu). A change here
+    // changes simulation results, and so replays and the wire protocol:
+    // update it only on purpose, after checking every target.
+    let mut rng = Rng(0x1234_5678);
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut mix = |v: u64| {
+        h ^= v;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    };
+    for _ in 0..300_000 {
+        let (a, b, sh) = (rng.next(), rng.next(), rng.next() % 64);
+        let x = Scalar::from_bits((a as i64) >> sh);
+        let y = Scalar::from_bits((b as i64) >> (b % 64));
+        let n = ((a as u128) << 64 | b as u128) >> (rng.next() % 128);
+        mix(elem::isqrt_u128(n));
+        mix(elem::sqrt(x).to_bits() as u64);
+        mix(elem::rsqrt(x).to_bits() as u64);
+        let (s, c) = elem::sin_cos(x);
+        mix(s.to_bits() as u64);
+        mix(c.to_bits() as u64);
+        mix(elem::atan2(y, x).to_bits() as u64);
+        mix(elem::atan(x).to_bits() as u64);
+        let u = Scalar::from_bits(((a as i64) >> 31).clamp(-(1 << 32), 1 << 32));
+        mix(elem::asin(u).to_bits() as u64);
+        mix(elem::acos(u).to_bits() as u64);
+    }
+    assert_eq!(h, 0x7191_5486_cdd3_c7cb);
+}

@@ -90,8 +90,9 @@ fn rsqrt_q61(x: u64) -> i64 {
 
 /// ⌊√n⌋ for a `u128`, exact for every input.
 ///
-/// Why not `u128::isqrt`: that is a bit-by-bit loop (35–42 ns); this takes a
-/// table seed, two Newton steps for 1/√n, one Newton step for √n using that
+/// Why not `u128::isqrt`: that is a bit-by-bit loop (35–42 ns in
+/// `shared/FIXED_POINT.md`, ~1.4× this one in `lockstep-bench math`); this
+/// takes a table seed, two Newton steps for 1/√n, one Newton step for √n using that
 /// reciprocal (landing within one unit of the root), and an exact integer
 /// fix-up against `n` itself, so the result is always the floor.
 /// Lengths and normalisation in [`Vec3`](super::Vec3) and
@@ -122,9 +123,8 @@ pub fn isqrt_u128(n: u128) -> u64 {
 /// Why one step is enough: with 1/√ and the root both within 2⁻³³
 /// (relative), the Newton step lands within R·(δε + ε²/2) < 0.375 of the real
 /// root R ≥ 2⁶³, and its truncation adds less than one, so `r` is
-/// ⌊R⌋ − 1, ⌊R⌋ or ⌊R⌋ + 1 (the tests see only the first two). Single
-/// branches, not loops: a loop here gets vectorised by LLVM into a
-/// 16-lane search that costs more than the whole root.
+/// ⌊R⌋ − 1, ⌊R⌋ or ⌊R⌋ + 1 (the tests see only the first two, the first
+/// in 55 of 200,000 cases), and the branches predict almost perfectly.
 #[inline(always)]
 fn isqrt_fix_up(m: u128, r: u64) -> u64 {
     // r ≤ 2^64 − 1 so r² fits; ⌊√m⌋ ≤ 2^64 − 1 so r + 1 cannot overflow.
@@ -176,7 +176,7 @@ pub fn rsqrt(x: Scalar) -> Scalar {
     let shift = b.leading_zeros() & !1;
     let big = b << shift;
     let y2 = rsqrt_q61(big);
-    // A third Newton step: relative error ~2^-59 (the truncation of y2²).
+    // A third Newton step: relative error ~2^-58 (the truncations of y2²).
     let y2sq = ((y2 as u128 * y2 as u128) >> 64) as u64; // Q58
     let p = big as u128 * y2sq as u128; // A·y2² in Q122
     let e = ((1u128 << 122).wrapping_sub(p) as i128 >> 32) as i64; // Q90, |e| < 2^58
@@ -188,9 +188,12 @@ pub fn rsqrt(x: Scalar) -> Scalar {
 
 /// round(2⁴⁸/√b) from an estimate `q` off by at most one.
 ///
-/// Why one step is enough: y3 is within ~2⁻⁵⁷ (relative) of 1/√A, so before
-/// rounding the estimate is within 2⁴⁸·2⁻⁵⁷ < 0.01 of the true 2⁴⁸/√b, and
-/// rounding leaves it at most one away from the correctly rounded value.
+/// Why one step is enough: y3 is within ~2⁻⁵⁸ (relative) of 1/√A, so before
+/// rounding the estimate is within 2⁴⁸·2⁻⁵⁸ < 0.001 of the true 2⁴⁸/√b,
+/// and rounding leaves it at most one away from the correctly rounded
+/// value (the tests never see it off at all). Branches, not `while` loops:
+/// LLVM vectorised a loop here into a 16-lane search that cost five times
+/// the whole function.
 ///
 /// q is right iff (2q−1)²·b < 2⁹⁸ < (2q+1)²·b (equality is impossible: 2⁹⁸/b
 /// would have to be the square of an odd number above 1). For q within one
