@@ -1,0 +1,184 @@
+//! Timing and reporting shared by every suite.
+//!
+//! A measurement runs one operation over a precomputed input array (small
+//! enough to stay in L1, so memory does not dominate), repeats the pass
+//! until the requested number of operations is reached, and keeps the
+//! fastest of several runs: the minimum is the least disturbed by the other
+//! work on a shared machine. Inputs and results go through
+//! `std::hint::black_box`, so the compiler can neither hoist the work out
+//! of the loop nor drop it. Successive calls are independent, so the
+//! figure is throughput (ns per operation with the CPU overlapping calls),
+//! not the latency of one isolated call.
+
+use std::fmt::Write as _;
+use std::hint::black_box;
+use std::time::Instant;
+
+/// How much work each measurement does.
+#[derive(Clone, Copy, Debug)]
+pub struct Budget {
+    /// Operations per run.
+    pub ops: usize,
+    /// Runs per measurement; the fastest is reported.
+    pub runs: usize,
+}
+
+impl Budget {
+    /// The default: 1M operations, best of 7 runs.
+    pub const FULL: Budget = Budget {
+        ops: 1_000_000,
+        runs: 7,
+    };
+    /// A smoke run for CI: checks that every benchmark executes, nothing
+    /// more (the numbers are noise).
+    pub const QUICK: Budget = Budget {
+        ops: 2_000,
+        runs: 1,
+    };
+}
+
+/// Nanoseconds per call of `f` over `inputs`: the best of `budget.runs`.
+pub fn ns_per_op<T: Copy, R>(budget: Budget, inputs: &[T], mut f: impl FnMut(T) -> R) -> f64 {
+    assert!(!inputs.is_empty(), "a benchmark needs inputs");
+    let passes = budget.ops.div_ceil(inputs.len()).max(1);
+    let ops = passes * inputs.len();
+    let mut best = f64::INFINITY;
+    for _ in 0..budget.runs.max(1) {
+        let start = Instant::now();
+        for _ in 0..passes {
+            for &x in inputs {
+                black_box(f(black_box(x)));
+            }
+        }
+        let ns = start.elapsed().as_nanos() as f64 / ops as f64;
+        best = best.min(ns);
+    }
+    best
+}
+
+/// One line of a report: our operation against one reference.
+#[derive(Clone, Debug)]
+pub struct Row {
+    /// What is measured, e.g. `sqrt`.
+    pub op: String,
+    /// Our ns/op.
+    pub ours_ns: f64,
+    /// What we are compared with, e.g. `f64::sqrt`.
+    pub reference: String,
+    /// The reference's ns/op.
+    pub reference_ns: f64,
+}
+
+impl Row {
+    /// A row from the two measurements.
+    pub fn new(op: &str, ours_ns: f64, reference: &str, reference_ns: f64) -> Row {
+        Row {
+            op: op.to_owned(),
+            ours_ns,
+            reference: reference.to_owned(),
+            reference_ns,
+        }
+    }
+
+    /// ours / reference: above 1 means we are slower.
+    pub fn ratio(&self) -> f64 {
+        self.ours_ns / self.reference_ns
+    }
+}
+
+/// The rows as an aligned text table.
+pub fn table(rows: &[Row]) -> String {
+    let op_w = rows.iter().map(|r| r.op.len()).max().unwrap_or(2).max(2);
+    let ref_w = rows
+        .iter()
+        .map(|r| r.reference.len())
+        .max()
+        .unwrap_or(9)
+        .max(9);
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:<op_w$}  {:>10}  {:<ref_w$}  {:>10}  {:>7}",
+        "op", "ours ns/op", "reference", "ref ns/op", "ratio"
+    );
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{:<op_w$}  {:>10.2}  {:<ref_w$}  {:>10.2}  {:>7.2}",
+            r.op,
+            r.ours_ns,
+            r.reference,
+            r.reference_ns,
+            r.ratio()
+        );
+    }
+    out
+}
+
+/// The rows as CSV with a header line, for plots and for comparing runs.
+pub fn csv(suite: &str, rows: &[Row]) -> String {
+    let mut out = String::from("suite,op,ours_ns,reference,reference_ns,ratio\n");
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{suite},{},{:.3},{},{:.3},{:.4}",
+            r.op,
+            r.ours_ns,
+            r.reference,
+            r.reference_ns,
+            r.ratio()
+        );
+    }
+    out
+}
+
+/// A deterministic generator for benchmark inputs (SplitMix64), so runs
+/// compare like with like.
+#[derive(Clone, Debug)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator from a seed.
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed)
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// A uniform value in `[lo, hi)`.
+    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        lo + (hi - lo) * unit
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_and_csv_show_the_ratio_of_ours_to_the_reference() {
+        let rows = [Row::new("sqrt", 8.0, "f64::sqrt", 2.0)];
+        assert_eq!(rows[0].ratio(), 4.0);
+        let t = table(&rows);
+        assert!(t.lines().nth(1).unwrap().ends_with("4.00"), "{t}");
+        assert_eq!(
+            csv("math", &rows),
+            "suite,op,ours_ns,reference,reference_ns,ratio\nmath,sqrt,8.000,f64::sqrt,2.000,4.0000\n"
+        );
+    }
+
+    #[test]
+    fn measurement_is_positive_and_finite() {
+        let inputs: Vec<u64> = (0..64).collect();
+        let ns = ns_per_op(Budget::QUICK, &inputs, |x| x.wrapping_mul(3));
+        assert!(ns.is_finite() && ns >= 0.0);
+    }
+}
