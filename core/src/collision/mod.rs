@@ -1,13 +1,15 @@
-//! Collision detection. So far the broad phase: a dynamic AABB tree
+//! Collision detection. The broad phase: a dynamic AABB tree
 //! ([`dynamic_tree`]) and the pair finder built on two of them
-//! ([`broad_phase`]). The narrow phase (manifolds, GJK/EPA, SAT, the
-//! `contact_<a>_<b>` functions) will sit beside them.
+//! ([`broad_phase`]), and the manifold type the narrow phase fills
+//! ([`manifold`]).
 
 pub mod broad_phase;
 pub mod dynamic_tree;
+pub mod manifold;
 
 pub use broad_phase::{BroadPhase, BroadPhaseError, PairStats, ProxyId, ProxyKey, ProxyKind};
 pub use dynamic_tree::{DynamicTree, LeafId, TreeError};
+pub use manifold::{ContactPoint, FeatureId, MAX_MANIFOLD_POINTS, Manifold};
 
 #[cfg(test)]
 mod tests;
