@@ -233,7 +233,8 @@ impl DemoGame {
                 );
                 accel.set(i, a);
                 if vs != v_start.get(i) {
-                    v.set(i, vs);
+                    // The impulse below still adds the jump's share.
+                    v.set(i, vs - (v_start.get(i) - v0.get(i)));
                 }
             }
             if v != v0 {
