@@ -8,6 +8,8 @@
 
 #![warn(missing_docs)]
 
+pub mod link;
+
 use std::path::{Path, PathBuf};
 
 use lockstep_client::offline::load_scene_file;

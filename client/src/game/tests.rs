@@ -1,0 +1,593 @@
+//! Tests of the demo game: the input format, the movement rules against
+//! closed forms, the floor-and-walls stand-in, bots, and determinism.
+
+use lockstep_core::{BodyKind, Scalar, StepReport, Vec3, World};
+
+use super::*;
+
+const TICK_RATE: f64 = 60.0;
+const G: f64 = 9.81;
+
+/// A fresh demo match.
+fn demo() -> (World, DemoGame) {
+    let world = DemoGame::world().expect("the embedded scene builds");
+    let game = DemoGame::new(&world).expect("the demo rules find their bodies");
+    (world, game)
+}
+
+/// Applies `inputs` and steps once; fails the test on any fault.
+fn tick(world: &mut World, game: &mut DemoGame, inputs: &[(u8, Vec<u8>)]) -> StepReport {
+    let refs: Vec<(u8, &[u8])> = inputs.iter().map(|(s, b)| (*s, b.as_slice())).collect();
+    game.apply_inputs(world, world.tick(), &refs);
+    let r = world.step();
+    assert!(r.faults.is_empty(), "tick {}: {}", r.tick, r.faults);
+    assert!(
+        game.faults().is_empty(),
+        "tick {}: rules: {}",
+        r.tick,
+        game.faults()
+    );
+    r
+}
+
+fn input(move_x: i8, move_z: i8, jump: bool) -> Vec<u8> {
+    DemoInput {
+        move_x,
+        move_z,
+        jump,
+    }
+    .encode()
+}
+
+fn player_pos(world: &World, game: &DemoGame, slot: u8) -> (f64, f64, f64) {
+    let p = world
+        .body(game.limits(slot).unwrap().body)
+        .unwrap()
+        .position();
+    (p.x.to_f64(), p.y.to_f64(), p.z.to_f64())
+}
+
+fn player_vel(world: &World, game: &DemoGame, slot: u8) -> (f64, f64, f64) {
+    let v = world
+        .body(game.limits(slot).unwrap().body)
+        .unwrap()
+        .linear_velocity();
+    (v.x.to_f64(), v.y.to_f64(), v.z.to_f64())
+}
+
+/// The rounding slack of the floor-and-walls limit: a centre may end a step
+/// a few ulps past a limit (2⁻³² m each), never more.
+const SLACK: Scalar = Scalar::from_bits(16);
+
+/// Whether a player's centre is within its limits (up to [`SLACK`]).
+fn within(l: &PlayerLimits, p: Vec3) -> bool {
+    l.x_min - SLACK <= p.x
+        && p.x <= l.x_max + SLACK
+        && l.z_min - SLACK <= p.z
+        && p.z <= l.z_max + SLACK
+        && l.rest_y - SLACK <= p.y
+}
+
+/// A small xorshift64* generator for fuzzing byte strings.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    fn bytes(&mut self, max_len: usize) -> Vec<u8> {
+        let len = (self.next() % (max_len as u64 + 1)) as usize;
+        (0..len).map(|_| self.next() as u8).collect()
+    }
+}
+
+// ---- input format ----------------------------------------------------------
+
+#[test]
+fn every_valid_input_round_trips_through_three_bytes() {
+    let mut n = 0;
+    for x in -100i8..=100 {
+        for z in [-100i8, -37, 0, 1, 100] {
+            for jump in [false, true] {
+                let i = DemoInput {
+                    move_x: x,
+                    move_z: z,
+                    jump,
+                };
+                let bytes = i.encode();
+                assert_eq!(bytes.len(), INPUT_LEN);
+                assert_eq!(DemoInput::decode(&bytes), Some(i));
+                n += 1;
+            }
+        }
+    }
+    assert_eq!(n, 201 * 5 * 2);
+    assert_eq!(input(-1, 100, true), vec![0xff, 100, 1]);
+}
+
+#[test]
+fn encode_clamps_moves_beyond_100_percent() {
+    let i = DemoInput {
+        move_x: 127,
+        move_z: -128,
+        jump: false,
+    };
+    let back = DemoInput::decode(&i.encode()).unwrap();
+    assert_eq!((back.move_x, back.move_z), (100, -100));
+}
+
+#[test]
+fn malformed_bytes_do_not_decode() {
+    for bad in [
+        &[][..],
+        &[0, 0],
+        &[0, 0, 0, 0],
+        &[101, 0, 0],
+        &[0, 0x9b, 0], // -101
+        &[0x80, 0, 0], // -128
+        &[0, 0, 2],
+        &[0, 0, 0x80],
+        &[0, 0, 0xff],
+    ] {
+        assert_eq!(DemoInput::decode(bad), None, "{bad:?}");
+    }
+}
+
+#[test]
+fn random_bytes_never_panic_and_decode_only_when_well_formed() {
+    let mut rng = Rng(0x1234_5678_9abc_def1);
+    let mut decoded = 0;
+    for _ in 0..100_000 {
+        let b = rng.bytes(4);
+        match DemoInput::decode(&b) {
+            Some(i) => {
+                decoded += 1;
+                assert_eq!(i.encode(), b);
+            }
+            None => {
+                let well_formed = b.len() == 3
+                    && (-100..=100).contains(&(b[0] as i8))
+                    && (-100..=100).contains(&(b[1] as i8))
+                    && b[2] <= 1;
+                assert!(!well_formed, "{b:?} should decode");
+            }
+        }
+    }
+    // A quarter of the strings have length 3; of those 201²·2 / 2²⁴ ≈ 0.48 %
+    // are well formed: about 120 of 100,000.
+    assert!((60..=200).contains(&decoded), "{decoded}");
+}
+
+// ---- the scene and set-up ---------------------------------------------------
+
+#[test]
+fn demo_world_has_the_arena_sixteen_sleeping_players_and_sleeping_crates() {
+    let (world, game) = demo();
+    assert_eq!(world.bodies().len(), 66);
+    let (mut statics, mut crates) = (0, 0);
+    for (_, hot, cold) in world.bodies().iter() {
+        if hot.kind == BodyKind::Static {
+            statics += 1;
+        } else if cold.name.starts_with("crate") {
+            crates += 1;
+            assert!(hot.sleeping, "{} starts asleep", cold.name);
+        }
+    }
+    assert_eq!((statics, crates), (5, 45));
+    for slot in 0..MAX_PLAYERS as u8 {
+        let l = game.limits(slot).unwrap();
+        let b = world.body(l.body).unwrap();
+        assert_eq!(b.name(), format!("player{slot}"));
+        assert!(b.is_sleeping());
+        assert_eq!(b.position().y, l.rest_y, "players start on the floor");
+        assert_eq!(l.rest_y.to_f64(), 0.5);
+        assert_eq!((l.x_min.to_f64(), l.x_max.to_f64()), (-19.0, 19.0));
+        assert_eq!((l.z_min.to_f64(), l.z_max.to_f64()), (-19.0, 19.0));
+        let m = b.mass().to_f64();
+        let expected = 985.0 * 4.0 / 3.0 * std::f64::consts::PI * 0.125;
+        assert!((m - expected).abs() < 1e-6, "{m} vs {expected}");
+    }
+    assert!(game.limits(MAX_PLAYERS as u8).is_none());
+}
+
+#[test]
+fn rules_refuse_a_world_without_the_demo_bodies() {
+    let world = World::new(lockstep_core::WorldConfig::default()).unwrap();
+    assert_eq!(
+        DemoGame::new(&world),
+        Err(GameError::MissingBody("ground".into()))
+    );
+    let scene = DemoGame::SCENE.replace("name = \"player7\"", "name = \"spectator\"");
+    let world = lockstep_core::scene::load_world(&scene, "x.toml").unwrap();
+    assert_eq!(
+        DemoGame::new(&world),
+        Err(GameError::MissingBody("player7".into()))
+    );
+    let scene = DemoGame::SCENE.replacen(
+        "{ kind = \"sphere\", radius = 0.5, material = \"player\" }",
+        "{ kind = \"box\", half_extents = [0.5, 0.5, 0.5], material = \"player\" }",
+        1,
+    );
+    let world = lockstep_core::scene::load_world(&scene, "x.toml").unwrap();
+    let err = DemoGame::new(&world).unwrap_err();
+    assert!(err.to_string().contains("player0"), "{err}");
+}
+
+// ---- movement -----------------------------------------------------------------
+
+#[test]
+fn full_stick_reaches_max_speed_in_two_seconds_and_stays_on_the_floor() {
+    let (mut world, mut game) = demo();
+    let rest = game.limits(0).unwrap().rest_y.to_f64();
+    let mut max_dy: f64 = 0.0;
+    let mut t_90 = None;
+    for t in 1..=120 {
+        tick(&mut world, &mut game, &[(0, input(100, 0, false))]);
+        let (_, y, _) = player_pos(&world, &game, 0);
+        max_dy = max_dy.max((y - rest).abs());
+        let (vx, _, _) = player_vel(&world, &game, 0);
+        if t_90.is_none() && vx >= 0.9 * 6.0 {
+            t_90 = Some(t);
+        }
+    }
+    let (vx, vy, vz) = player_vel(&world, &game, 0);
+    let speed = MAX_SPEED.to_f64();
+    assert!((vx - speed).abs() / speed < 0.02, "vx {vx}");
+    assert!(vz.abs() < 1e-9 && vy.abs() < 1e-6, "vy {vy} vz {vz}");
+    assert!(max_dy < 1e-6, "left the floor by {max_dy} m");
+    // At the 20 m/s² cap up to 4 m/s (0.2 s, 12 ticks), then the gain closes
+    // the last 2 m/s by 1/6 per tick: 90 % after ≈ 12 + 6.6 ticks.
+    let t_90 = t_90.unwrap();
+    assert!(
+        (15..=20).contains(&t_90),
+        "90 % of max speed at tick {t_90}"
+    );
+    println!(
+        "after 2 s: vx = {vx:.9} (max {speed}), |y − rest| ≤ {max_dy:.2e}, 90 % at tick {t_90}"
+    );
+}
+
+#[test]
+fn diagonal_stick_speed_is_capped_per_axis_percentages() {
+    let (mut world, mut game) = demo();
+    for _ in 0..120 {
+        tick(&mut world, &mut game, &[(3, input(-50, 50, false))]);
+    }
+    let (vx, _, vz) = player_vel(&world, &game, 3);
+    assert!(
+        (vx + 3.0).abs() < 0.06 && (vz - 3.0).abs() < 0.06,
+        "{vx} {vz}"
+    );
+}
+
+#[test]
+fn releasing_the_stick_brings_the_player_to_rest() {
+    let (mut world, mut game) = demo();
+    for _ in 0..60 {
+        tick(&mut world, &mut game, &[(0, input(0, 100, false))]);
+    }
+    for _ in 0..120 {
+        tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+    }
+    let (vx, _, vz) = player_vel(&world, &game, 0);
+    assert!(vx.abs() < 1e-6 && vz.abs() < 1e-6, "{vx} {vz}");
+}
+
+#[test]
+fn jump_reaches_the_closed_form_height_and_lands_on_time() {
+    let (mut world, mut game) = demo();
+    let rest = game.limits(0).unwrap().rest_y.to_f64();
+    // Stand for a tick first so the player is awake and settled.
+    tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+    tick(&mut world, &mut game, &[(0, input(0, 0, true))]);
+    let mut top: f64 = 0.0;
+    let mut landed_after = None;
+    for n in 1..=120u32 {
+        let (_, y, _) = player_pos(&world, &game, 0);
+        let (_, vy, _) = player_vel(&world, &game, 0);
+        top = top.max(y - rest);
+        if vy < 0.0 && y - rest < 1e-6 {
+            // Came down onto the floor during the last step.
+            landed_after = Some(n);
+            break;
+        }
+        // Keep holding jump: it must not fire again in the air.
+        tick(&mut world, &mut game, &[(0, input(0, 0, true))]);
+    }
+    let v = JUMP_SPEED.to_f64();
+    let h = v * v / (2.0 * G);
+    assert!((top - h).abs() / h < 0.02, "apex {top} m vs {h} m");
+    let flight_ticks = 2.0 * v / G * TICK_RATE;
+    let landed = f64::from(landed_after.expect("came back down"));
+    assert!(
+        (landed - flight_ticks).abs() <= 1.5,
+        "landed after {landed} ticks, closed form {flight_ticks:.2}"
+    );
+    // Back on the floor: the stand-in puts it at the resting height.
+    tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+    let (_, y, _) = player_pos(&world, &game, 0);
+    assert!((y - rest).abs() < 1e-6, "{y}");
+    println!(
+        "jump: apex {top:.5} m (closed form {h:.5}, {:+.2} %), landed after {landed} ticks (closed form {flight_ticks:.2})",
+        (top - h) / h * 100.0
+    );
+}
+
+#[test]
+fn held_jump_does_not_fire_in_the_air_but_again_on_landing() {
+    let (mut world, mut game) = demo();
+    let mut takeoffs = 0;
+    let mut was_rising = false;
+    for _ in 0..180 {
+        tick(&mut world, &mut game, &[(5, input(0, 0, true))]);
+        let (_, vy, _) = player_vel(&world, &game, 5);
+        let rising = vy > 4.0;
+        if rising && !was_rising {
+            takeoffs += 1;
+        }
+        was_rising = vy > 0.0;
+    }
+    // Each hop lasts about 62 ticks: 3 take-offs in 180 ticks.
+    assert_eq!(takeoffs, 3);
+}
+
+#[test]
+fn players_cannot_leave_the_arena() {
+    let (mut world, mut game) = demo();
+    let pushes: [(u8, i8, i8); 6] = [
+        (0, 100, 0),
+        (4, 0, 100),
+        (8, -100, 0),
+        (12, 0, -100),
+        (2, 100, 100),
+        (10, -100, -100),
+    ];
+    for t in 0..600 {
+        let inputs: Vec<(u8, Vec<u8>)> = pushes
+            .iter()
+            .map(|&(s, x, z)| (s, input(x, z, t % 90 == 0)))
+            .collect();
+        tick(&mut world, &mut game, &inputs);
+        for &(s, _, _) in &pushes {
+            let l = game.limits(s).unwrap();
+            let p = world.body(l.body).unwrap().position();
+            assert!(within(&l, p), "tick {t}: player{s} at {p:?}");
+        }
+    }
+    let at = |s: u8| player_pos(&world, &game, s);
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-8;
+    assert!(close(at(0).0, 19.0), "{:?}", at(0));
+    assert!(close(at(4).2, 19.0), "{:?}", at(4));
+    assert!(close(at(8).0, -19.0), "{:?}", at(8));
+    assert!(close(at(12).2, -19.0), "{:?}", at(12));
+    assert!(close(at(2).0, 19.0) && close(at(2).2, 19.0), "{:?}", at(2));
+    assert!(
+        close(at(10).0, -19.0) && close(at(10).2, -19.0),
+        "{:?}",
+        at(10)
+    );
+    // Pressed against the wall, the velocity into it is zero (up to the
+    // few ulps per tick that close a rounding gap).
+    let (vx, _, _) = player_vel(&world, &game, 0);
+    assert!(vx.abs() < 1e-6, "{vx}");
+}
+
+// ---- presence, bad input ---------------------------------------------------------
+
+#[test]
+fn malformed_input_is_treated_as_no_input() {
+    let (mut a, mut ga) = demo();
+    let (mut b, mut gb) = demo();
+    let garbage: [&[u8]; 4] = [&[1, 2, 3, 4], &[], &[0x7f, 0, 0], &[0, 0, 0x10]];
+    for t in 0..240usize {
+        let (ia, ib) = if t < 60 {
+            (input(80, -20, t == 10), input(80, -20, t == 10))
+        } else {
+            (garbage[t % 4].to_vec(), DemoInput::default().encode())
+        };
+        tick(&mut a, &mut ga, &[(1, ia)]);
+        tick(&mut b, &mut gb, &[(1, ib)]);
+        assert_eq!(a.state_hash(), b.state_hash(), "tick {t}");
+    }
+    let (vx, _, vz) = player_vel(&a, &ga, 1);
+    assert!(vx.abs() < 1e-6 && vz.abs() < 1e-6, "decelerated: {vx} {vz}");
+}
+
+#[test]
+fn absent_players_stay_asleep_and_untouched() {
+    let (mut world, mut game) = demo();
+    let before: Vec<_> = (8..16u8)
+        .map(|s| {
+            world
+                .body(game.limits(s).unwrap().body)
+                .unwrap()
+                .hot()
+                .clone()
+        })
+        .collect();
+    for t in 0..600 {
+        let inputs: Vec<(u8, Vec<u8>)> =
+            (0..8u8).map(|s| (s, bot_input(7, s, t).encode())).collect();
+        tick(&mut world, &mut game, &inputs);
+    }
+    for (i, s) in (8..16u8).enumerate() {
+        let hot = world.body(game.limits(s).unwrap().body).unwrap().hot();
+        assert_eq!(hot, &before[i], "player{s}");
+    }
+    for s in 0..8u8 {
+        assert!(
+            !world
+                .body(game.limits(s).unwrap().body)
+                .unwrap()
+                .is_sleeping()
+        );
+    }
+}
+
+#[test]
+fn a_player_who_leaves_stops_on_the_floor_and_falls_asleep() {
+    let (mut world, mut game) = demo();
+    for t in 0..60 {
+        tick(&mut world, &mut game, &[(6, input(-100, 30, t == 50))]);
+    }
+    let mut asleep_at = None;
+    for t in 0..300 {
+        tick(&mut world, &mut game, &[]);
+        let b = world.body(game.limits(6).unwrap().body).unwrap();
+        if b.is_sleeping() {
+            asleep_at = Some(t);
+            break;
+        }
+    }
+    let asleep_at = asleep_at.expect("fell asleep");
+    // Landing from the jump (≈ 52 ticks left) then slowing from 6 m/s to
+    // 1/16 m/s at 1/6 of the gap per tick (≈ 25 ticks).
+    assert!((50..=110).contains(&asleep_at), "{asleep_at}");
+    let (_, y, _) = player_pos(&world, &game, 6);
+    assert_eq!(y, 0.5);
+    let hash = world.state_hash();
+    for _ in 0..60 {
+        tick(&mut world, &mut game, &[]);
+    }
+    let (_, y2, _) = player_pos(&world, &game, 6);
+    assert_eq!(y2, 0.5);
+    assert!(
+        world
+            .body(game.limits(6).unwrap().body)
+            .unwrap()
+            .is_sleeping()
+    );
+    assert_ne!(hash, 0);
+}
+
+#[test]
+fn slots_beyond_sixteen_are_ignored_and_the_first_entry_of_a_slot_wins() {
+    let (mut a, mut ga) = demo();
+    let (mut b, mut gb) = demo();
+    for _ in 0..30 {
+        tick(
+            &mut a,
+            &mut ga,
+            &[
+                (2, input(100, 0, false)),
+                (2, input(-100, 0, false)),
+                (16, input(1, 1, true)),
+                (255, vec![]),
+            ],
+        );
+        tick(&mut b, &mut gb, &[(2, input(100, 0, false))]);
+        assert_eq!(a.state_hash(), b.state_hash());
+    }
+}
+
+#[test]
+fn random_input_bytes_never_panic_or_fault() {
+    let (mut world, mut game) = demo();
+    let mut rng = Rng(99);
+    for _ in 0..600 {
+        let mut inputs: Vec<(u8, Vec<u8>)> = Vec::new();
+        for s in 0..20u8 {
+            if !rng.next().is_multiple_of(3) {
+                // Mostly well-formed-length strings, sometimes anything ≤ 64.
+                let bytes = if rng.next().is_multiple_of(2) {
+                    rng.bytes(64)
+                } else {
+                    let mut b = rng.bytes(0);
+                    b.extend([rng.next() as u8, rng.next() as u8, (rng.next() % 2) as u8]);
+                    b
+                };
+                inputs.push((s, bytes));
+            }
+        }
+        tick(&mut world, &mut game, &inputs);
+    }
+}
+
+// ---- bots and whole matches ------------------------------------------------------
+
+#[test]
+fn bot_input_is_a_pure_function_that_wanders_and_jumps() {
+    for slot in 0..16u8 {
+        let mut headings = std::collections::BTreeSet::new();
+        let mut changes = 0;
+        let mut jump_ticks = 0;
+        let mut prev = bot_input(42, slot, 0);
+        for t in 0..3600u64 {
+            let i = bot_input(42, slot, t);
+            assert_eq!(i, bot_input(42, slot, t), "pure");
+            assert!(DemoInput::decode(&i.encode()) == Some(i), "{i:?} is valid");
+            headings.insert((i.move_x, i.move_z));
+            if (i.move_x, i.move_z) != (prev.move_x, prev.move_z) {
+                changes += 1;
+            }
+            jump_ticks += i32::from(i.jump);
+            prev = i;
+        }
+        // A new heading every 1–2 s: 30–60 periods in a minute (a few repeat
+        // the previous heading or stand still twice).
+        assert!(
+            (20..=60).contains(&changes),
+            "slot {slot}: {changes} changes"
+        );
+        assert!(
+            headings.len() >= 12,
+            "slot {slot}: {} headings",
+            headings.len()
+        );
+        // 120 windows, each with a jump of 2 ticks with probability 1/4.
+        assert!(
+            (20..=120).contains(&jump_ticks),
+            "slot {slot}: {jump_ticks} jump ticks"
+        );
+    }
+    assert_ne!(
+        (0..600).map(|t| bot_input(1, 0, t)).collect::<Vec<_>>(),
+        (0..600).map(|t| bot_input(2, 0, t)).collect::<Vec<_>>(),
+        "the seed matters"
+    );
+    assert_ne!(
+        (0..600).map(|t| bot_input(1, 0, t)).collect::<Vec<_>>(),
+        (0..600).map(|t| bot_input(1, 1, t)).collect::<Vec<_>>(),
+        "the slot matters"
+    );
+}
+
+#[test]
+fn sixteen_bots_for_a_minute_never_fault_and_two_runs_agree_every_tick() {
+    let (mut a, mut ga) = demo();
+    let (mut b, mut gb) = demo();
+    let mut awake_max = 0;
+    for t in 0..3600u64 {
+        let inputs: Vec<(u8, Vec<u8>)> = (0..16u8)
+            .map(|s| (s, bot_input(0xdead_beef, s, t).encode()))
+            .collect();
+        let ra = tick(&mut a, &mut ga, &inputs);
+        tick(&mut b, &mut gb, &inputs);
+        assert_eq!(a.state_hash(), b.state_hash(), "tick {}", ra.tick);
+        awake_max = awake_max.max(ra.awake_bodies);
+        for s in 0..16u8 {
+            let l = ga.limits(s).unwrap();
+            let p = a.body(l.body).unwrap().position();
+            assert!(within(&l, p), "tick {t}: player{s} at {p:?}");
+        }
+    }
+    assert_eq!(a.tick(), 3600);
+    assert!(a.faults().is_empty() && ga.faults().is_empty());
+    // The 16 players move; the 45 crates sleep throughout.
+    assert_eq!(awake_max, 16);
+}
+
+#[test]
+fn a_different_bot_seed_gives_a_different_match() {
+    let (mut a, mut ga) = demo();
+    let (mut b, mut gb) = demo();
+    for t in 0..120u64 {
+        let ia: Vec<(u8, Vec<u8>)> = (0..4u8).map(|s| (s, bot_input(1, s, t).encode())).collect();
+        let ib: Vec<(u8, Vec<u8>)> = (0..4u8).map(|s| (s, bot_input(2, s, t).encode())).collect();
+        tick(&mut a, &mut ga, &ia);
+        tick(&mut b, &mut gb, &ib);
+    }
+    assert_ne!(a.state_hash(), b.state_hash());
+}
