@@ -74,7 +74,7 @@ const fn build_rsqrt_seed() -> [u16; 512] {
 /// iteration for the reciprocal root approaches from below, so the result
 /// never exceeds 2⁶² by more than rounding.
 #[inline(always)]
-fn rsqrt_q61(x: u64) -> i64 {
+pub(crate) fn rsqrt_q61(x: u64) -> i64 {
     debug_assert!(x >> 62 != 0);
     // Index: the top 9 bits, in 128..512.
     let y0 = RSQRT_SEED[(x >> 55) as usize] as i64; // Q15

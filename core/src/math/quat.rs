@@ -110,7 +110,7 @@ impl Quat {
         if sq == 0 {
             return Quat::IDENTITY;
         }
-        let ([x, y, z, w], _) = super::vec3::scale_to_unit([self.x, self.y, self.z, self.w], sq);
+        let [x, y, z, w] = super::vec3::scale_to_unit([self.x, self.y, self.z, self.w], sq);
         Quat::from_xyzw(x, y, z, w)
     }
 

@@ -81,19 +81,6 @@ pub fn wide_sum<const N: usize>(terms: [i128; N]) -> i128 {
     acc
 }
 
-/// The stand-in for a product that left `i128` while normalising a vector
-/// whose squared length had already saturated: raises the overflow fault
-/// and returns the extreme of `c`'s sign.
-#[cold]
-pub(crate) fn saturated_product(c: Scalar) -> i128 {
-    faults::raise(Faults::OVERFLOW);
-    if c.is_negative() {
-        i128::MIN
-    } else {
-        i128::MAX
-    }
-}
-
 /// Divides `n` by `d` rounding to nearest, ties away from zero. `d != 0`.
 #[inline]
 pub(crate) fn div_round_i128(n: i128, d: i128) -> i128 {

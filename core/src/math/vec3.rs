@@ -11,7 +11,7 @@ use std::ops::{Add, AddAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 use serde::{Deserialize, Serialize};
 
 use super::elem;
-use super::scalar::{Scalar, narrow, round_shift, saturated_product, wide_sum};
+use super::scalar::{Scalar, narrow, round_shift, wide_sum};
 
 /// A 3-vector.
 #[derive(Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -138,25 +138,31 @@ impl Vec3 {
         (self - o).length()
     }
 
-    /// The unit vector in the same direction, and the original length
-    /// (floor); `None` for the zero vector. Each component is within 1 ulp of
-    /// exact, whatever the vector's magnitude: the square root is taken of the
-    /// sum of squares scaled up to 126 bits, so short vectors keep their
-    /// precision too.
+    /// The unit vector in the same direction (each component within 1 ulp
+    /// of exact, whatever the magnitude; see `scale_to_unit`) and the
+    /// original length (the exact floor); `None` for the zero vector.
     #[inline]
     pub fn normalize_and_length(self) -> Option<(Vec3, Scalar)> {
         let sq = self.length_squared_wide();
         if sq == 0 {
             return None;
         }
-        let ([x, y, z], len) = scale_to_unit([self.x, self.y, self.z], sq);
-        Some((Vec3::new(x, y, z), len))
+        let [x, y, z] = scale_to_unit([self.x, self.y, self.z], sq);
+        Some((
+            Vec3::new(x, y, z),
+            Scalar::from_bits(elem::isqrt_u128(sq) as i64),
+        ))
     }
 
     /// The unit vector in the same direction, or `None` for the zero vector.
     #[inline]
     pub fn try_normalize(self) -> Option<Vec3> {
-        self.normalize_and_length().map(|(n, _)| n)
+        let sq = self.length_squared_wide();
+        if sq == 0 {
+            return None;
+        }
+        let [x, y, z] = scale_to_unit([self.x, self.y, self.z], sq);
+        Some(Vec3::new(x, y, z))
     }
 
     /// The unit vector in the same direction, or zero for the zero vector.
@@ -311,27 +317,21 @@ impl MulAssign<Scalar> for Vec3 {
 }
 
 /// Divides `components` by the square root of `sq` (their exact sum of
-/// squares, Q64.64, non-zero), each to within 1 ulp; also returns that root
-/// (floor). The sum is scaled by an even power of two to 124-126 bits before
-/// the integer square root, so short vectors keep their precision; one
-/// 128-bit division gives a 64-bit reciprocal shared by all components.
-pub(crate) fn scale_to_unit<const N: usize>(
-    components: [Scalar; N],
-    sq: u128,
-) -> ([Scalar; N], Scalar) {
-    let shift = sq.leading_zeros().saturating_sub(2) & !1;
-    let half_shift = shift / 2;
-    let len_ext = elem::isqrt_u128(sq << shift) as u128; // in [2^62, 2^63)
-    let inv = ((1u128 << 126) / len_ext) as i128; // in (2^63, 2^64]
-    let unit = components.map(|c| {
-        Scalar::from_bits(narrow(round_shift(
-            (c.to_bits() as i128)
-                .checked_mul(inv)
-                .unwrap_or_else(|| saturated_product(c)),
-            94 - half_shift,
-        )))
-    });
-    (unit, Scalar::from_bits((len_ext >> half_shift) as i64))
+/// squares, Q64.64, non-zero), each to within 1 ulp.
+///
+/// The sum is scaled by an even power of two into `[2¹²⁶, 2¹²⁸)`, so short
+/// vectors keep their precision; its top 64 bits go to the table-seeded
+/// integer reciprocal square root ([`elem::rsqrt_q61`], relative error below
+/// 2⁻³³), and each component is one 64×64-bit product and a shift: no
+/// division.
+#[inline]
+pub(crate) fn scale_to_unit<const N: usize>(components: [Scalar; N], sq: u128) -> [Scalar; N] {
+    let shift = sq.leading_zeros() & !1; // even, <= 126 since sq >= 1
+    let x = ((sq << shift) >> 64) as u64; // A * 2^64 with A in [1/4, 1)
+    let y = elem::rsqrt_q61(x) as i128; // 1/sqrt(A) in Q61, in (2^61, 2^62]
+    // unit = c / sqrt(sq) = c * y * 2^(shift/2 - 93) in bits.
+    let down = 93 - shift / 2;
+    components.map(|c| Scalar::from_bits(narrow(round_shift(c.to_bits() as i128 * y, down))))
 }
 
 #[cfg(test)]
