@@ -115,6 +115,9 @@ pub(crate) fn box_sat(ha: Vec3, hb: Vec3, rot: &Mat3, t: Vec3) -> BoxSat {
             }
         }
     }
+    // Determinism: the order faces of A, faces of B, edges, each group in
+    // index order with strict comparisons, is what makes ties go to the
+    // lowest feature; do not reorder.
     let mut max_separation = face_a.0.max(face_b.0);
     let (mut chosen, mut separation) = (BoxAxis::FaceA(face_a.1), face_a.0);
     if face_b.0 > separation + sat_tolerance(separation) {
@@ -322,6 +325,8 @@ fn area2(a: Vec3, b: Vec3, c: Vec3, c1: usize, c2: usize) -> i128 {
 /// the deepest, the farthest from it, the one spanning the largest triangle
 /// with those two, then the one adding the most area outside that triangle
 /// (none if all lie inside). Ties go to the lowest index.
+// Determinism: every choice scans in index order with strict comparisons and
+// exact (i128) areas and distances, so ties go to the lowest index.
 fn reduce_to_four(pts: &[(Vec3, Scalar, u16)], c1: usize, c2: usize) -> u32 {
     let n = pts.len();
     if n <= 4 {

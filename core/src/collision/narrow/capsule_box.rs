@@ -6,7 +6,7 @@ use super::clip::clip_segment_to_face;
 use super::segment::closest_points_segments;
 use super::sphere_box::box_region;
 use super::sphere_capsule::segment_feature;
-use super::{push_point, relative_pose, sat_tolerance};
+use super::{push_point, relative_direction, relative_position, sat_tolerance};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::{Capsule, Cuboid};
@@ -57,14 +57,18 @@ pub fn contact_capsule_box(
     out: &mut Manifold,
 ) -> bool {
     out.clear();
-    let (c, q) = relative_pose(pose_b, pose_a);
+    let c = relative_position(pose_b, pose_a);
     let h = b.half_extents;
     let r = a.radius;
     let reach = r + a.half_height + h.x + h.y + h.z + margin;
     if c.length_squared_wide() > reach.wide_mul(reach) as u128 {
         return false;
     }
-    let u = q.rotate(Vec3::new(Scalar::ZERO, a.half_height, Scalar::ZERO));
+    let u = relative_direction(
+        pose_b,
+        pose_a,
+        Vec3::new(Scalar::ZERO, a.half_height, Scalar::ZERO),
+    );
     let (p0, p1) = (c - u, c + u);
 
     // SAT: faces, then the edge crosses.

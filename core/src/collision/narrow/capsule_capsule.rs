@@ -4,7 +4,7 @@
 
 use super::segment::closest_points_segments;
 use super::sphere_capsule::segment_feature;
-use super::{perpendicular_fallback, push_point, relative_pose};
+use super::{perpendicular_fallback, push_point, relative_direction, relative_position};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::Capsule;
@@ -34,14 +34,18 @@ pub fn contact_capsule_capsule(
     out: &mut Manifold,
 ) -> bool {
     out.clear();
-    let (d, q) = relative_pose(pose_a, pose_b);
+    let d = relative_position(pose_a, pose_b);
     let radii = a.radius + b.radius;
     let reach = radii + a.half_height + b.half_height + margin;
     if d.length_squared_wide() > reach.wide_mul(reach) as u128 {
         return false;
     }
     let ha = Vec3::new(Scalar::ZERO, a.half_height, Scalar::ZERO);
-    let hb = q.rotate(Vec3::new(Scalar::ZERO, b.half_height, Scalar::ZERO));
+    let hb = relative_direction(
+        pose_a,
+        pose_b,
+        Vec3::new(Scalar::ZERO, b.half_height, Scalar::ZERO),
+    );
     let (a0, a1, b0, b1) = (-ha, ha, d - hb, d + hb);
     let cp = closest_points_segments(a0, a1, b0, b1);
     let gap = cp.p2 - cp.p1;

@@ -107,6 +107,23 @@ pub fn contact(
     hit
 }
 
+/// B's centre in A's local frame, rotated from the exact world difference of
+/// the translations (so it does not depend on where the pair sits in the
+/// world). The cheap part of [`relative_pose`] for pairs that need no
+/// relative rotation.
+pub(crate) fn relative_position(pose_a: &Transform, pose_b: &Transform) -> Vec3 {
+    pose_a
+        .rotation
+        .inverse_rotate(pose_b.translation - pose_a.translation)
+}
+
+/// A direction `v` of B's local frame expressed in A's local frame (two
+/// rotations; cheaper than building and normalising the relative rotation
+/// when only one axis is needed, as for a capsule).
+pub(crate) fn relative_direction(pose_a: &Transform, pose_b: &Transform, v: Vec3) -> Vec3 {
+    pose_a.rotation.inverse_rotate(pose_b.rotation.rotate(v))
+}
+
 /// B's placement in A's local frame: B's centre (rotated from the exact
 /// world difference of the translations, so it does not depend on where the
 /// pair sits in the world) and B's rotation relative to A.

@@ -1,7 +1,7 @@
 //! Sphere against box: the sphere's centre clamped to the box, or pushed out
 //! through the nearest face when it is inside.
 
-use super::{push_point, relative_pose};
+use super::{push_point, relative_position};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::{Cuboid, Sphere};
@@ -39,7 +39,7 @@ pub fn contact_sphere_box(
     out: &mut Manifold,
 ) -> bool {
     out.clear();
-    let (c, _) = relative_pose(pose_b, pose_a);
+    let c = relative_position(pose_b, pose_a);
     let h = b.half_extents;
     let reach = a.radius + h.x + h.y + h.z + margin;
     if c.length_squared_wide() > reach.wide_mul(reach) as u128 {

@@ -2,7 +2,7 @@
 //! segment.
 
 use super::segment::closest_point_on_segment;
-use super::{perpendicular_fallback, push_point, relative_pose};
+use super::{perpendicular_fallback, push_point, relative_direction, relative_position};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::{Capsule, Sphere};
@@ -37,12 +37,16 @@ pub fn contact_sphere_capsule(
     out: &mut Manifold,
 ) -> bool {
     out.clear();
-    let (d, q) = relative_pose(pose_a, pose_b);
+    let d = relative_position(pose_a, pose_b);
     let reach = a.radius + b.radius + b.half_height + margin;
     if d.length_squared_wide() > reach.wide_mul(reach) as u128 {
         return false;
     }
-    let axis = q.rotate(Vec3::new(Scalar::ZERO, b.half_height, Scalar::ZERO));
+    let axis = relative_direction(
+        pose_a,
+        pose_b,
+        Vec3::new(Scalar::ZERO, b.half_height, Scalar::ZERO),
+    );
     let (t, c) = closest_point_on_segment(Vec3::ZERO, d - axis, d + axis);
     let (n, dist) = c
         .normalize_and_length()

@@ -1,6 +1,6 @@
 //! Sphere against sphere: the centre line is the normal.
 
-use super::{push_point, relative_pose};
+use super::{push_point, relative_position};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::Sphere;
@@ -19,7 +19,7 @@ pub fn contact_sphere_sphere(
     out: &mut Manifold,
 ) -> bool {
     out.clear();
-    let (d, _) = relative_pose(pose_a, pose_b);
+    let d = relative_position(pose_a, pose_b);
     let reach = a.radius + b.radius + margin;
     if d.length_squared_wide() > reach.wide_mul(reach) as u128 {
         return false;

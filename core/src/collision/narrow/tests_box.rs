@@ -385,6 +385,36 @@ fn unit_box_resting_on_a_large_ground_box_keeps_four_points_and_ids() {
     assert!(worst < 3e-4, "{worst}");
 }
 
+#[test]
+fn capsule_lying_on_ground_box_keeps_two_points_and_ids_under_perturbation() {
+    let ground = cuboid(50.0, 0.5, 50.0);
+    let log = capsule(1.0, 0.25);
+    let gp = at(0.0, -0.5, 0.0);
+    let lying = rot(Vec3::Z, 90);
+    let rest = run(&log, &posed(1.0, 0.25, 2.0, lying), &ground, &gp, 0.01);
+    assert_eq!(rest.count, 2);
+    assert!(rest.points().iter().all(|p| p.depth.abs() < s(1e-8)));
+    let mut rng = Rng::new(3);
+    for _ in 0..100 {
+        let axis = v(
+            rng.uniform(-1.0, 1.0),
+            rng.uniform(-1.0, 1.0),
+            rng.uniform(-1.0, 1.0),
+        )
+        .normalize_or_zero();
+        let q = (Quat::from_axis_angle(axis, s(rng.uniform(-1e-3, 1e-3))) * lying).normalize();
+        let t = v(
+            1.0 + rng.uniform(-1e-3, 1e-3),
+            0.25 + rng.uniform(-1e-4, 1e-4),
+            2.0,
+        );
+        let m = run(&log, &Transform::new(t, q), &ground, &gp, 0.01);
+        assert_eq!(ids(&m), ids(&rest));
+        assert_vec_close(m.normal, [0.0, -1.0, 0.0], 1e-12, "log normal");
+        assert!(m.points().iter().all(|p| p.depth.abs() < s(2e-3)));
+    }
+}
+
 /// f64 SAT over all 15 axes: (index, separation) per axis, skipping edge
 /// pairs within 1e-3 rad of parallel. Index 0–2 faces of A, 3–5 faces of B,
 /// 6 + 3i + j edges.
