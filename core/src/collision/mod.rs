@@ -1,11 +1,12 @@
 //! Collision detection. The broad phase: a dynamic AABB tree
 //! ([`dynamic_tree`]) and the pair finder built on two of them
 //! ([`broad_phase`]), and the manifold type the narrow phase fills
-//! ([`manifold`]).
+//! ([`manifold`]), and the narrow phase's pair functions ([`narrow`]).
 
 pub mod broad_phase;
 pub mod dynamic_tree;
 pub mod manifold;
+pub mod narrow;
 
 pub use broad_phase::{BroadPhase, BroadPhaseError, PairStats, ProxyId, ProxyKey, ProxyKind};
 pub use dynamic_tree::{DynamicTree, LeafId, TreeError};

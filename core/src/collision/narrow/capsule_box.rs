@@ -1,0 +1,283 @@
+//! Capsule against box: the capsule's core segment against the solid box,
+//! by exact closest features when they are apart and by a six-axis SAT when
+//! the segment enters the box; two points when the capsule lies along a face.
+
+use super::clip::clip_segment_to_face;
+use super::segment::closest_points_segments;
+use super::sphere_box::box_region;
+use super::sphere_capsule::segment_feature;
+use super::{push_point, relative_direction, relative_position, sat_tolerance};
+use crate::collision::manifold::{FeatureId, Manifold};
+use crate::math::{Scalar, Transform, Vec3};
+use crate::shape::{Capsule, Cuboid};
+
+/// A-side feature number of the two points of a capsule lying along a face.
+const ALONG_FACE: u16 = 0x10;
+/// Offset of box face ids (`27 + 2·axis + (1 if −)`), after the 27 regions.
+const FACE_BASE: u16 = 27;
+/// Offset of box edge ids (`100 + 4·axis + sign bits of the other two`).
+const EDGE_BASE: u16 = 100;
+
+/// Whether the segment half-vector `u` is within about 1.8° of lying in the
+/// plane normal to axis `k` (the sine below 1/32), which makes a capsule
+/// lying on that face get two points.
+fn lies_along_face(u: Vec3, k: usize) -> bool {
+    !u.is_zero() && u.get(k).wide_mul(u.get(k)) <= u.dot_wide(u) >> 10
+}
+
+fn sign_of(x: Scalar) -> Scalar {
+    if x.is_negative() {
+        Scalar::NEG_ONE
+    } else {
+        Scalar::ONE
+    }
+}
+
+/// Contact between capsule A and box B, computed in B's frame.
+///
+/// - Core segment outside the box: the closest pair among the two segment
+///   ends against the box and the segment against the twelve edges; normal
+///   along it, depth `r − distance`, id `(segment feature, box region)`.
+/// - Segment touching or inside the box: SAT over the 3 face normals and the
+///   3 cross products of the segment with the box edges (skipped when nearly
+///   parallel), faces preferred within [`sat_tolerance`]; a face gives the
+///   deepest clipped end (id `(segment feature, 27 + face)`), an edge the
+///   closest points of the segment and that box edge (id `(segment feature,
+///   100 + edge)`), depth `r − separation`.
+/// - In both cases, when the normal is a face normal and the capsule lies
+///   within about 1.8° of parallel to that face, the segment is clipped to
+///   the face's rectangle and its two ends become the points (ids
+///   `(0x10 + end, 27 + face)`), each with its own depth.
+pub fn contact_capsule_box(
+    a: &Capsule,
+    pose_a: &Transform,
+    b: &Cuboid,
+    pose_b: &Transform,
+    margin: Scalar,
+    out: &mut Manifold,
+) -> bool {
+    out.clear();
+    let c = relative_position(pose_b, pose_a);
+    let h = b.half_extents;
+    let r = a.radius;
+    let reach = r + a.half_height + h.x + h.y + h.z + margin;
+    if c.length_squared_wide() > reach.wide_mul(reach) as u128 {
+        return false;
+    }
+    let u = relative_direction(
+        pose_b,
+        pose_a,
+        Vec3::new(Scalar::ZERO, a.half_height, Scalar::ZERO),
+    );
+    let (p0, p1) = (c - u, c + u);
+
+    // SAT: faces, then the edge crosses.
+    let mut face = (Scalar::MIN, 0usize);
+    for k in 0..3 {
+        let s = c.get(k).abs() - h.get(k) - u.get(k).abs();
+        if s > face.0 {
+            face = (s, k);
+        }
+    }
+    let mut edge: Option<(Scalar, usize, Vec3)> = None;
+    for k in 0..3 {
+        let mut e = Vec3::ZERO;
+        e.set(k, Scalar::ONE);
+        let l = u.cross(e);
+        if l.length_squared_wide() <= u.length_squared_wide() >> 20 {
+            continue;
+        }
+        let Some(mut l) = l.try_normalize() else {
+            continue;
+        };
+        if c.dot_wide(l) < 0 {
+            l = -l;
+        }
+        let s = c.dot(l) - Scalar::from_wide(l.abs().dot_wide(h));
+        if edge.is_none_or(|(best, _, _)| s > best) {
+            edge = Some((s, k, l));
+        }
+    }
+    let best = edge.map_or(face.0, |(s, _, _)| s.max(face.0));
+    if best > r + margin {
+        return false;
+    }
+
+    if best.is_positive() {
+        // Apart: exact closest features.
+        let mut found = (u128::MAX, Vec3::ZERO, Vec3::ZERO, Scalar::ZERO);
+        for (t, p) in [(Scalar::ZERO, p0), (Scalar::ONE, p1)] {
+            let on_box = p.max(-h).min(h);
+            let d2 = (on_box - p).length_squared_wide();
+            if d2 < found.0 {
+                found = (d2, p, on_box, t);
+            }
+        }
+        for k in 0..3 {
+            for signs in 0..4 {
+                let (e0, e1) = box_edge(h, k, signs);
+                let cp = closest_points_segments(p0, p1, e0, e1);
+                let d2 = (cp.p2 - cp.p1).length_squared_wide();
+                if d2 < found.0 {
+                    found = (d2, cp.p1, cp.p2, cp.s);
+                }
+            }
+        }
+        let (_, on_seg, on_box, t) = found;
+        let gap = on_box - on_seg;
+        if let Some((n, dist)) = gap.normalize_and_length() {
+            if r - dist < -margin {
+                return false;
+            }
+            out.normal = pose_b.transform_vector(n);
+            if let Some(k) = face_region(on_seg, h) {
+                let sigma = sign_of(on_seg.get(k));
+                let mut f = Vec3::ZERO;
+                f.set(k, -sigma);
+                out.normal = pose_b.transform_vector(f);
+                if along_face(out, pose_b, p0, p1, u, h, k, sigma, r, margin) {
+                    return true;
+                }
+                out.normal = pose_b.transform_vector(n);
+            }
+            let mid = (on_seg + n * r + on_box).half();
+            let id = FeatureId::pair(segment_feature(t), box_region(on_seg, h));
+            push_point(out, pose_b, mid, r - dist, id);
+            return true;
+        }
+    }
+
+    // Touching or overlapping: the SAT axis.
+    let use_edge = match edge {
+        Some((s, _, _)) => s > face.0 + sat_tolerance(face.0),
+        None => false,
+    };
+    if let (true, Some((s, k, l))) = (use_edge, edge) {
+        let n = -l;
+        let mut signs = 0;
+        let others = other_axes(k);
+        for (bit, j) in others.into_iter().enumerate() {
+            if !l.get(j).is_negative() {
+                signs |= 1 << bit;
+            }
+        }
+        let (e0, e1) = box_edge(h, k, signs);
+        let cp = closest_points_segments(p0, p1, e0, e1);
+        out.normal = pose_b.transform_vector(n);
+        let mid = (cp.p1 + n * r + cp.p2).half();
+        let id = FeatureId::pair(segment_feature(cp.s), EDGE_BASE + (4 * k + signs) as u16);
+        push_point(out, pose_b, mid, r - s, id);
+        return true;
+    }
+    let k = face.1;
+    let sigma = sign_of(c.get(k));
+    let mut n = Vec3::ZERO;
+    n.set(k, -sigma);
+    out.normal = pose_b.transform_vector(n);
+    if along_face(out, pose_b, p0, p1, u, h, k, sigma, r, margin) {
+        return true;
+    }
+    let (tlo, thi) = clip_segment_to_face(p0, p1, h, k).unwrap_or((Scalar::ZERO, Scalar::ONE));
+    let height = |t: Scalar| (p0 + (p1 - p0) * t).get(k) * sigma;
+    let t = if height(thi) < height(tlo) { thi } else { tlo };
+    let p = p0 + (p1 - p0) * t;
+    let depth = r + h.get(k) - p.get(k) * sigma;
+    if depth < -margin {
+        out.clear();
+        return false;
+    }
+    let mut on_box = p;
+    on_box.set(k, h.get(k) * sigma);
+    let mid = (p + n * r + on_box).half();
+    let id = FeatureId::pair(segment_feature(t), face_id(k, sigma));
+    push_point(out, pose_b, mid, depth, id);
+    true
+}
+
+/// The axis of the face whose region (outside that slab only, by more than
+/// 2⁻²⁴ m) holds `p`, or `None` for an edge or corner region. The slack keeps
+/// a point rounded onto a neighbouring slab's boundary in the face region.
+fn face_region(p: Vec3, h: Vec3) -> Option<usize> {
+    let slack = Scalar::from_bits(1 << 8);
+    let mut face = None;
+    for k in 0..3 {
+        if p.get(k).abs() > h.get(k) + slack {
+            if face.is_some() {
+                return None;
+            }
+            face = Some(k);
+        }
+    }
+    face
+}
+
+/// The face id of the face on axis `k` with outward sign `sigma`.
+fn face_id(k: usize, sigma: Scalar) -> u16 {
+    FACE_BASE + 2 * k as u16 + sigma.is_negative() as u16
+}
+
+/// The two axes other than `k`, in increasing order.
+fn other_axes(k: usize) -> [usize; 2] {
+    match k {
+        0 => [1, 2],
+        1 => [0, 2],
+        _ => [0, 1],
+    }
+}
+
+/// The box edge along axis `k` whose other two coordinates are `+h` where
+/// the matching bit of `signs` is set (bit 0 for the lower axis) and `−h`
+/// otherwise; from its `−h_k` end to its `+h_k` end.
+fn box_edge(h: Vec3, k: usize, signs: usize) -> (Vec3, Vec3) {
+    let mut p = Vec3::ZERO;
+    for (bit, j) in other_axes(k).into_iter().enumerate() {
+        let v = h.get(j);
+        p.set(j, if signs & (1 << bit) != 0 { v } else { -v });
+    }
+    let (mut e0, mut e1) = (p, p);
+    e0.set(k, -h.get(k));
+    e1.set(k, h.get(k));
+    (e0, e1)
+}
+
+/// The two-point contact of a capsule lying along face `(k, sigma)` (outward
+/// normal `sigma·e_k`): the segment clipped to the face rectangle, each end
+/// with its own depth. Pushes nothing and returns false unless the capsule
+/// lies along the face and at least one end is within the margin.
+#[allow(clippy::too_many_arguments)]
+fn along_face(
+    out: &mut Manifold,
+    pose_b: &Transform,
+    p0: Vec3,
+    p1: Vec3,
+    u: Vec3,
+    h: Vec3,
+    k: usize,
+    sigma: Scalar,
+    r: Scalar,
+    margin: Scalar,
+) -> bool {
+    if !lies_along_face(u, k) {
+        return false;
+    }
+    let Some((tlo, thi)) = clip_segment_to_face(p0, p1, h, k) else {
+        return false;
+    };
+    if thi - tlo <= Scalar::from_bits(1 << 16) {
+        return false;
+    }
+    let mut f = Vec3::ZERO;
+    f.set(k, sigma);
+    for (end, t) in [tlo, thi].into_iter().enumerate() {
+        let p = p0 + (p1 - p0) * t;
+        let depth = r + h.get(k) - p.get(k) * sigma;
+        if depth >= -margin {
+            let mut on_box = p;
+            on_box.set(k, h.get(k) * sigma);
+            let mid = (p - f * r + on_box).half();
+            let id = FeatureId::pair(ALONG_FACE + end as u16, face_id(k, sigma));
+            push_point(out, pose_b, mid, depth, id);
+        }
+    }
+    !out.is_empty()
+}
