@@ -201,6 +201,9 @@ struct Posed<'p, P: Poly> {
     offsets: [Scalar; MAX_SAT_FACES],
     /// The two faces of each edge: [face running low→high, high→low].
     adj: [[u16; 2]; MAX_SAT_EDGES],
+    /// Per edge, `n₁ × n₀` of its two face normals: the normal of the
+    /// edge's arc on the Gauss map (the same formula serves A and −B).
+    arcs: [Vec3; MAX_SAT_EDGES],
 }
 
 impl<'p, P: Poly> Posed<'p, P> {
@@ -212,6 +215,7 @@ impl<'p, P: Poly> Posed<'p, P> {
             normals: [Vec3::ZERO; MAX_SAT_FACES],
             offsets: [Scalar::ZERO; MAX_SAT_FACES],
             adj: [[u16::MAX; 2]; MAX_SAT_EDGES],
+            arcs: [Vec3::ZERO; MAX_SAT_EDGES],
         };
         for i in 0..p.nv() {
             s.verts[i] = match rel {
@@ -235,6 +239,12 @@ impl<'p, P: Poly> Posed<'p, P> {
                 if let Ok(e) = p.edges().binary_search(&key) {
                     s.adj[e][usize::from(u > v)] = f as u16;
                 }
+            }
+        }
+        for e in 0..p.edges().len() {
+            let [f0, f1] = s.adj[e];
+            if f0 != u16::MAX && f1 != u16::MAX {
+                s.arcs[e] = s.normals[f1 as usize].cross(s.normals[f0 as usize]);
             }
         }
         s
@@ -266,18 +276,22 @@ fn face_query<P: Poly, Q: Poly>(p: &Posed<P>, q: &Posed<Q>) -> (Scalar, usize) {
     best
 }
 
-/// Whether the arcs `a–b` and `c–d` of the Gauss map cross (Gregorius'
-/// Minkowski-face test; `c`, `d` are B's normals negated). Strict: parallel
-/// edges never pass (their axes are face axes).
-fn minkowski_face(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> bool {
-    let bxa = b.cross(a);
-    let dxc = d.cross(c);
-    let (cba, dba) = (c.dot(bxa), d.dot(bxa));
-    let (adc, bdc) = (a.dot(dxc), b.dot(dxc));
-    cba.wide_mul(dba) < 0 && adc.wide_mul(bdc) < 0 && cba.wide_mul(bdc) > 0
+/// Sign of `u · v` for vectors of length ≤ 1 (unit normals, Gauss-map arc
+/// normals), from their top 32 bits in 64-bit integers: the Gauss-map test
+/// needs only signs, and this runs for every edge pair.
+#[inline(always)]
+fn dot_sign(u: Vec3, v: Vec3) -> i64 {
+    let t = |c: Scalar| c.to_bits() >> 2;
+    (t(u.x) * t(v.x) + t(u.y) * t(v.y) + t(u.z) * t(v.z)).signum()
 }
 
 /// The best edge–edge axis: (separation, edge of A, edge of B, axis A→B).
+///
+/// Only pairs whose arcs cross on the Gauss map (Gregorius' Minkowski-face
+/// test, on the signs of exact dot products with the precomputed arc
+/// normals) can realise the separation; the others are skipped without
+/// computing an axis. Strict signs: parallel edges never pass (their axes
+/// are face axes).
 fn edge_query<P: Poly, Q: Poly>(
     a: &Posed<P>,
     b: &Posed<Q>,
@@ -289,6 +303,7 @@ fn edge_query<P: Poly, Q: Poly>(
             continue;
         }
         let (na, nb) = (a.normals[fa0 as usize], a.normals[fa1 as usize]);
+        let arc_a = a.arcs[ea];
         let pa = a.verts[alo as usize];
         let ua = a.verts[ahi as usize] - pa;
         for (eb, &[blo, bhi]) in b.p.edges().iter().enumerate() {
@@ -296,8 +311,16 @@ fn edge_query<P: Poly, Q: Poly>(
             if fb0 == u16::MAX || fb1 == u16::MAX {
                 continue;
             }
-            let (nc, nd) = (-b.normals[fb0 as usize], -b.normals[fb1 as usize]);
-            if !minkowski_face(na, nb, nc, nd) {
+            // B's normals enter negated (the Minkowski difference A − B).
+            let cba = -dot_sign(b.normals[fb0 as usize], arc_a);
+            let dba = -dot_sign(b.normals[fb1 as usize], arc_a);
+            if cba * dba >= 0 {
+                continue;
+            }
+            let arc_b = b.arcs[eb];
+            let adc = dot_sign(na, arc_b);
+            let bdc = dot_sign(nb, arc_b);
+            if adc * bdc >= 0 || cba * bdc <= 0 {
                 continue;
             }
             let pb = b.verts[blo as usize];

@@ -1185,3 +1185,114 @@ fn gjk_timing() {
     );
     assert!(sink > 0);
 }
+
+#[test]
+fn feature_ids_stay_the_same_under_small_motions() {
+    let floor = slab_floor();
+    let cube = cube_hull(Vec3::splat(Scalar::HALF));
+    let mut rng = Rng(0x5eed_0008);
+    let q0 = Quat::from_axis_angle(Vec3::Y, s(0.3));
+    let base = Transform::new(v3(0.2, 0.49, -0.1), q0);
+    let mut m0 = Manifold::EMPTY;
+    assert!(contact_hull_hull(
+        &cube,
+        &base,
+        &floor,
+        &Transform::IDENTITY,
+        s(0.01),
+        &mut m0
+    ));
+    assert_eq!(m0.count, 4);
+    let mut ids0: Vec<u32> = m0.points().iter().map(|p| p.id.0).collect();
+    ids0.sort_unstable();
+    ids0.dedup();
+    assert_eq!(ids0.len(), 4, "distinct ids");
+    for _ in 0..200 {
+        // Up to 1 mm and 1e-4 rad of jitter (a tilt of 1e-4 moves the
+        // 10 m floor's far corners by 0.5 mm: within the face preference).
+        let d = v3(
+            rng.uniform(-1e-3, 1e-3),
+            rng.uniform(-1e-3, 1e-3),
+            rng.uniform(-1e-3, 1e-3),
+        );
+        let axis = v3(rng.uniform(-1.0, 1.0), 1.0, rng.uniform(-1.0, 1.0)).normalize_or_zero();
+        let q = (Quat::from_axis_angle(axis, s(rng.uniform(-1e-4, 1e-4))) * q0).normalize();
+        let pose = Transform::new(base.translation + d, q);
+        let mut m = Manifold::EMPTY;
+        assert!(contact_hull_hull(
+            &cube,
+            &pose,
+            &floor,
+            &Transform::IDENTITY,
+            s(0.01),
+            &mut m
+        ));
+        let mut ids: Vec<u32> = m.points().iter().map(|p| p.id.0).collect();
+        ids.sort_unstable();
+        assert_eq!(ids, ids0);
+    }
+}
+
+#[test]
+fn hulls_beyond_the_sat_buffers_fall_back_to_one_gjk_epa_point() {
+    // 200 points on a sphere of radius 1 (golden spiral): a hull well over
+    // MAX_SAT_VERTICES.
+    let n = 200;
+    let pts: Vec<Vec3> = (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - y * y).sqrt();
+            let phi = i as f64 * 2.399_963_229_728_653;
+            v3(r * phi.cos(), y, r * phi.sin())
+        })
+        .collect();
+    let ball = hull_of(&pts);
+    assert!(ball.vertices().len() > MAX_SAT_VERTICES);
+    let cube = Cuboid::new(Vec3::splat(Scalar::HALF)).unwrap();
+    let pose = Transform::from_translation(v3(0.0, 1.4, 0.0));
+    let mut m = Manifold::EMPTY;
+    assert!(contact_box_hull(
+        &cube,
+        &Transform::IDENTITY,
+        &ball,
+        &pose,
+        s(0.01),
+        &mut m
+    ));
+    assert_eq!(m.count, 1);
+    assert_eq!(m.points[0].id, FeatureId(u32::MAX));
+    // The box top at 0.5, the ball's lowest vertex at 1.4 − 0.995: 0.095
+    // deep.
+    let want = penetration(&cube, &Transform::IDENTITY, &ball, &pose).unwrap();
+    assert_eq!(m.points[0].depth, want.depth);
+    assert!((want.depth.to_f64() - 0.095).abs() < 1e-6, "{}", want.depth);
+    assert!(f(m.normal)[1] > 0.99);
+    // Apart beyond the margin: nothing; within it: one speculative point.
+    let far = Transform::from_translation(v3(0.0, 2.1, 0.0));
+    assert!(!contact_hull_hull(
+        &ball,
+        &far,
+        &ball,
+        &Transform::IDENTITY,
+        s(0.01),
+        &mut m
+    ));
+    let near = Transform::from_translation(v3(0.0, 1.995, 0.0));
+    assert!(contact_hull_hull(
+        &ball,
+        &Transform::IDENTITY,
+        &ball,
+        &near,
+        s(0.01),
+        &mut m
+    ));
+    assert_eq!(m.count, 1);
+    let sh = Sh::Hull(ball.clone());
+    let gap = core_distance(&sh.reference(&Transform::IDENTITY), &sh.reference(&near));
+    assert!((0.005..0.006).contains(&gap), "{gap}");
+    assert!(
+        (m.points[0].depth.to_f64() + gap).abs() < 2e-8,
+        "{} vs {gap}",
+        m.points[0].depth
+    );
+}
