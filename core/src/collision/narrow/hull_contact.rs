@@ -412,7 +412,7 @@ fn reduce(c: &[Cand], normal: Vec3, out: &mut [Cand; 4]) -> usize {
     let p1 = c[i1].point;
     let area = |p: &Cand| normal.dot_wide((p1 - p0).cross(p.point - p0));
     let i2 = argmax(&|p| area(p));
-    let i3 = argmax(&|p| -area(p));
+    let i3 = argmax(&|p| area(p).saturating_neg());
     let mut n = 0;
     for (k, i) in [i0, i1, i2, i3].into_iter().enumerate() {
         let fresh = ![i0, i1, i2, i3][..k].contains(&i);

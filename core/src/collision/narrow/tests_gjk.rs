@@ -1179,6 +1179,16 @@ fn gjk_timing() {
         let (a, b) = &poses[i % 256];
         contact_hull_hull(h(i), a, h(i + 1), b, mg, &mut m) as u64
     });
+    let floor = slab_floor();
+    let cube_hull8 = cube_hull(Vec3::splat(Scalar::HALF));
+    let rest = Transform::new(v3(0.1, 0.49, 0.2), Quat::from_axis_angle(Vec3::Y, s(0.3)));
+    let id = Transform::IDENTITY;
+    time("resting box on hull floor", &mut |_| {
+        contact_box_hull(&cube, &rest, &floor, &id, mg, &mut m) as u64
+    });
+    time("resting cube hull on floor", &mut |_| {
+        contact_hull_hull(&cube_hull8, &rest, &floor, &id, mg, &mut m) as u64
+    });
     eprintln!(
         "hull sizes: {:?} vertices",
         hulls.iter().map(|h| h.vertices().len()).collect::<Vec<_>>()
@@ -1294,5 +1304,49 @@ fn hulls_beyond_the_sat_buffers_fall_back_to_one_gjk_epa_point() {
         (m.points[0].depth.to_f64() + gap).abs() < 2e-8,
         "{} vs {gap}",
         m.points[0].depth
+    );
+}
+
+#[test]
+fn extreme_sizes_keep_distances_accurate() {
+    let mut rng = Rng(0x5eed_0009);
+    let mut worst = [0.0f64; 2];
+    for (k, (size, spread)) in [(5000.0, 4000.0), (1e-3, 2e-3)].into_iter().enumerate() {
+        for _ in 0..300 {
+            let a = Sh::Box(Cuboid::new(Vec3::splat(s(size * rng.uniform(0.2, 1.0)))).unwrap());
+            let pts: Vec<Vec3> = (0..10)
+                .map(|_| {
+                    v3(
+                        rng.uniform(-size, size),
+                        rng.uniform(-size, size),
+                        rng.uniform(-size, size),
+                    )
+                })
+                .collect();
+            let Ok(h) = ConvexHull::from_points(&pts) else {
+                continue;
+            };
+            let b = Sh::Hull(h);
+            let pa = rng.pose(spread);
+            let pb = rng.pose(spread);
+            let want = core_distance(&a.reference(&pa), &b.reference(&pb));
+            match dist_of(&a, &pa, &b, &pb) {
+                DistanceResult::Separated { distance, .. } => {
+                    let err = (distance.to_f64() - want).abs();
+                    worst[k] = worst[k].max(err);
+                    // Relative to the size for kilometre shapes (the f64
+                    // reference and the rotation's 2⁻³⁰ both scale).
+                    assert!(
+                        err <= 2e-8 + size * 1e-8,
+                        "{distance} vs {want} at size {size}"
+                    );
+                }
+                DistanceResult::Overlapping => assert!(want <= 2e-8 + size * 1e-8),
+            }
+        }
+    }
+    eprintln!(
+        "km shapes: worst {:.2e} m; mm shapes: worst {:.2e} m",
+        worst[0], worst[1]
     );
 }
