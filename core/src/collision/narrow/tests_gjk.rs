@@ -747,18 +747,20 @@ fn hull_contacts_agree_with_the_references_and_lie_on_both_surfaces() {
             }
             // True penetration (f64 SAT for polytopes, distance for round
             // cores) bounds every depth from above.
-            let true_depth = if ra.planes.is_empty() {
-                let cd = core_distance(&ra, &rb);
-                if cd > 0.0 { -gap } else { f64::MAX }
+            // (For a point or segment core inside the hull, the SAT axes
+            // are the hull's faces and the crosses of the segment with the
+            // hull's edges; the radius adds on.)
+            let true_depth = if core_distance(&ra, &rb) > 0.0 {
+                -gap
             } else {
-                sat_depth(&ra, &rb).0
+                sat_depth(&ra, &rb).0 + ra.radius
             };
             for p in m.points() {
                 let d = p.depth.to_f64();
                 worst_depth = worst_depth.max(d - true_depth);
                 // Face axes win over edge axes (and A's faces over B's)
                 // unless beaten by 1/1024 m + |separation|/32.
-                let pref = if ra.planes.is_empty() {
+                let pref = if ka == 0 {
                     0.0
                 } else {
                     1.0 / 1024.0 + d.abs() / 32.0
