@@ -40,9 +40,12 @@
 //! * clipped face contacts: `pair(reference, incident)` with the reference
 //!   face index (bit 15 set when B holds the reference face) and the
 //!   incident vertex index, or for a point cut by a reference side plane,
-//!   `0x8000 | side << 7 | vertex slot`;
+//!   `0x8000 | side << 7 | (low 7 bits of the cut edge's start id)`; the
+//!   deep-overlap fallback point uses the deepest incident vertex index;
 //! * edge–edge: `pair(0x4000 | edge of A, 0x4000 | edge of B)`;
-//! * sphere/capsule: `pair(core feature, hull face or 0x7fff for GJK)`.
+//! * sphere/capsule: `pair(core feature, hull face)`, with `0x7fff` for a
+//!   GJK point and `0x4000 | edge` for a capsule–edge point;
+//! * hulls beyond the SAT buffers: `FeatureId(u32::MAX)`.
 
 use super::epa::epa_core;
 use super::gjk::{
