@@ -23,7 +23,7 @@
 //!
 //! Everything is computed in A's local frame from the exact difference of
 //! the translations, so moving both shapes by the same offset gives the same
-//! bits (see [`Rel`]).
+//! bits (see `Rel`).
 
 use crate::math::scalar::round_shift;
 use crate::math::{Mat3, Scalar, Transform, Vec3};

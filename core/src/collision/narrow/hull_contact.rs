@@ -35,7 +35,7 @@
 //! clipping its segment to that face.
 //!
 //! Everything is computed in A's frame from the exact difference of the
-//! translations ([`Rel`]), so results are translation invariant bit for
+//! translations (`Rel`), so results are translation invariant bit for
 //! bit. Ties go to the lowest face/edge index. Feature ids:
 //! * clipped face contacts: `pair(reference, incident)` with the reference
 //!   face index (bit 15 set when B holds the reference face) and the
