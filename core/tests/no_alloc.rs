@@ -67,9 +67,28 @@ fn step_does_not_allocate_once_warm() {
         w.add_collider(b, ColliderDesc::new(shape)).unwrap();
     }
     let k = w.create_body(&BodyDesc::kinematic()).unwrap();
-    for _ in 0..10 {
-        w.step();
+    // While warming up, buffers grow as contact pairs appear: every step that
+    // allocates must say so in its report (an exceeded capacity is reported,
+    // never hidden).
+    let mut growth_steps = 0;
+    for t in 0..60 {
+        let before = allocations();
+        let r = w.step();
+        let allocated = allocations() - before;
+        assert!(
+            allocated == 0 || r.buffer_growths > 0,
+            "step {t} allocated {allocated} times without reporting a growth"
+        );
+        growth_steps += (r.buffer_growths > 0) as u32;
     }
+    assert!(
+        growth_steps > 0,
+        "the warm-up should have grown the contact buffers"
+    );
+    assert!(
+        w.step().touching_pairs > 0,
+        "the test scene has touching pairs"
+    );
     let before = allocations();
     for t in 0..200 {
         let target = Transform::new(

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::arena::RawHandle;
 use crate::body::BodyHandle;
+use crate::collision::ProxyId;
 use crate::math::{Scalar, Transform};
 use crate::shape::{MassProperties, Shape};
 
@@ -126,4 +127,14 @@ pub struct Collider {
     pub is_trigger: bool,
     /// A hash of the shape's geometry, computed once, for the state hash.
     pub shape_hash: u64,
+    /// Its proxy in the world's broad phase.
+    pub proxy: ProxyId,
+}
+
+impl Collider {
+    /// The collider's world pose given its body's origin pose.
+    #[inline]
+    pub fn world_pose(&self, body_origin: &Transform) -> Transform {
+        body_origin.mul_transform(&self.local_pose)
+    }
 }

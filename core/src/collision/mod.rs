@@ -4,11 +4,15 @@
 //! ([`manifold`]), and the narrow phase's pair functions ([`narrow`]).
 
 pub mod broad_phase;
+pub mod contacts;
 pub mod dynamic_tree;
 pub mod manifold;
 pub mod narrow;
 
 pub use broad_phase::{BroadPhase, BroadPhaseError, PairStats, ProxyId, ProxyKey, ProxyKind};
+pub use contacts::{
+    ContactEvent, ContactEventKind, ContactPair, ContactSet, ContactStats, PairKind, PointImpulse,
+};
 pub use dynamic_tree::{DynamicTree, LeafId, TreeError};
 pub use manifold::{ContactPoint, FeatureId, MAX_MANIFOLD_POINTS, Manifold};
 

@@ -25,16 +25,26 @@ pub struct WorldConfig {
     pub substeps: u32,
     /// Sleep thresholds.
     pub sleep: SleepConfig,
+    /// Speculative contact distance, m: shapes closer than this get contact
+    /// points (with negative depth) before they touch, so the solver can stop
+    /// them without a gap or an overlap.
+    pub contact_margin: Scalar,
+    /// How far the broad phase's fat boxes extend beyond the shapes, m: a
+    /// body moving less than this per step does not touch the trees.
+    pub broad_phase_margin: Scalar,
 }
 
 impl Default for WorldConfig {
-    /// Gravity (0, −9.81, 0), 60 Hz, 4 substeps, default sleep settings.
+    /// Gravity (0, −9.81, 0), 60 Hz, 4 substeps, default sleep settings,
+    /// 2 cm contact margin, 10 cm broad-phase margin.
     fn default() -> WorldConfig {
         WorldConfig {
             gravity: Vec3::new(Scalar::ZERO, Scalar::from_ratio(-981, 100), Scalar::ZERO),
             tick_rate: 60,
             substeps: 4,
             sleep: SleepConfig::default(),
+            contact_margin: Scalar::from_ratio(1, 50),
+            broad_phase_margin: Scalar::from_ratio(1, 10),
         }
     }
 }
@@ -56,6 +66,11 @@ impl WorldConfig {
                 "substeps must be in 1..={MAX_SUBSTEPS}, got {}",
                 self.substeps
             )));
+        }
+        if self.contact_margin.is_negative() || self.broad_phase_margin.is_negative() {
+            return Err(WorldError::InvalidConfig(
+                "contact and broad-phase margins must not be negative".into(),
+            ));
         }
         let s = &self.sleep;
         if s.linear_threshold.is_negative()
@@ -98,6 +113,23 @@ pub struct StepReport {
     pub gyroscopic_solves: u32,
     /// Bodies that fell asleep during this step.
     pub fell_asleep: u32,
+    /// Candidate pairs from the broad phase (fat boxes overlap).
+    pub candidate_pairs: u32,
+    /// Narrow-phase tests run.
+    pub narrow_tests: u32,
+    /// Pairs touching after the collision stage.
+    pub touching_pairs: u32,
+    /// Contact points in all manifolds.
+    pub contact_points: u32,
+    /// Begin-touch and trigger-enter events.
+    pub begin_events: u32,
+    /// End-touch and trigger-exit events.
+    pub end_events: u32,
+    /// Broad-phase proxies moved in their trees this step.
+    pub proxies_reinserted: u32,
+    /// Times an internal buffer had to grow during the step (an allocation:
+    /// zero once the world is warm).
+    pub buffer_growths: u32,
     /// Arithmetic faults raised during this step (overflow, division by
     /// zero, domain errors). Non-empty means the results can no longer be
     /// trusted: tests and desync checks treat it as a failure.

@@ -1,6 +1,7 @@
 //! The `World`: bodies, colliders, settings, and the step that advances them.
 
 mod body_ref;
+mod collide;
 mod config;
 mod state_hash;
 mod step;
@@ -14,6 +15,7 @@ use serde::{Deserialize, Serialize};
 use crate::arena::Arena;
 use crate::body::{BodyCold, BodyDesc, BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::collider::{Collider, ColliderDesc, ColliderHandle, MassSpec};
+use crate::collision::{BroadPhase, ContactEvent, ContactPair, ContactSet, ProxyId, ProxyKey};
 use crate::math::{FaultScope, Faults, Quat, Scalar, SymMat3, Transform, Vec3};
 use crate::shape::MassProperties;
 use crate::solver::integrate::{momentum_from_omega, omega_from_momentum};
@@ -23,14 +25,29 @@ use crate::solver::integrate::{momentum_from_omega, omega_from_momentum};
 /// Determinism: every operation visits bodies and colliders in handle
 /// order; the same sequence of calls gives the same state, bit for bit, on
 /// every platform. [`World::state_hash`] summarises that state.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct World {
     config: WorldConfig,
     tick: u64,
     bodies: BodySet,
     colliders: Arena<Collider>,
+    broad: BroadPhase,
+    contacts: ContactSet,
     faults: Faults,
+    /// Scratch: the broad phase's candidate pairs (reused every step).
+    #[serde(skip)]
+    candidates: Vec<(ProxyKey, ProxyKey)>,
 }
+
+impl PartialEq for World {
+    /// Two worlds are equal when their snapshots are: the same state, bit
+    /// for bit, including the broad phase's trees (scratch excluded).
+    fn eq(&self, other: &World) -> bool {
+        self.snapshot() == other.snapshot()
+    }
+}
+
+impl Eq for World {}
 
 impl World {
     /// An empty world.
@@ -44,7 +61,10 @@ impl World {
             tick: 0,
             bodies: BodySet::default(),
             colliders: Arena::default(),
+            broad: BroadPhase::new(config.broad_phase_margin),
+            contacts: ContactSet::default(),
             faults: Faults::NONE,
+            candidates: Vec::new(),
         })
     }
 
@@ -179,7 +199,10 @@ impl World {
     pub fn remove_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
         let cold = self.bodies.remove(h).ok_or(WorldError::InvalidBody(h))?;
         for c in cold.colliders {
-            self.colliders.remove(c.0);
+            if let Some(removed) = self.colliders.remove(c.0) {
+                let _ = self.broad.destroy_proxy(removed.proxy);
+                self.contacts.remove_collider(c);
+            }
         }
         Ok(())
     }
@@ -216,6 +239,15 @@ impl World {
             MassProperties::default()
         };
         let shape_hash = crate::hash::shape_hash(&desc.shape);
+        let local_pose = Transform::new(
+            desc.local_pose.translation,
+            desc.local_pose.rotation.normalize(),
+        );
+        let origin = self.body_origin(body);
+        let aabb = desc
+            .shape
+            .aabb(&origin.mul_transform(&local_pose))
+            .expanded(self.config.contact_margin);
         let ch = ColliderHandle(self.colliders.insert(Collider {
             body,
             shape: desc.shape,
@@ -229,7 +261,18 @@ impl World {
             filter: desc.filter,
             is_trigger: desc.is_trigger,
             shape_hash,
+            // Replaced just below: the proxy's key is the collider handle,
+            // which only exists once the collider is inserted.
+            proxy: ProxyId::from_index(u32::MAX),
         }));
+        let proxy = self.broad.create_proxy(
+            aabb,
+            collide::proxy_key(ch),
+            collide::proxy_kind_of(&self.bodies, body),
+        );
+        if let Some(c) = self.colliders.get_mut(ch.0) {
+            c.proxy = proxy;
+        }
         if let Some(cold) = self.bodies.cold_mut(body) {
             cold.colliders.push(ch);
         }
@@ -342,6 +385,26 @@ impl World {
         }
     }
 
+    /// The pose of a body's origin (identity for a stale handle).
+    fn body_origin(&self, h: BodyHandle) -> Transform {
+        match (self.bodies.hot(h), self.bodies.cold(h)) {
+            (Some(hot), Some(cold)) => hot.origin_pose(cold.local_center),
+            _ => Transform::IDENTITY,
+        }
+    }
+
+    /// The contact pairs after the last step, ascending by collider
+    /// handles: touching pairs carry their manifold (normal from A to B).
+    pub fn contact_pairs(&self) -> &[ContactPair] {
+        self.contacts.pairs()
+    }
+
+    /// The contact and trigger events of the last step (plus end events of
+    /// colliders removed since), in pair order.
+    pub fn contact_events(&self) -> &[ContactEvent] {
+        self.contacts.events()
+    }
+
     fn hot_mut(&mut self, h: BodyHandle) -> Result<&mut BodyHot, WorldError> {
         self.bodies.hot_mut(h).ok_or(WorldError::InvalidBody(h))
     }
@@ -362,6 +425,7 @@ impl World {
                 momentum_from_omega(rotation, &hot.inertia, hot.angular_velocity);
         }
         wake(hot);
+        self.refresh_proxies(h);
         Ok(())
     }
 
@@ -606,6 +670,15 @@ impl World {
     pub(crate) fn check_invariants(&self) -> Result<(), String> {
         self.bodies.check()?;
         self.colliders.check()?;
+        self.broad.validate().map_err(|e| e.to_string())?;
+        if self.broad.proxy_count() != self.colliders.len() {
+            return Err("broad-phase proxies and colliders disagree in number".into());
+        }
+        for (h, c) in self.colliders.iter() {
+            if self.broad.key(c.proxy).ok() != Some(collide::proxy_key(ColliderHandle(h))) {
+                return Err(format!("collider {h:?} has no matching broad-phase proxy"));
+            }
+        }
         for (h, c) in self.colliders.iter() {
             let listed = self
                 .bodies

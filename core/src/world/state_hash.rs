@@ -10,7 +10,7 @@ use super::World;
 /// Version of the hashed layout; bumped whenever the list of hashed words
 /// changes, so hashes from different layouts never compare equal by
 /// accident.
-pub const STATE_HASH_VERSION: u64 = 1;
+pub const STATE_HASH_VERSION: u64 = 2;
 
 impl World {
     /// The canonical hash of everything that influences later steps: the
@@ -29,12 +29,15 @@ impl World {
         h.scalar(c.sleep.linear_threshold);
         h.scalar(c.sleep.angular_threshold);
         h.scalar(c.sleep.time_to_sleep);
+        h.scalar(c.contact_margin);
+        h.scalar(c.broad_phase_margin);
         h.word(self.bodies.len() as u64);
         for (handle, hot, cold) in self.bodies.iter() {
             h.word(handle.index() as u64);
             h.word(handle.generation() as u64);
             h.word(self.body_hash_of(hot, cold));
         }
+        self.contacts.hash_into(&mut h);
         h.finish()
     }
 

@@ -12,6 +12,10 @@ impl World {
     /// Stages, in order:
     /// 1. `kinematic_targets`: kinematic bodies with a target pose get the
     ///    velocities that reach it over the tick;
+    ///    then `collide`: broad-phase update from the poses at the start of
+    ///    the tick, candidate pairs, narrow phase, persistent manifolds and
+    ///    contact/trigger events (read them with
+    ///    [`World::contact_events`]);
     /// 2. per substep: `integrate_velocities` (gravity, forces, torques,
     ///    damping, the gyroscopic midpoint), then `integrate_positions`;
     /// 3. `finish_velocities`: end-of-tick angular velocities from momenta;
@@ -40,6 +44,16 @@ impl World {
         };
 
         report.kinematic_bodies = self.stage_kinematic_targets();
+
+        let (contacts, reinserted) = self.stage_collide();
+        report.candidate_pairs = contacts.candidates;
+        report.narrow_tests = contacts.narrow_tests;
+        report.touching_pairs = contacts.touching;
+        report.contact_points = contacts.points;
+        report.begin_events = contacts.begin_events;
+        report.end_events = contacts.end_events;
+        report.proxies_reinserted = reinserted;
+        report.buffer_growths = contacts.growths;
 
         let (hot, live) = self.bodies.hot_slots_mut();
         for _ in 0..cfg.substeps {

@@ -1,0 +1,471 @@
+//! Contact pairs: their lifetime, persistent manifolds and events.
+//!
+//! Each step the broad phase hands over the sorted candidate pairs; this
+//! module merges them with last step's pairs (both sorted by collider
+//! handle, so a single linear walk), runs the narrow phase on each, carries
+//! each contact point's accumulated impulses over from the previous step's
+//! point with the same [`FeatureId`] (warm starting for the solver), and
+//! emits begin/end events when a pair starts or stops touching (enter/exit
+//! for trigger pairs, which never keep contact points).
+//!
+//! Pairs whose two bodies sleep (or one sleeps and the other is static) are
+//! not candidates, but they are kept unchanged, so a sleeping pile keeps its
+//! contacts and emits no events.
+//!
+//! Determinism: pairs, and therefore events, are in ascending order of
+//! (collider A, collider B) handles, whatever the trees' shape.
+
+use serde::{Deserialize, Serialize};
+
+use crate::collider::ColliderHandle;
+use crate::math::Scalar;
+
+use super::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
+
+/// What the solver accumulated on one contact point, carried to the same
+/// point (same feature id) next step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PointImpulse {
+    /// Accumulated normal impulse, N·s.
+    pub normal: Scalar,
+    /// Accumulated friction impulses along the two tangent directions.
+    pub tangent: [Scalar; 2],
+}
+
+/// Whether a pair makes contacts or only reports overlap.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum PairKind {
+    /// Two solid colliders: contact points for the solver.
+    Solid,
+    /// At least one trigger: overlap events, no contact points.
+    Trigger,
+}
+
+/// A pair of colliders whose fat bounding boxes overlap, with its contact
+/// state. `a` has the lower handle index.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ContactPair {
+    /// The first collider (lower handle).
+    pub a: ColliderHandle,
+    /// The second collider.
+    pub b: ColliderHandle,
+    /// Solid or trigger.
+    pub kind: PairKind,
+    /// Whether the shapes touch (some point with depth ≥ 0; for triggers,
+    /// whether they overlap).
+    pub touching: bool,
+    /// The contact manifold, normal from A to B (always empty for triggers).
+    pub manifold: Manifold,
+    /// Accumulated impulses, one per manifold point.
+    pub impulses: [PointImpulse; MAX_MANIFOLD_POINTS],
+}
+
+impl ContactPair {
+    /// A fresh pair with no contact yet.
+    pub fn new(a: ColliderHandle, b: ColliderHandle, kind: PairKind) -> ContactPair {
+        ContactPair {
+            a,
+            b,
+            kind,
+            touching: false,
+            manifold: Manifold::EMPTY,
+            impulses: [PointImpulse::default(); MAX_MANIFOLD_POINTS],
+        }
+    }
+
+    /// The order pairs are kept in.
+    pub fn key(&self) -> (u32, u32) {
+        (self.a.index(), self.b.index())
+    }
+
+    /// Installs this step's manifold, carrying each point's impulses over
+    /// from last step's point with the same feature id (new points start at
+    /// zero).
+    pub fn update_manifold(&mut self, new: &Manifold) {
+        let mut impulses = [PointImpulse::default(); MAX_MANIFOLD_POINTS];
+        for (i, p) in new.points().iter().enumerate() {
+            if let Some(j) = self.manifold.points().iter().position(|q| q.id == p.id) {
+                impulses[i] = self.impulses[j];
+            }
+        }
+        self.manifold = *new;
+        self.impulses = impulses;
+        self.touching = new.points().iter().any(|p| !p.depth.is_negative());
+    }
+}
+
+/// Which way a pair's touching state changed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum ContactEventKind {
+    /// Two solid colliders started touching.
+    BeginTouch,
+    /// Two solid colliders stopped touching (or one was removed).
+    EndTouch,
+    /// A collider entered a trigger.
+    TriggerEnter,
+    /// A collider left a trigger (or one was removed).
+    TriggerExit,
+}
+
+/// A change in a pair's touching state during the last step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ContactEvent {
+    /// What happened.
+    pub kind: ContactEventKind,
+    /// The first collider (lower handle; may be stale on an end event if it
+    /// was removed).
+    pub a: ColliderHandle,
+    /// The second collider.
+    pub b: ColliderHandle,
+}
+
+impl ContactEvent {
+    fn begin(p: &ContactPair) -> ContactEvent {
+        let kind = match p.kind {
+            PairKind::Solid => ContactEventKind::BeginTouch,
+            PairKind::Trigger => ContactEventKind::TriggerEnter,
+        };
+        ContactEvent {
+            kind,
+            a: p.a,
+            b: p.b,
+        }
+    }
+
+    fn end(p: &ContactPair) -> ContactEvent {
+        let kind = match p.kind {
+            PairKind::Solid => ContactEventKind::EndTouch,
+            PairKind::Trigger => ContactEventKind::TriggerExit,
+        };
+        ContactEvent {
+            kind,
+            a: p.a,
+            b: p.b,
+        }
+    }
+}
+
+/// Counters from one contact update.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ContactStats {
+    /// Candidate pairs from the broad phase.
+    pub candidates: u32,
+    /// Narrow-phase calls.
+    pub narrow_tests: u32,
+    /// Pairs touching after the update.
+    pub touching: u32,
+    /// Contact points in all manifolds.
+    pub points: u32,
+    /// Pairs of sleeping bodies kept without a test.
+    pub kept_asleep: u32,
+    /// Begin/enter events.
+    pub begin_events: u32,
+    /// End/exit events.
+    pub end_events: u32,
+    /// Times a buffer had to grow (allocation inside the step).
+    pub growths: u32,
+}
+
+/// The world's contact pairs and the events of the last step.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ContactSet {
+    pairs: Vec<ContactPair>,
+    #[serde(skip)]
+    next: Vec<ContactPair>,
+    events: Vec<ContactEvent>,
+}
+
+/// What the caller knows about one candidate pair.
+pub struct Candidate {
+    /// The lower collider handle.
+    pub a: ColliderHandle,
+    /// The higher collider handle.
+    pub b: ColliderHandle,
+    /// Solid or trigger.
+    pub kind: PairKind,
+}
+
+impl ContactSet {
+    /// The current pairs, ascending by (A, B) handle index.
+    pub fn pairs(&self) -> &[ContactPair] {
+        &self.pairs
+    }
+
+    /// The events of the last update, in pair order.
+    pub fn events(&self) -> &[ContactEvent] {
+        &self.events
+    }
+
+    /// Merges the sorted `candidates` with the current pairs.
+    ///
+    /// - `narrow(a, b, manifold)` fills the manifold of a candidate (called
+    ///   once per candidate, in pair order);
+    /// - `keep_asleep(pair)` says whether a pair that is no longer a
+    ///   candidate rests between sleeping (or sleeping and static) bodies and
+    ///   must be kept as it is.
+    ///
+    /// Determinism: must be given candidates sorted by (A, B) handle index.
+    pub fn update(
+        &mut self,
+        candidates: impl Iterator<Item = Candidate>,
+        mut narrow: impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
+        mut keep_asleep: impl FnMut(&ContactPair) -> bool,
+    ) -> ContactStats {
+        let mut stats = ContactStats::default();
+        let caps = (self.next.capacity(), self.events.capacity());
+        self.next.clear();
+        self.events.clear();
+        let mut old = 0usize;
+        let mut scratch = Manifold::EMPTY;
+        for c in candidates {
+            stats.candidates += 1;
+            let key = (c.a.index(), c.b.index());
+            // Old pairs before this candidate are gone (or asleep).
+            while old < self.pairs.len() && self.pairs[old].key() < key {
+                self.retire(old, &mut keep_asleep, &mut stats);
+                old += 1;
+            }
+            let mut pair = if old < self.pairs.len()
+                && self.pairs[old].key() == key
+                && self.pairs[old].a == c.a
+                && self.pairs[old].b == c.b
+            {
+                old += 1;
+                self.pairs[old - 1]
+            } else {
+                if old < self.pairs.len() && self.pairs[old].key() == key {
+                    // Same slots, other generations: the old pair's
+                    // colliders were removed.
+                    self.retire(old, &mut |_| false, &mut stats);
+                    old += 1;
+                }
+                ContactPair::new(c.a, c.b, c.kind)
+            };
+            pair.kind = c.kind;
+            let was_touching = pair.touching;
+            scratch.clear();
+            narrow(c.a, c.b, &mut scratch);
+            stats.narrow_tests += 1;
+            if c.kind == PairKind::Trigger {
+                pair.touching = scratch.points().iter().any(|p| !p.depth.is_negative());
+                pair.manifold = Manifold::EMPTY;
+            } else {
+                pair.update_manifold(&scratch);
+            }
+            if pair.touching != was_touching {
+                if pair.touching {
+                    self.events.push(ContactEvent::begin(&pair));
+                    stats.begin_events += 1;
+                } else {
+                    self.events.push(ContactEvent::end(&pair));
+                    stats.end_events += 1;
+                }
+            }
+            self.next.push(pair);
+        }
+        while old < self.pairs.len() {
+            self.retire(old, &mut keep_asleep, &mut stats);
+            old += 1;
+        }
+        std::mem::swap(&mut self.pairs, &mut self.next);
+        for p in &self.pairs {
+            if p.touching {
+                stats.touching += 1;
+                stats.points += p.manifold.count as u32;
+            }
+        }
+        if self.next.capacity() != caps.0 || self.events.capacity() != caps.1 {
+            stats.growths += 1;
+        }
+        stats
+    }
+
+    /// An old pair that is no longer a candidate: kept if asleep, otherwise
+    /// dropped with an end event if it was touching.
+    fn retire(
+        &mut self,
+        i: usize,
+        keep_asleep: &mut impl FnMut(&ContactPair) -> bool,
+        stats: &mut ContactStats,
+    ) {
+        let p = self.pairs[i];
+        if keep_asleep(&p) {
+            self.next.push(p);
+            stats.kept_asleep += 1;
+        } else if p.touching {
+            self.events.push(ContactEvent::end(&p));
+            stats.end_events += 1;
+        }
+    }
+
+    /// Drops every pair that involves `c` because its collider was removed;
+    /// a touching pair's end event is appended to the current event list
+    /// (removals happen between steps).
+    pub fn remove_collider(&mut self, c: ColliderHandle) {
+        let events = &mut self.events;
+        self.pairs.retain(|p| {
+            let involved = p.a == c || p.b == c;
+            if involved && p.touching {
+                events.push(ContactEvent::end(p));
+            }
+            !involved
+        });
+    }
+
+    /// Feeds every pair's persistent state into the world's state hash (the
+    /// word order is in `docs/determinism.md`).
+    pub(crate) fn hash_into(&self, h: &mut crate::hash::StateHasher) {
+        h.word(self.pairs.len() as u64);
+        for p in &self.pairs {
+            h.word(p.a.0.index as u64);
+            h.word(p.a.0.generation as u64);
+            h.word(p.b.0.index as u64);
+            h.word(p.b.0.generation as u64);
+            h.word(match p.kind {
+                PairKind::Solid => 0,
+                PairKind::Trigger => 1,
+            });
+            h.word(p.touching as u64);
+            h.vec3(p.manifold.normal);
+            h.word(p.manifold.count as u64);
+            for (pt, imp) in p.manifold.points().iter().zip(&p.impulses) {
+                hash_point(h, pt);
+                h.scalar(imp.normal);
+                h.scalar(imp.tangent[0]);
+                h.scalar(imp.tangent[1]);
+            }
+        }
+    }
+}
+
+fn hash_point(h: &mut crate::hash::StateHasher, p: &ContactPoint) {
+    h.vec3(p.point);
+    h.scalar(p.depth);
+    h.word(p.id.0 as u64);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::arena::RawHandle;
+    use crate::collision::manifold::FeatureId;
+    use crate::math::Vec3;
+
+    fn point(at: Vec3, depth: Scalar, id: u32) -> ContactPoint {
+        ContactPoint {
+            point: at,
+            depth,
+            id: FeatureId(id),
+        }
+    }
+
+    fn ch(i: u32) -> ColliderHandle {
+        ColliderHandle(RawHandle {
+            index: i,
+            generation: 1,
+        })
+    }
+
+    fn manifold(points: &[(u32, i32)]) -> Manifold {
+        let mut m = Manifold::EMPTY;
+        m.normal = Vec3::Y;
+        for &(id, depth) in points {
+            m.push(point(Vec3::ZERO, Scalar::from_ratio(depth as i64, 100), id));
+        }
+        m
+    }
+
+    #[test]
+    fn impulses_follow_points_with_the_same_feature_id() {
+        let mut p = ContactPair::new(ch(0), ch(1), PairKind::Solid);
+        p.update_manifold(&manifold(&[(10, 1), (11, 1), (12, 1)]));
+        p.impulses[0].normal = Scalar::from_int(5);
+        p.impulses[1].normal = Scalar::from_int(6);
+        p.impulses[2].tangent = [Scalar::from_int(7), Scalar::from_int(8)];
+        // Point 11 disappears, 13 is new, 12 and 10 swap places.
+        p.update_manifold(&manifold(&[(12, 2), (13, 1), (10, 2)]));
+        assert_eq!(
+            p.impulses[0].tangent,
+            [Scalar::from_int(7), Scalar::from_int(8)]
+        );
+        assert_eq!(p.impulses[1], PointImpulse::default());
+        assert_eq!(p.impulses[2].normal, Scalar::from_int(5));
+        assert!(p.touching);
+        p.update_manifold(&manifold(&[(12, -1)]));
+        assert!(!p.touching, "speculative points are not touching");
+    }
+
+    #[test]
+    fn begin_and_end_events_follow_touching_in_pair_order() {
+        let mut set = ContactSet::default();
+        let depth = |pairs: &[(u32, u32, i32)]| pairs.to_vec();
+        let step = |set: &mut ContactSet, pairs: Vec<(u32, u32, i32)>| {
+            let cands: Vec<Candidate> = pairs
+                .iter()
+                .map(|&(a, b, _)| Candidate {
+                    a: ch(a),
+                    b: ch(b),
+                    kind: if a == 7 {
+                        PairKind::Trigger
+                    } else {
+                        PairKind::Solid
+                    },
+                })
+                .collect();
+            set.update(
+                cands.into_iter(),
+                |a, b, m| {
+                    let d = pairs
+                        .iter()
+                        .find(|p| p.0 == a.index() && p.1 == b.index())
+                        .unwrap()
+                        .2;
+                    *m = manifold(&[(1, d)]);
+                },
+                |_| false,
+            );
+            set.events()
+                .iter()
+                .map(|e| (e.kind, e.a.index(), e.b.index()))
+                .collect::<Vec<_>>()
+        };
+        use ContactEventKind::*;
+        assert_eq!(
+            step(&mut set, depth(&[(0, 1, 1), (0, 2, -1), (7, 9, 3)])),
+            vec![(BeginTouch, 0, 1), (TriggerEnter, 7, 9)]
+        );
+        assert!(
+            set.pairs()[2].manifold.is_empty(),
+            "triggers keep no points"
+        );
+        assert_eq!(
+            step(&mut set, depth(&[(0, 1, 1), (0, 2, 2)])),
+            vec![(BeginTouch, 0, 2), (TriggerExit, 7, 9)]
+        );
+        assert_eq!(
+            step(&mut set, depth(&[(0, 2, -3)])),
+            vec![(EndTouch, 0, 1), (EndTouch, 0, 2)]
+        );
+        assert_eq!(set.pairs().len(), 1);
+    }
+
+    #[test]
+    fn sleeping_pairs_are_kept_without_events() {
+        let mut set = ContactSet::default();
+        set.update(
+            [Candidate {
+                a: ch(3),
+                b: ch(4),
+                kind: PairKind::Solid,
+            }]
+            .into_iter(),
+            |_, _, m| *m = manifold(&[(1, 1)]),
+            |_| false,
+        );
+        assert_eq!(set.events().len(), 1);
+        set.update(std::iter::empty(), |_, _, _| {}, |_| true);
+        assert!(set.events().is_empty());
+        assert_eq!(set.pairs().len(), 1);
+        assert!(set.pairs()[0].touching);
+    }
+}

@@ -1,0 +1,158 @@
+//! The collision stage of `World::step`: broad-phase update, candidate
+//! pairs, narrow phase, persistent manifolds and events.
+
+use crate::body::{BodyHandle, BodyKind, BodySet};
+use crate::collider::ColliderHandle;
+use crate::collision::contacts::{Candidate, ContactStats, PairKind};
+use crate::collision::{ProxyKey, ProxyKind, narrow};
+
+use super::World;
+
+/// A collider's broad-phase key: its handle index in the high 32 bits and
+/// generation in the low ones, so sorting by key sorts by handle.
+pub(crate) fn proxy_key(c: ColliderHandle) -> ProxyKey {
+    ProxyKey(((c.0.index as u64) << 32) | c.0.generation as u64)
+}
+
+/// The collider handle behind a key.
+fn collider_of(key: ProxyKey) -> ColliderHandle {
+    ColliderHandle(crate::arena::RawHandle {
+        index: (key.0 >> 32) as u32,
+        generation: key.0 as u32,
+    })
+}
+
+/// How the broad phase should treat a body's colliders.
+pub(crate) fn proxy_kind_of(bodies: &BodySet, body: BodyHandle) -> ProxyKind {
+    match bodies.hot(body) {
+        Some(b) => match b.kind {
+            BodyKind::Static => ProxyKind::Static,
+            BodyKind::Kinematic => ProxyKind::Kinematic,
+            BodyKind::Dynamic if b.sleeping => ProxyKind::Sleeping,
+            BodyKind::Dynamic => ProxyKind::Dynamic,
+        },
+        None => ProxyKind::Static,
+    }
+}
+
+impl World {
+    /// Moves a body's proxies to its current pose and sleep state (after a
+    /// teleport, or a change of sleep state outside the step).
+    pub(crate) fn refresh_proxies(&mut self, h: BodyHandle) {
+        let (Some(hot), Some(cold)) = (self.bodies.hot(h), self.bodies.cold(h)) else {
+            return;
+        };
+        let origin = hot.origin_pose(cold.local_center);
+        let kind = proxy_kind_of(&self.bodies, h);
+        for ch in &cold.colliders {
+            if let Some(c) = self.colliders.get(ch.0) {
+                let aabb = c
+                    .shape
+                    .aabb(&c.world_pose(&origin))
+                    .expanded(self.config.contact_margin);
+                let _ = self
+                    .broad
+                    .move_proxy(c.proxy, aabb, crate::math::Vec3::ZERO);
+                if self.broad.kind(c.proxy).ok() != Some(kind) {
+                    let _ = self.broad.set_kind(c.proxy, kind);
+                }
+            }
+        }
+    }
+
+    /// The collision stage: refresh the proxies of bodies that moved or
+    /// changed sleep state, find candidate pairs, run the narrow phase on
+    /// each and update the persistent contact set and its events.
+    ///
+    /// Determinism: proxies are refreshed in handle order; candidates come
+    /// out of the broad phase sorted by collider handle, and everything after
+    /// follows that order.
+    pub(crate) fn stage_collide(&mut self) -> (ContactStats, u32) {
+        let margin = self.config.contact_margin;
+        let dt = self.config.dt();
+        // 1. Proxies: awake moving bodies follow their shapes; every body's
+        //    proxies follow its sleep state.
+        let World {
+            bodies,
+            colliders,
+            broad,
+            contacts,
+            candidates,
+            ..
+        } = self;
+        for (handle, hot, cold) in bodies.iter() {
+            if cold.colliders.is_empty() {
+                continue;
+            }
+            let kind = proxy_kind_of(bodies, handle);
+            let moving = matches!(kind, ProxyKind::Dynamic | ProxyKind::Kinematic);
+            let origin = hot.origin_pose(cold.local_center);
+            let displacement = hot.linear_velocity * dt;
+            for ch in &cold.colliders {
+                let Some(c) = colliders.get(ch.0) else {
+                    continue;
+                };
+                if broad.kind(c.proxy).ok() != Some(kind) {
+                    let _ = broad.set_kind(c.proxy, kind);
+                }
+                if moving {
+                    let aabb = c.shape.aabb(&c.world_pose(&origin)).expanded(margin);
+                    let _ = broad.move_proxy(c.proxy, aabb, displacement);
+                }
+            }
+        }
+        // 2. Candidate pairs, filtered by body, category/mask/group and
+        //    trigger rules.
+        let filter = |ka: ProxyKey, kb: ProxyKey| {
+            let (Some(a), Some(b)) = (
+                colliders.get(collider_of(ka).0),
+                colliders.get(collider_of(kb).0),
+            ) else {
+                return false;
+            };
+            a.body != b.body && !(a.is_trigger && b.is_trigger) && a.filter.allows(&b.filter)
+        };
+        let pair_stats = broad.update_pairs(filter, candidates);
+        // 3. Narrow phase and the persistent contact set.
+        let cands = candidates.iter().map(|&(ka, kb)| {
+            let (a, b) = (collider_of(ka), collider_of(kb));
+            let trigger = colliders.get(a.0).is_some_and(|c| c.is_trigger)
+                || colliders.get(b.0).is_some_and(|c| c.is_trigger);
+            Candidate {
+                a,
+                b,
+                kind: if trigger {
+                    PairKind::Trigger
+                } else {
+                    PairKind::Solid
+                },
+            }
+        });
+        let pose_of = |ch: ColliderHandle| {
+            let c = colliders.get(ch.0)?;
+            let hot = bodies.hot(c.body)?;
+            let cold = bodies.cold(c.body)?;
+            Some((c, c.world_pose(&hot.origin_pose(cold.local_center))))
+        };
+        let narrow_phase =
+            |a: ColliderHandle, b: ColliderHandle, out: &mut crate::collision::Manifold| {
+                if let (Some((ca, pa)), Some((cb, pb))) = (pose_of(a), pose_of(b)) {
+                    narrow::contact(&ca.shape, &pa, &cb.shape, &pb, margin, out);
+                }
+            };
+        let resting = |p: &crate::collision::ContactPair| {
+            let kind =
+                |ch: ColliderHandle| colliders.get(ch.0).map(|c| proxy_kind_of(bodies, c.body));
+            matches!(
+                (kind(p.a), kind(p.b)),
+                (
+                    Some(ProxyKind::Sleeping),
+                    Some(ProxyKind::Sleeping | ProxyKind::Static)
+                ) | (Some(ProxyKind::Static), Some(ProxyKind::Sleeping))
+            )
+        };
+        let mut stats = contacts.update(cands, narrow_phase, resting);
+        stats.growths += pair_stats.buffer_growths;
+        (stats, pair_stats.reinsertions)
+    }
+}

@@ -1,0 +1,257 @@
+//! The collision stage inside `World::step`: candidate pairs, manifolds,
+//! touch and trigger events, filtering.
+
+use lockstep_core::collision::{ContactEventKind, PairKind};
+use lockstep_core::shape::{Cuboid, Shape, Sphere};
+use lockstep_core::{
+    BodyDesc, ColliderDesc, CollisionFilter, Scalar, Transform, Vec3, World, WorldConfig,
+};
+
+fn s(v: f64) -> Scalar {
+    Scalar::from_f64_lossy(v)
+}
+
+fn v(x: f64, y: f64, z: f64) -> Vec3 {
+    Vec3::new(s(x), s(y), s(z))
+}
+
+fn zero_g() -> World {
+    World::new(WorldConfig {
+        gravity: Vec3::ZERO,
+        ..WorldConfig::default()
+    })
+    .unwrap()
+}
+
+fn ball(w: &mut World, name: &str, at: Vec3, vel: Vec3) -> lockstep_core::BodyHandle {
+    let b = w
+        .create_body(
+            &BodyDesc::dynamic()
+                .name(name)
+                .position(at)
+                .linear_velocity(vel),
+        )
+        .unwrap();
+    w.add_collider(
+        b,
+        ColliderDesc::new(Shape::Sphere(Sphere { radius: s(0.5) })),
+    )
+    .unwrap();
+    b
+}
+
+fn events(w: &World) -> Vec<(ContactEventKind, u32, u32)> {
+    w.contact_events()
+        .iter()
+        .map(|e| (e.kind, e.a.index(), e.b.index()))
+        .collect()
+}
+
+#[test]
+fn two_approaching_spheres_begin_touching_on_the_tick_they_overlap() {
+    let mut w = zero_g();
+    // Gap 1 m, closing at 1.8 m/s: they touch after 0.5556 s (33.3 ticks).
+    ball(&mut w, "a", v(-1.0, 0.0, 0.0), v(0.9, 0.0, 0.0));
+    ball(&mut w, "b", v(1.0, 0.0, 0.0), v(-0.9, 0.0, 0.0));
+    let mut began = None;
+    for t in 1..=40 {
+        let r = w.step();
+        assert!(r.faults.is_empty());
+        if r.begin_events == 1 {
+            began = Some(t);
+            // The collision stage runs on the poses at the start of the tick.
+            let pair = &w.contact_pairs()[0];
+            assert!(pair.touching && pair.kind == PairKind::Solid);
+            assert_eq!(pair.manifold.count, 1);
+            assert_eq!(
+                pair.manifold.normal,
+                Vec3::X,
+                "normal from A (lower handle) to B"
+            );
+            let depth = pair.manifold.points[0].depth.to_f64();
+            assert!((0.0..=1.8 / 60.0).contains(&depth), "{depth}");
+        }
+    }
+    // The collision stage sees the poses at the start of a tick: after 34
+    // ticks they overlap by 0.02 m, so tick 35 reports the begin event.
+    assert_eq!(began, Some(35));
+    assert_eq!(events(&w), vec![]);
+}
+
+#[test]
+fn speculative_points_appear_within_the_margin_without_a_touch_event() {
+    let mut w = zero_g();
+    ball(&mut w, "a", v(0.0, 0.0, 0.0), Vec3::ZERO);
+    ball(&mut w, "b", v(1.01, 0.0, 0.0), Vec3::ZERO); // 1 cm gap < 2 cm margin
+    let r = w.step();
+    assert_eq!(r.candidate_pairs, 1);
+    assert_eq!(r.touching_pairs, 0);
+    assert_eq!(r.begin_events, 0);
+    let pair = &w.contact_pairs()[0];
+    assert_eq!(pair.manifold.count, 1);
+    assert!((pair.manifold.points[0].depth.to_f64() + 0.01).abs() < 1e-9);
+}
+
+#[test]
+fn a_ball_passing_through_a_trigger_reports_enter_then_exit_and_no_contacts() {
+    let mut w = zero_g();
+    let zone = w.create_body(&BodyDesc::fixed().name("zone")).unwrap();
+    let zc = w
+        .add_collider(
+            zone,
+            ColliderDesc::new(Shape::Cuboid(Cuboid {
+                half_extents: v(1.0, 1.0, 1.0),
+            }))
+            .trigger(true),
+        )
+        .unwrap();
+    let b = ball(&mut w, "ball", v(-3.0, 0.0, 0.0), v(6.0, 0.0, 0.0));
+    let mut log = Vec::new();
+    for t in 1..=90 {
+        w.step();
+        for e in w.contact_events() {
+            log.push((t, e.kind));
+        }
+        for p in w.contact_pairs() {
+            assert!(
+                p.manifold.is_empty(),
+                "trigger pairs keep no contact points"
+            );
+        }
+    }
+    // Enters when the ball's surface reaches x = -1 (centre -1.5: 0.25 s),
+    // leaves when it is past x = 1 (centre 1.5: 0.75 s).
+    assert_eq!(log.len(), 2, "{log:?}");
+    assert_eq!(log[0].1, ContactEventKind::TriggerEnter);
+    assert_eq!(log[1].1, ContactEventKind::TriggerExit);
+    assert!((15..=17).contains(&log[0].0), "{log:?}");
+    assert!((45..=47).contains(&log[1].0), "{log:?}");
+    let _ = (zc, b);
+}
+
+#[test]
+fn filters_groups_and_own_body_shapes_never_make_pairs() {
+    let mut w = zero_g();
+    let group = |g: i32| CollisionFilter {
+        group: g,
+        ..CollisionFilter::default()
+    };
+    // Two overlapping balls in the same negative group: never a pair.
+    for name in ["g1", "g2"] {
+        let b = w.create_body(&BodyDesc::dynamic().name(name)).unwrap();
+        w.add_collider(
+            b,
+            ColliderDesc::new(Shape::Sphere(Sphere { radius: s(0.5) })).filter(group(-2)),
+        )
+        .unwrap();
+    }
+    // A compound whose two shapes overlap: never a pair with itself.
+    let c = w
+        .create_body(
+            &BodyDesc::dynamic()
+                .name("compound")
+                .position(v(5.0, 0.0, 0.0)),
+        )
+        .unwrap();
+    for dx in [0.0, 0.3] {
+        w.add_collider(
+            c,
+            ColliderDesc::new(Shape::Sphere(Sphere { radius: s(0.5) }))
+                .local_pose(Transform::from_translation(v(dx, 0.0, 0.0))),
+        )
+        .unwrap();
+    }
+    // Category bits that do not match both ways.
+    let a = w
+        .create_body(&BodyDesc::dynamic().name("cat").position(v(10.0, 0.0, 0.0)))
+        .unwrap();
+    w.add_collider(
+        a,
+        ColliderDesc::new(Shape::Sphere(Sphere { radius: s(0.5) })).filter(CollisionFilter {
+            category: 2,
+            mask: 4,
+            group: 0,
+        }),
+    )
+    .unwrap();
+    let b = w
+        .create_body(&BodyDesc::dynamic().name("dog").position(v(10.2, 0.0, 0.0)))
+        .unwrap();
+    w.add_collider(
+        b,
+        ColliderDesc::new(Shape::Sphere(Sphere { radius: s(0.5) })).filter(CollisionFilter {
+            category: 2,
+            mask: 2,
+            group: 0,
+        }),
+    )
+    .unwrap();
+    // Two overlapping static boxes: static pairs are never created.
+    for x in [20.0, 20.5] {
+        let st = w
+            .create_body(&BodyDesc::fixed().position(v(x, 0.0, 0.0)))
+            .unwrap();
+        w.add_collider(
+            st,
+            ColliderDesc::new(Shape::Cuboid(Cuboid {
+                half_extents: v(1.0, 1.0, 1.0),
+            })),
+        )
+        .unwrap();
+    }
+    let r = w.step();
+    assert_eq!(r.candidate_pairs, 0);
+    assert!(w.contact_pairs().is_empty());
+}
+
+#[test]
+fn resting_pairs_of_sleeping_bodies_are_kept_and_removal_ends_the_touch() {
+    let mut w = World::new(WorldConfig {
+        gravity: Vec3::ZERO,
+        ..WorldConfig::default()
+    })
+    .unwrap();
+    let ground = w.create_body(&BodyDesc::fixed().name("ground")).unwrap();
+    w.add_collider(
+        ground,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(10.0, 0.5, 10.0),
+        })),
+    )
+    .unwrap();
+    // A box overlapping the ground top by 1 mm, at rest: it touches, then sleeps.
+    let bx = w
+        .create_body(&BodyDesc::dynamic().name("box").position(v(0.0, 0.999, 0.0)))
+        .unwrap();
+    w.add_collider(
+        bx,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(0.5, 0.5, 0.5),
+        })),
+    )
+    .unwrap();
+    let r = w.step();
+    assert_eq!(r.begin_events, 1);
+    assert_eq!(w.contact_pairs()[0].manifold.count, 4);
+    let mut slept = false;
+    for _ in 0..60 {
+        let r = w.step();
+        assert_eq!(r.end_events, 0);
+        slept |= w.body(bx).unwrap().is_sleeping();
+    }
+    assert!(slept);
+    let r = w.step();
+    assert_eq!(
+        r.candidate_pairs, 0,
+        "sleeping–static pairs are not candidates"
+    );
+    assert_eq!(
+        w.contact_pairs().len(),
+        1,
+        "but the resting contact is kept"
+    );
+    assert!(w.contact_pairs()[0].touching);
+    w.remove_body(bx).unwrap();
+    assert_eq!(events(&w), vec![(ContactEventKind::EndTouch, 0, 1)]);
+    assert!(w.contact_pairs().is_empty());
+}
