@@ -245,7 +245,7 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn through_a_lossy_jittery_link_1200_ticks_stay_in_sync_and_none_is_over_150_ms_late() {
+async fn a_lossy_jittery_link_keeps_1200_ticks_in_sync_and_none_over_150_ms_late() {
     let mut server = TestServer::start("link", |c| {
         c.room.start_players = 4;
         c.room.match_ticks = Some(1200);
