@@ -408,10 +408,12 @@ async fn close_reason(recv: &mut quinn::RecvStream) -> Option<(CloseReason, Stri
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn garbage_oversized_frames_and_foreign_inputs_are_refused_and_the_match_completes() {
+async fn garbage_oversized_frames_foreign_or_far_inputs_and_silence_are_refused_and_the_match_completes()
+ {
     let mut server = TestServer::start("evil", |c| {
-        c.room.start_players = 5;
+        c.room.start_players = 7;
         c.room.match_ticks = Some(300);
+        c.room.silence_timeout = Duration::from_secs(2);
     })
     .await;
     let (addr, cert) = (server.addr, server.cert.clone());
@@ -433,8 +435,11 @@ async fn garbage_oversized_frames_and_foreign_inputs_are_refused_and_the_match_c
     // Seated and ready, misbehaving once the match runs.
     let (_e3, c3, _s3, mut r3, slot3) = raw_join(addr, &cert, "evil", "foreign-inputs").await;
     let (_e4, c4, mut s4, mut r4, slot4) = raw_join(addr, &cert, "evil", "oversized-frame").await;
-    c3.send_datagram(inputs(slot3, 0, 5)).unwrap();
-    c4.send_datagram(inputs(slot4, 0, 5)).unwrap();
+    let (_e5, c5, _s5, mut r5, slot5) = raw_join(addr, &cert, "evil", "far-future").await;
+    let (_e6, c6, _s6, mut r6, slot6) = raw_join(addr, &cert, "evil", "silent").await;
+    for (c, slot) in [(&c3, slot3), (&c4, slot4), (&c5, slot5), (&c6, slot6)] {
+        c.send_datagram(inputs(slot, 0, 5)).unwrap();
+    }
     let options = BotOptions::new(addr, &cert, "evil", 3);
     let bots_task = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
     server
@@ -447,6 +452,8 @@ async fn garbage_oversized_frames_and_foreign_inputs_are_refused_and_the_match_c
     c3.send_datagram(inputs(slot4, 40, 2)).unwrap();
     // A frame header claiming 16 MiB.
     s4.write_all(&(16u32 << 20).to_le_bytes()).await.unwrap();
+    // An input far beyond the window.
+    c5.send_datagram(inputs(slot5, 10_000, 1)).unwrap();
     let (reason3, detail3) = close_reason(&mut r3)
         .await
         .expect("close for foreign inputs");
@@ -457,6 +464,15 @@ async fn garbage_oversized_frames_and_foreign_inputs_are_refused_and_the_match_c
     assert!(detail3.contains("slot"), "{detail3}");
     assert_eq!(reason4, CloseReason::ProtocolViolation);
     assert!(detail4.contains("frame"), "{detail4}");
+    let (reason5, detail5) = close_reason(&mut r5).await.expect("close for the far tick");
+    assert_eq!(reason5, CloseReason::ProtocolViolation);
+    assert!(
+        detail5.contains("tick 10000 outside the window"),
+        "{detail5}"
+    );
+    // The silent one is dropped after the silence timeout; the room goes on.
+    let (reason6, _) = close_reason(&mut r6).await.expect("close for silence");
+    assert_eq!(reason6, CloseReason::TimedOut);
     let bots = bots_ok(bots_task.await.expect("bots"));
     let ended = server
         .wait_for(Duration::from_secs(10), |e| match e {
@@ -475,7 +491,23 @@ async fn garbage_oversized_frames_and_foreign_inputs_are_refused_and_the_match_c
     );
     let reasons: Vec<&str> = report.refused.iter().map(|(_, r)| r.as_str()).collect();
     println!("refused: {reasons:#?}");
-    assert_eq!(reasons.len(), 4, "{reasons:?}");
+    assert_eq!(reasons.len(), 5, "{reasons:?}");
+    assert!(reasons.iter().any(|r| r.contains("outside the window")));
+    let left: Vec<_> = ended
+        .players
+        .iter()
+        .map(|p| (p.name.as_str(), p.left.as_ref().map(|l| l.1.as_str())))
+        .collect();
+    assert!(left.contains(&("silent", Some("TimedOut"))), "{left:?}");
+    assert!(
+        left.contains(&("foreign-inputs", Some("Kicked"))),
+        "{left:?}"
+    );
+    assert_eq!(
+        left.iter().filter(|l| l.1.is_none()).count(),
+        3,
+        "bots stay: {left:?}"
+    );
     assert!(reasons.iter().any(|r| r.contains("undecodable join")));
     assert!(reasons.iter().any(|r| r.contains("bad datagram")));
     assert!(reasons.iter().any(|r| r.contains("input for slot")));
