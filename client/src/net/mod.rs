@@ -19,7 +19,7 @@ mod tls;
 
 pub use client::{Client, ClientError, ClientEvent, ClientOptions, ClientReport, Traffic};
 pub use frame::{FrameError, read_frame, write_frame};
-pub use tls::{TlsError, client_config, load_certs, transport_config};
+pub use tls::{MIN_CONGESTION_WINDOW, TlsError, client_config, load_certs, transport_config};
 
 use lockstep_proto::CloseReason;
 
