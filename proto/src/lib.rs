@@ -13,6 +13,7 @@
 //! - [`session`]: the client — inputs with redundancy, in-order exactly-once
 //!   bundle delivery, hash reports.
 //! - [`limits`]: the protocol version and every bound.
+//! - [`replay`]: the replay file format and the recorder the server feeds.
 //!
 //! The crate does not depend on the physics engine: inputs are opaque bytes
 //! and world state is a `u64` hash. `docs/protocol.md` describes the wire
@@ -23,6 +24,7 @@
 pub mod codec;
 pub mod limits;
 pub mod message;
+pub mod replay;
 mod ring;
 pub mod room;
 pub mod session;
@@ -34,6 +36,7 @@ pub use message::{
     InputDatagram, Join, Ping, PlayerHash, PlayerInput, Pong, ServerMessage, Slot, TickBundle,
     Verdict, Violation, Welcome,
 };
+pub use replay::{Replay, ReplayError, ReplayHeader, ReplayRecord, ReplayRecorder};
 pub use room::{
     AlreadyStarted, ConfigError, JoinError, LeaveReason, PlayerId, PlayerStats, Rejection, Room,
     RoomConfig, RoomEvent, RoomStats, Transmit,

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use lockstep_client::offline::{SimOptions, run_sim};
+use lockstep_client::offline::{ReplayVerifyError, SimOptions, run_sim, verify_replay_file};
 
 /// lockstep: deterministic lockstep physics, offline tools.
 #[derive(Parser, Debug)]
@@ -32,11 +32,51 @@ enum Command {
         #[arg(long, value_name = "OUT.json")]
         dump_state: Option<PathBuf>,
     },
+    /// Re-simulate a recorded match and check every tick's agreed hash.
+    ///
+    /// Prints one OK line, or the first mismatch (tick, expected, got) and
+    /// exits with status 1; status 2 for a file that is not a valid replay.
+    Replay {
+        /// The replay file (written by lockstep-server).
+        file: PathBuf,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Replay { file } => match verify_replay_file(&file) {
+            Ok(c) => {
+                println!(
+                    "OK: {} ticks re-simulated, {} hashes checked ({} without an agreed hash), \
+                     {} players, {} desync notices recorded, final hash {:016x}{}",
+                    c.ticks,
+                    c.checked,
+                    c.unchecked,
+                    c.players,
+                    c.desyncs_recorded,
+                    c.final_hash,
+                    if c.truncated {
+                        " (file cut short: checked up to the cut)"
+                    } else {
+                        ""
+                    }
+                );
+                ExitCode::SUCCESS
+            }
+            Err(ReplayVerifyError::Mismatch {
+                tick,
+                expected,
+                got,
+            }) => {
+                println!("MISMATCH at tick {tick}: expected {expected:016x}, got {got:016x}");
+                ExitCode::from(1)
+            }
+            Err(e) => {
+                eprintln!("lockstep replay: error: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Sim {
             scene,
             ticks,

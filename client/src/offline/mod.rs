@@ -1,7 +1,9 @@
-//! Offline tools: run a scene file without a server.
+//! Offline tools: run a scene file without a server, verify a replay.
 
 mod dump;
+mod replay;
 mod sim;
 
 pub use dump::{BodyDump, StateDump, dump_state};
+pub use replay::{ReplayCheck, ReplayVerifyError, apply_bundle, verify_replay, verify_replay_file};
 pub use sim::{SimError, SimOptions, SimSummary, load_scene_file, run_sim};

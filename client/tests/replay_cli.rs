@@ -1,0 +1,101 @@
+//! `lockstep replay` end to end: replays recorded with the server's recorder
+//! from an offline match, checked by the binary.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use lockstep_client::game::{DemoGame, bot_input};
+use lockstep_client::offline::apply_bundle;
+use lockstep_proto::{
+    PROTOCOL_VERSION, PlayerId, PlayerInput, ReplayHeader, ReplayRecorder, RoomEvent, Slot,
+    TickBundle,
+};
+
+/// Plays `ticks` ticks of the demo offline with two players and records
+/// them; `corrupt` makes both players report a wrong hash at that tick.
+fn record(ticks: u64, corrupt: Option<u64>) -> Vec<u8> {
+    let mut world = DemoGame::world().expect("demo scene");
+    let mut game = DemoGame::new(&world).expect("demo game");
+    let header = ReplayHeader {
+        protocol_version: PROTOCOL_VERSION,
+        room: "cli".into(),
+        tick_rate: 60,
+        input_delay: 4,
+        scene_hash: world.state_hash(),
+        scene: DemoGame::SCENE.as_bytes().to_vec(),
+    };
+    let mut rec = ReplayRecorder::new(header, 120).expect("header");
+    for s in 0..2u8 {
+        rec.on_event(&RoomEvent::PlayerJoined {
+            id: PlayerId {
+                slot: Slot(s),
+                generation: 0,
+            },
+            name: format!("p{s}"),
+        });
+    }
+    for tick in 0..ticks {
+        let bundle = TickBundle {
+            tick,
+            inputs: (0..2u8)
+                .map(|s| PlayerInput {
+                    slot: Slot(s),
+                    input: bot_input(7, s, tick).encode(),
+                    substituted: false,
+                })
+                .collect(),
+        };
+        apply_bundle(&mut world, &mut game, &bundle);
+        rec.on_event(&RoomEvent::TickClosed(bundle));
+        let hash = world.state_hash() ^ u64::from(corrupt == Some(tick));
+        for s in 0..2u8 {
+            rec.on_hash(Slot(s), tick, hash);
+        }
+    }
+    rec.finish("test over");
+    rec.take_bytes()
+}
+
+fn run(name: &str, bytes: &[u8]) -> (i32, String) {
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::write(&path, bytes).expect("write replay");
+    let out = Command::new(env!("CARGO_BIN_EXE_lockstep"))
+        .arg("replay")
+        .arg(&path)
+        .output()
+        .expect("run lockstep");
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.code().unwrap_or(-1), text)
+}
+
+#[test]
+fn a_faithful_replay_prints_ok_and_exits_zero() {
+    let (code, out) = run("faithful.replay", &record(120, None));
+    assert_eq!(code, 0, "{out}");
+    assert!(
+        out.starts_with("OK: 120 ticks re-simulated, 120 hashes checked"),
+        "{out}"
+    );
+}
+
+#[test]
+fn a_wrong_hash_at_tick_77_is_named_and_exits_one() {
+    let good = record(120, None);
+    let (code, out) = run("corrupt.replay", &record(120, Some(77)));
+    assert_eq!(code, 1, "{out}");
+    let replay = lockstep_proto::Replay::parse(&good).unwrap();
+    let expected = replay.hashes[77].unwrap() ^ 1;
+    let got = replay.hashes[77].unwrap();
+    assert_eq!(
+        out.trim(),
+        format!("MISMATCH at tick 77: expected {expected:016x}, got {got:016x}")
+    );
+}
+
+#[test]
+fn a_file_that_is_not_a_replay_exits_two() {
+    let (code, out) = run("garbage.replay", b"this is not a replay");
+    assert_eq!(code, 2, "{out}");
+    assert!(out.contains("not a lockstep replay"), "{out}");
+}

@@ -1,0 +1,739 @@
+//! Replay files: a match as it was played — the scene, the players, every
+//! tick's bundle and the hash the players agreed on — so it can be
+//! re-simulated offline and every tick checked.
+//!
+//! The server writes a replay *as the match runs*: each record is appended
+//! (and the file flushed about once a second) the moment it is known, so a
+//! crash loses at most the records of the last second. The reader therefore
+//! accepts a file whose last record is cut short and says so
+//! ([`Replay::truncated`]).
+//!
+//! # Layout
+//! ```text
+//! "LSREPLAY" (8 bytes) | format version u16 LE | record*
+//! record = length u32 LE | ReplayRecord in bincode 2 (the protocol's config)
+//! ```
+//! The first record is [`ReplayRecord::Header`]. Bundles ([`ReplayRecord::Tick`])
+//! come in tick order from 0 without gaps; the agreed hash of a tick
+//! ([`ReplayRecord::Hash`]) follows its bundle once enough players reported
+//! it, usually a few ticks later.
+//!
+//! [`ReplayRecorder`] turns the room's events and the accepted hash reports
+//! into these records; it is pure (no file, no clock), the server appends its
+//! bytes to the file.
+
+use std::collections::VecDeque;
+
+use bincode::config::{Configuration, Limit, LittleEndian, Varint};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::limits::{MAX_MESSAGE_BYTES, MAX_PLAYERS};
+use crate::message::{DesyncNotice, Slot, TickBundle};
+use crate::room::RoomEvent;
+
+/// First bytes of every replay file, so a wrong file is refused at once.
+pub const REPLAY_MAGIC: [u8; 8] = *b"LSREPLAY";
+
+/// Version of the replay layout; bump on any change to [`ReplayRecord`].
+pub const REPLAY_FORMAT_VERSION: u16 = 1;
+
+/// Bytes before the first record: the magic and the format version.
+pub const REPLAY_PREAMBLE_BYTES: usize = REPLAY_MAGIC.len() + 2;
+
+/// Largest record accepted: a header with the largest scene fits.
+pub const MAX_RECORD_BYTES: usize = MAX_MESSAGE_BYTES;
+
+const CONFIG: Configuration<LittleEndian, Varint, Limit<MAX_RECORD_BYTES>> =
+    bincode::config::standard().with_limit::<MAX_RECORD_BYTES>();
+
+/// What a replay needs before the first tick: enough to rebuild the world
+/// every player started from.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ReplayHeader {
+    /// [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION) of the server that
+    /// recorded it (the meaning of the inputs may depend on it).
+    pub protocol_version: u16,
+    /// The room's name.
+    pub room: String,
+    /// Ticks per second of the match.
+    pub tick_rate: u16,
+    /// Input delay of the match, in ticks.
+    pub input_delay: u16,
+    /// The scene's hash as announced in the welcome (the initial
+    /// `state_hash` of the world built from it).
+    pub scene_hash: u64,
+    /// The scene, exactly as sent to the players.
+    pub scene: Vec<u8>,
+}
+
+/// One entry of a replay file.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ReplayRecord {
+    /// Always first.
+    Header(ReplayHeader),
+    /// A player took `slot`; their inputs appear from `from_tick` on.
+    PlayerJoined {
+        /// The seat.
+        slot: Slot,
+        /// Display name.
+        name: String,
+        /// First tick they were part of.
+        from_tick: u64,
+    },
+    /// A player left; bundles from `from_tick` on no longer list them.
+    PlayerLeft {
+        /// The seat.
+        slot: Slot,
+        /// First tick without them.
+        from_tick: u64,
+        /// Why, for people reading the replay.
+        reason: String,
+    },
+    /// The bundle every player applied for its tick.
+    Tick(TickBundle),
+    /// The hash held by a strict majority of the players who reported for
+    /// `tick`: what a correct re-simulation must produce.
+    Hash {
+        /// The tick.
+        tick: u64,
+        /// The agreed state hash after applying that tick's bundle.
+        hash: u64,
+    },
+    /// The room found a desync at this tick (the notice it sent).
+    Desync(DesyncNotice),
+    /// The match ended normally after `ticks` ticks.
+    End {
+        /// Ticks played.
+        ticks: u64,
+        /// Why it ended.
+        reason: String,
+    },
+}
+
+/// Why a replay could not be written.
+#[derive(Debug, Error)]
+pub enum ReplayEncodeError {
+    /// bincode refused the record.
+    #[error("bincode: {0}")]
+    Bincode(#[source] bincode::error::EncodeError),
+    /// The record is larger than [`MAX_RECORD_BYTES`].
+    #[error("record of {0} bytes is too large")]
+    TooLarge(usize),
+}
+
+/// Why bytes are not a readable replay.
+#[derive(Debug, Error)]
+pub enum ReplayError {
+    /// The file does not start with [`REPLAY_MAGIC`].
+    #[error("not a lockstep replay (bad magic)")]
+    BadMagic,
+    /// Written by another version of the format.
+    #[error("replay format version {found}, this build reads {expected}")]
+    WrongVersion {
+        /// Version in the file.
+        found: u16,
+        /// [`REPLAY_FORMAT_VERSION`].
+        expected: u16,
+    },
+    /// A record's length prefix exceeds [`MAX_RECORD_BYTES`].
+    #[error("record at byte {offset} claims {len} bytes")]
+    RecordTooLarge {
+        /// Offset of the record in the file.
+        offset: usize,
+        /// Claimed length.
+        len: usize,
+    },
+    /// A complete record does not decode.
+    #[error("record at byte {offset} is malformed: {source}")]
+    Malformed {
+        /// Offset of the record in the file.
+        offset: usize,
+        /// What bincode said.
+        #[source]
+        source: bincode::error::DecodeError,
+    },
+    /// The first record is not a header, or a header appears again.
+    #[error("record at byte {offset}: the header must be the first record and only that")]
+    MisplacedHeader {
+        /// Offset of the record in the file.
+        offset: usize,
+    },
+    /// The file ends before the header.
+    #[error("the replay has no header")]
+    NoHeader,
+    /// Bundles are not consecutive from tick 0.
+    #[error("bundle of tick {found} where tick {expected} was expected")]
+    TickGap {
+        /// The tick that should come next.
+        expected: u64,
+        /// The tick found.
+        found: u64,
+    },
+    /// A hash for a tick whose bundle is not (yet) in the file, or two
+    /// different hashes for one tick.
+    #[error("hash record for tick {0} without its bundle, or twice")]
+    BadHash(u64),
+}
+
+/// Encodes the file preamble (magic and format version).
+pub fn encode_preamble() -> Vec<u8> {
+    let mut out = REPLAY_MAGIC.to_vec();
+    out.extend_from_slice(&REPLAY_FORMAT_VERSION.to_le_bytes());
+    out
+}
+
+/// Encodes one record with its length prefix, ready to append to a file.
+///
+/// # Errors
+/// [`ReplayEncodeError`] if bincode refuses it or it is too large.
+pub fn encode_record(record: &ReplayRecord) -> Result<Vec<u8>, ReplayEncodeError> {
+    let body = bincode::serde::encode_to_vec(record, CONFIG).map_err(ReplayEncodeError::Bincode)?;
+    if body.len() > MAX_RECORD_BYTES {
+        return Err(ReplayEncodeError::TooLarge(body.len()));
+    }
+    let mut out = Vec::with_capacity(4 + body.len());
+    // Bounded by MAX_RECORD_BYTES, far below u32::MAX.
+    out.extend_from_slice(&(body.len() as u32).to_le_bytes());
+    out.extend_from_slice(&body);
+    Ok(out)
+}
+
+/// A replay read back: the header, the timeline of bundles with their agreed
+/// hashes, and everything else the server noted.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Replay {
+    /// The match's settings and scene.
+    pub header: ReplayHeader,
+    /// Bundles of ticks `0..ticks.len()`, in order.
+    pub ticks: Vec<TickBundle>,
+    /// The agreed hash of each tick in `ticks`, where one was recorded.
+    pub hashes: Vec<Option<u64>>,
+    /// Players in the order they joined: slot, name, first tick.
+    pub players: Vec<(Slot, String, u64)>,
+    /// Departures: slot, first tick without them, reason.
+    pub departures: Vec<(Slot, u64, String)>,
+    /// Desync notices the room raised.
+    pub desyncs: Vec<DesyncNotice>,
+    /// Ticks played and the reason, if the match ended normally.
+    pub end: Option<(u64, String)>,
+    /// Whether the file ends inside a record (the server stopped while
+    /// writing it, e.g. a crash); everything before it was read.
+    pub truncated: bool,
+}
+
+impl Replay {
+    /// Parses a whole replay file.
+    ///
+    /// # Errors
+    /// [`ReplayError`] for a file that is not a replay, or whose complete
+    /// records are inconsistent. A cut-short last record is not an error.
+    pub fn parse(bytes: &[u8]) -> Result<Replay, ReplayError> {
+        let Some((magic, rest)) = bytes.split_first_chunk::<8>() else {
+            return Err(ReplayError::BadMagic);
+        };
+        if *magic != REPLAY_MAGIC {
+            return Err(ReplayError::BadMagic);
+        }
+        let Some((version, _)) = rest.split_first_chunk::<2>() else {
+            return Err(ReplayError::NoHeader);
+        };
+        let found = u16::from_le_bytes(*version);
+        if found != REPLAY_FORMAT_VERSION {
+            return Err(ReplayError::WrongVersion {
+                found,
+                expected: REPLAY_FORMAT_VERSION,
+            });
+        }
+        let mut offset = REPLAY_PREAMBLE_BYTES;
+        let mut header = None;
+        let mut replay_parts = Parts::default();
+        let mut truncated = false;
+        while offset < bytes.len() {
+            let Some(len_bytes) = bytes[offset..].first_chunk::<4>() else {
+                truncated = true;
+                break;
+            };
+            let len = u32::from_le_bytes(*len_bytes) as usize;
+            if len > MAX_RECORD_BYTES {
+                return Err(ReplayError::RecordTooLarge { offset, len });
+            }
+            let start = offset + 4;
+            let Some(body) = bytes.get(start..start + len) else {
+                truncated = true;
+                break;
+            };
+            let (record, used) = bincode::serde::decode_from_slice::<ReplayRecord, _>(body, CONFIG)
+                .map_err(|source| ReplayError::Malformed { offset, source })?;
+            if used != body.len() {
+                return Err(ReplayError::Malformed {
+                    offset,
+                    source: bincode::error::DecodeError::Other("trailing bytes in record"),
+                });
+            }
+            match (record, header.is_some()) {
+                (ReplayRecord::Header(h), false) => header = Some(h),
+                (ReplayRecord::Header(_), true) | (_, false) => {
+                    return Err(ReplayError::MisplacedHeader { offset });
+                }
+                (record, true) => replay_parts.add(record, offset)?,
+            }
+            offset = start + len;
+        }
+        let header = header.ok_or(ReplayError::NoHeader)?;
+        Ok(Replay {
+            header,
+            ticks: replay_parts.ticks,
+            hashes: replay_parts.hashes,
+            players: replay_parts.players,
+            departures: replay_parts.departures,
+            desyncs: replay_parts.desyncs,
+            end: replay_parts.end,
+            truncated,
+        })
+    }
+
+    /// Number of ticks with an agreed hash.
+    pub fn hashed_ticks(&self) -> usize {
+        self.hashes.iter().flatten().count()
+    }
+}
+
+#[derive(Default)]
+struct Parts {
+    ticks: Vec<TickBundle>,
+    hashes: Vec<Option<u64>>,
+    players: Vec<(Slot, String, u64)>,
+    departures: Vec<(Slot, u64, String)>,
+    desyncs: Vec<DesyncNotice>,
+    end: Option<(u64, String)>,
+}
+
+impl Parts {
+    fn add(&mut self, record: ReplayRecord, offset: usize) -> Result<(), ReplayError> {
+        match record {
+            ReplayRecord::Header(_) => return Err(ReplayError::MisplacedHeader { offset }),
+            ReplayRecord::PlayerJoined {
+                slot,
+                name,
+                from_tick,
+            } => self.players.push((slot, name, from_tick)),
+            ReplayRecord::PlayerLeft {
+                slot,
+                from_tick,
+                reason,
+            } => self.departures.push((slot, from_tick, reason)),
+            ReplayRecord::Tick(bundle) => {
+                let expected = self.ticks.len() as u64;
+                if bundle.tick != expected {
+                    return Err(ReplayError::TickGap {
+                        expected,
+                        found: bundle.tick,
+                    });
+                }
+                self.ticks.push(bundle);
+                self.hashes.push(None);
+            }
+            ReplayRecord::Hash { tick, hash } => {
+                let slot = usize::try_from(tick)
+                    .ok()
+                    .and_then(|i| self.hashes.get_mut(i))
+                    .ok_or(ReplayError::BadHash(tick))?;
+                if slot.is_some_and(|h| h != hash) {
+                    return Err(ReplayError::BadHash(tick));
+                }
+                *slot = Some(hash);
+            }
+            ReplayRecord::Desync(n) => self.desyncs.push(n),
+            ReplayRecord::End { ticks, reason } => self.end = Some((ticks, reason)),
+        }
+        Ok(())
+    }
+}
+
+/// A closed tick whose agreed hash is not decided yet.
+#[derive(Debug)]
+struct PendingTick {
+    tick: u64,
+    /// Players in the tick's bundle.
+    expected: u32,
+    reported: u32,
+    hashes: [u64; MAX_PLAYERS],
+}
+
+impl PendingTick {
+    /// The hash held by more than half of the reporters, if any.
+    fn majority(&self) -> Option<u64> {
+        let reporters: Vec<u64> = (0..MAX_PLAYERS)
+            .filter(|&i| self.reported & (1 << i) != 0)
+            .map(|i| self.hashes[i])
+            .collect();
+        // Determinism of the outcome does not matter here (the majority is
+        // unique when it exists), but the scan is in slot order anyway.
+        reporters
+            .iter()
+            .copied()
+            .find(|h| reporters.iter().filter(|&x| x == h).count() * 2 > reporters.len())
+    }
+}
+
+/// Turns what the room does into replay records: feed it every
+/// [`RoomEvent`] and every hash report the room accepted, and append
+/// [`ReplayRecorder::take_bytes`] to the file.
+///
+/// A tick's hash is decided once every player of its bundle who is still in
+/// the room has reported, or at the latest `decide_after` ticks later (a
+/// player who stopped reporting does not hold the replay back for long). The
+/// agreed hash is the one held by a strict majority of the reporters — the
+/// same rule as the room's arbiter — so a desynced minority does not spoil the
+/// replay; a tick without a majority gets no hash record.
+#[derive(Debug)]
+pub struct ReplayRecorder {
+    pending: VecDeque<PendingTick>,
+    present: u32,
+    next_tick: u64,
+    decide_after: u64,
+    out: Vec<u8>,
+    hashed: u64,
+    ended: bool,
+}
+
+impl ReplayRecorder {
+    /// Starts a replay with `header`; `decide_after` bounds how many ticks
+    /// a tick's hash may wait for late reports.
+    ///
+    /// # Errors
+    /// [`ReplayEncodeError`] if the header cannot be encoded (a scene over
+    /// the size limit).
+    pub fn new(header: ReplayHeader, decide_after: u64) -> Result<Self, ReplayEncodeError> {
+        let mut out = encode_preamble();
+        out.extend(encode_record(&ReplayRecord::Header(header))?);
+        Ok(Self {
+            pending: VecDeque::new(),
+            present: 0,
+            next_tick: 0,
+            decide_after: decide_after.max(1),
+            out,
+            hashed: 0,
+            ended: false,
+        })
+    }
+
+    fn push(&mut self, record: &ReplayRecord) {
+        // Every record but the header is bounded far below the limit (a
+        // bundle is at most 16 × 64 bytes, names 64, details 256).
+        if let Ok(bytes) = encode_record(record) {
+            self.out.extend(bytes);
+        }
+    }
+
+    /// Records a room event.
+    pub fn on_event(&mut self, event: &RoomEvent) {
+        match event {
+            RoomEvent::PlayerJoined { id, name } => {
+                self.present |= 1 << id.slot.0;
+                let r = ReplayRecord::PlayerJoined {
+                    slot: id.slot,
+                    name: name.clone(),
+                    from_tick: self.next_tick,
+                };
+                self.push(&r);
+            }
+            RoomEvent::PlayerLeft {
+                id,
+                reason,
+                from_tick,
+            } => {
+                self.present &= !(1 << id.slot.0);
+                let r = ReplayRecord::PlayerLeft {
+                    slot: id.slot,
+                    from_tick: *from_tick,
+                    reason: format!("{reason:?}"),
+                };
+                self.push(&r);
+                self.decide(false);
+            }
+            RoomEvent::TickClosed(bundle) => {
+                self.push(&ReplayRecord::Tick(bundle.clone()));
+                self.next_tick = bundle.tick + 1;
+                let expected = bundle.inputs.iter().fold(0u32, |m, p| m | 1 << p.slot.0);
+                self.pending.push_back(PendingTick {
+                    tick: bundle.tick,
+                    expected,
+                    reported: 0,
+                    hashes: [0; MAX_PLAYERS],
+                });
+                self.decide(false);
+            }
+            RoomEvent::Desync(notice) => self.push(&ReplayRecord::Desync(notice.clone())),
+            RoomEvent::LateInput { .. } => {}
+        }
+    }
+
+    /// Records a hash report the room accepted.
+    pub fn on_hash(&mut self, slot: Slot, tick: u64, hash: u64) {
+        let bit = 1u32 << slot.0;
+        if let Some(p) = self.pending.iter_mut().find(|p| p.tick == tick)
+            && p.expected & bit != 0
+            && p.reported & bit == 0
+        {
+            p.reported |= bit;
+            p.hashes[slot.index()] = hash;
+            self.decide(false);
+        }
+    }
+
+    /// Decides every pending tick that is complete or too old (or all of
+    /// them, with `all`), writing its hash record.
+    fn decide(&mut self, all: bool) {
+        let present = self.present;
+        let horizon = self.next_tick.saturating_sub(self.decide_after);
+        let mut records = Vec::new();
+        self.pending.retain(|p| {
+            let complete = p.expected & present & !p.reported == 0;
+            if !(all || complete || p.tick < horizon) {
+                return true;
+            }
+            if let Some(hash) = p.majority() {
+                records.push(ReplayRecord::Hash { tick: p.tick, hash });
+            }
+            false
+        });
+        self.hashed += records.len() as u64;
+        for r in &records {
+            self.push(r);
+        }
+    }
+
+    /// Ends the replay: decides every pending tick with the reports it has
+    /// and writes the end record. Later calls do nothing.
+    pub fn finish(&mut self, reason: &str) {
+        if self.ended {
+            return;
+        }
+        self.ended = true;
+        self.decide(true);
+        let r = ReplayRecord::End {
+            ticks: self.next_tick,
+            reason: reason.to_owned(),
+        };
+        self.push(&r);
+    }
+
+    /// The bytes produced since the last call, to append to the file.
+    pub fn take_bytes(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.out)
+    }
+
+    /// Ticks whose agreed hash was recorded so far.
+    pub fn hashed_ticks(&self) -> u64 {
+        self.hashed
+    }
+
+    /// Ticks recorded so far.
+    pub fn ticks(&self) -> u64 {
+        self.next_tick
+    }
+
+    /// Ticks still waiting for hash reports.
+    pub fn pending_ticks(&self) -> usize {
+        self.pending.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::message::PlayerInput;
+    use crate::room::{LeaveReason, PlayerId};
+
+    fn header() -> ReplayHeader {
+        ReplayHeader {
+            protocol_version: crate::PROTOCOL_VERSION,
+            room: "r".into(),
+            tick_rate: 60,
+            input_delay: 4,
+            scene_hash: 0xabc,
+            scene: b"scene".to_vec(),
+        }
+    }
+
+    fn id(slot: u8) -> PlayerId {
+        PlayerId {
+            slot: Slot(slot),
+            generation: 0,
+        }
+    }
+
+    fn closed(tick: u64, slots: &[u8]) -> RoomEvent {
+        RoomEvent::TickClosed(TickBundle {
+            tick,
+            inputs: slots
+                .iter()
+                .map(|&s| PlayerInput {
+                    slot: Slot(s),
+                    input: vec![s, tick as u8],
+                    substituted: false,
+                })
+                .collect(),
+        })
+    }
+
+    fn three_players() -> ReplayRecorder {
+        let mut r = ReplayRecorder::new(header(), 10).unwrap();
+        for s in 0..3 {
+            r.on_event(&RoomEvent::PlayerJoined {
+                id: id(s),
+                name: format!("p{s}"),
+            });
+        }
+        r
+    }
+
+    #[test]
+    fn majority_hash_is_recorded_once_every_present_player_reported() {
+        let mut r = three_players();
+        r.on_event(&closed(0, &[0, 1, 2]));
+        r.on_hash(Slot(0), 0, 7);
+        r.on_hash(Slot(1), 0, 7);
+        assert_eq!(r.hashed_ticks(), 0, "slot 2 has not reported yet");
+        r.on_hash(Slot(2), 0, 9);
+        assert_eq!(r.hashed_ticks(), 1);
+        r.finish("done");
+        let replay = Replay::parse(&r.take_bytes()).unwrap();
+        assert_eq!(replay.hashes, vec![Some(7)]);
+        assert_eq!(replay.players.len(), 3);
+        assert_eq!(replay.end, Some((1, "done".into())));
+        assert!(!replay.truncated);
+    }
+
+    #[test]
+    fn a_departed_or_silent_player_does_not_hold_the_hash_back() {
+        let mut r = three_players();
+        r.on_event(&closed(0, &[0, 1, 2]));
+        r.on_hash(Slot(0), 0, 5);
+        r.on_hash(Slot(1), 0, 5);
+        r.on_event(&RoomEvent::PlayerLeft {
+            id: id(2),
+            reason: LeaveReason::TimedOut,
+            from_tick: 1,
+        });
+        assert_eq!(r.hashed_ticks(), 1);
+        // Tick 1: only slot 0 reports; decided 10 ticks later by age.
+        r.on_event(&closed(1, &[0, 1]));
+        r.on_hash(Slot(0), 1, 6);
+        for t in 2..11 {
+            r.on_event(&closed(t, &[0, 1]));
+        }
+        assert_eq!(r.pending_ticks(), 10);
+        r.on_event(&closed(11, &[0, 1]));
+        assert_eq!(r.hashed_ticks(), 2, "tick 1 decided by its sole reporter");
+        let replay = Replay::parse(&r.take_bytes()).unwrap();
+        assert_eq!(replay.hashes[..2], [Some(5), Some(6)]);
+        assert_eq!(replay.departures, vec![(Slot(2), 1, "TimedOut".into())]);
+    }
+
+    #[test]
+    fn a_split_without_majority_records_no_hash() {
+        let mut r = ReplayRecorder::new(header(), 10).unwrap();
+        r.on_event(&RoomEvent::PlayerJoined {
+            id: id(0),
+            name: "a".into(),
+        });
+        r.on_event(&RoomEvent::PlayerJoined {
+            id: id(1),
+            name: "b".into(),
+        });
+        r.on_event(&closed(0, &[0, 1]));
+        r.on_hash(Slot(0), 0, 1);
+        r.on_hash(Slot(1), 0, 2);
+        r.finish("end");
+        let replay = Replay::parse(&r.take_bytes()).unwrap();
+        assert_eq!(replay.hashes, vec![None]);
+        assert_eq!(replay.hashed_ticks(), 0);
+    }
+
+    #[test]
+    fn a_file_cut_anywhere_parses_up_to_the_cut() {
+        let mut r = three_players();
+        for t in 0..5 {
+            r.on_event(&closed(t, &[0, 1, 2]));
+            for s in 0..3 {
+                r.on_hash(Slot(s), t, 100 + t);
+            }
+        }
+        r.finish("end");
+        let bytes = r.take_bytes();
+        let full = Replay::parse(&bytes).unwrap();
+        assert_eq!(full.ticks.len(), 5);
+        assert_eq!(full.hashed_ticks(), 5);
+        let mut seen_truncated = 0;
+        for cut in REPLAY_PREAMBLE_BYTES..bytes.len() {
+            match Replay::parse(&bytes[..cut]) {
+                Ok(p) => {
+                    assert!(p.ticks.len() <= 5);
+                    assert!(p.truncated || p.end.is_none() || cut == bytes.len());
+                    seen_truncated += usize::from(p.truncated);
+                    // Every hash present belongs to a bundle present.
+                    assert_eq!(p.hashes.len(), p.ticks.len());
+                }
+                Err(ReplayError::NoHeader) => {}
+                Err(e) => panic!("cut at {cut}: {e}"),
+            }
+        }
+        assert!(seen_truncated > 20, "{seen_truncated}");
+    }
+
+    #[test]
+    fn bad_files_are_refused_with_a_reason() {
+        assert!(matches!(
+            Replay::parse(b"NOTAREPLAY"),
+            Err(ReplayError::BadMagic)
+        ));
+        let mut v = encode_preamble();
+        v[8] = 99;
+        assert!(matches!(
+            Replay::parse(&v),
+            Err(ReplayError::WrongVersion { found: 99, .. })
+        ));
+        let mut v = encode_preamble();
+        v.extend(encode_record(&ReplayRecord::Hash { tick: 0, hash: 1 }).unwrap());
+        assert!(matches!(
+            Replay::parse(&v),
+            Err(ReplayError::MisplacedHeader { offset: 10 })
+        ));
+        let mut v = encode_preamble();
+        v.extend(encode_record(&ReplayRecord::Header(header())).unwrap());
+        v.extend(
+            encode_record(&ReplayRecord::Tick(TickBundle {
+                tick: 3,
+                inputs: vec![],
+            }))
+            .unwrap(),
+        );
+        assert!(matches!(
+            Replay::parse(&v),
+            Err(ReplayError::TickGap {
+                expected: 0,
+                found: 3
+            })
+        ));
+        let mut v = encode_preamble();
+        v.extend(encode_record(&ReplayRecord::Header(header())).unwrap());
+        v.extend(encode_record(&ReplayRecord::Hash { tick: 0, hash: 1 }).unwrap());
+        assert!(matches!(Replay::parse(&v), Err(ReplayError::BadHash(0))));
+        let mut v = encode_preamble();
+        v.extend(u32::MAX.to_le_bytes());
+        assert!(matches!(
+            Replay::parse(&v),
+            Err(ReplayError::RecordTooLarge { offset: 10, .. })
+        ));
+        let mut v = encode_preamble();
+        v.extend(3u32.to_le_bytes());
+        v.extend([0xff, 0xff, 0xff]);
+        assert!(matches!(
+            Replay::parse(&v),
+            Err(ReplayError::Malformed { offset: 10, .. })
+        ));
+    }
+}

@@ -1,0 +1,154 @@
+//! `lockstep-server`: parses flags and runs the library's server (or the
+//! demo); Ctrl-C or SIGTERM shuts it down gracefully.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::Parser;
+use lockstep_server::demo::{DemoOptions, run_demo};
+use lockstep_server::{ServerConfig, TlsSource, run};
+
+/// The lockstep server: relays inputs, compares every tick's hashes,
+/// records replays.
+#[derive(Parser, Debug)]
+#[command(name = "lockstep-server", version, about)]
+struct Cli {
+    /// Run the demo: the server on loopback with 4 in-process bots, a status
+    /// line per second, a summary at the end.
+    #[arg(long)]
+    demo: bool,
+    /// Demo: how many seconds the match lasts.
+    #[arg(long, default_value_t = 20.0)]
+    duration: f64,
+    /// Demo: number of bots.
+    #[arg(long, default_value_t = 4)]
+    bots: usize,
+    /// Demo: seed of the bots' input.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// UDP address to listen on (the demo picks a free loopback port).
+    #[arg(long, default_value = "127.0.0.1:4433")]
+    listen: SocketAddr,
+    /// Certificate chain (PEM) of a real certificate; needs --key.
+    #[arg(long, requires = "key")]
+    cert: Option<PathBuf>,
+    /// Private key (PEM) of --cert.
+    #[arg(long, requires = "cert")]
+    key: Option<PathBuf>,
+    /// Where the generated dev certificate is written (without --cert).
+    #[arg(long, default_value = "out/dev-cert.pem")]
+    cert_out: PathBuf,
+    /// Scene file sent to the players (default: the embedded demo scene).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Directory for replay files.
+    #[arg(long, default_value = "out/replays")]
+    replay_dir: PathBuf,
+    /// Do not record replays.
+    #[arg(long)]
+    no_replay: bool,
+    /// Seats per room.
+    #[arg(long, default_value_t = 8)]
+    max_players: u8,
+    /// Players needed to start a match.
+    #[arg(long, default_value_t = 2)]
+    start_players: u8,
+    /// Ticks per second.
+    #[arg(long, default_value_t = 60)]
+    tick_rate: u16,
+    /// Input delay in ticks.
+    #[arg(long, default_value_t = 4)]
+    input_delay: u16,
+    /// End each match after this many ticks.
+    #[arg(long)]
+    match_ticks: Option<u64>,
+}
+
+async fn terminate() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
+}
+
+#[tokio::main]
+async fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let listen = if cli.demo {
+        SocketAddr::from(([127, 0, 0, 1], 0))
+    } else {
+        cli.listen
+    };
+    let mut config = ServerConfig::new(listen);
+    config.tls = match (cli.cert, cli.key) {
+        (Some(cert), Some(key)) => TlsSource::Files { cert, key },
+        _ => TlsSource::dev(cli.cert_out),
+    };
+    if let Some(path) = cli.scene {
+        match std::fs::read_to_string(&path) {
+            Ok(text) => {
+                config.scene = text;
+                config.scene_name = path.display().to_string();
+            }
+            Err(e) => {
+                eprintln!("lockstep-server: {}: {e}", path.display());
+                return ExitCode::from(2);
+            }
+        }
+    }
+    config.replay_dir = (!cli.no_replay).then_some(cli.replay_dir);
+    config.room.max_players = cli.max_players;
+    config.room.start_players = cli.start_players;
+    config.room.tick_rate = cli.tick_rate;
+    config.room.input_delay = cli.input_delay;
+    config.room.match_ticks = cli.match_ticks;
+    if cli.demo {
+        let mut options = DemoOptions::new();
+        options.server = config;
+        options.bots = cli.bots;
+        options.seed = cli.seed;
+        options.duration = Duration::from_secs_f64(cli.duration.clamp(0.1, 86_400.0));
+        return match run_demo(options, terminate()).await {
+            Ok(s) => {
+                let ok = s.report.as_ref().is_some_and(|r| r.desyncs.is_empty())
+                    && s.bots_agree
+                    && s.replay_check
+                        .as_deref()
+                        .is_none_or(|c| c.starts_with("OK"));
+                if ok {
+                    ExitCode::SUCCESS
+                } else {
+                    ExitCode::from(1)
+                }
+            }
+            Err(e) => {
+                eprintln!("lockstep-server: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    match run(config, terminate()).await {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("lockstep-server: {e}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,291 @@
+//! One connection: handshake, join, then forwarding the client's stream
+//! frames and datagrams to its room, and writing what the room sends.
+//!
+//! The task validates everything before the room sees it: frame lengths
+//! (before reading the payload), decoding, and the channel each message must
+//! use. Anything wrong is reported to the room, which removes the player
+//! with a logged reason; other players are never affected.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+
+use lockstep_client::net::{FrameError, close_code, close_code_for, read_frame, write_frame};
+use lockstep_proto::{Channel, ClientMessage, Close, CloseReason, PlayerId, ServerMessage};
+use tokio::sync::{mpsc, oneshot};
+
+use crate::Shared;
+use crate::room::{self, RoomCmd};
+
+/// How long a client has to complete the handshake and send its join.
+const JOIN_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Frames queued for one client's stream before it counts as not reading.
+pub(crate) const WRITER_QUEUE: usize = 512;
+
+/// What the room asks a connection's writer to do.
+#[derive(Debug)]
+pub(crate) enum WriterCmd {
+    /// Write one encoded message as a frame.
+    Frame(Vec<u8>),
+    /// Finish the stream once written, then close the connection.
+    Close {
+        /// QUIC application close code.
+        code: u32,
+        /// Reason text.
+        reason: String,
+    },
+}
+
+/// The room's handle on a connection.
+#[derive(Debug, Clone)]
+pub(crate) struct Peer {
+    pub(crate) connection: quinn::Connection,
+    pub(crate) writer: mpsc::Sender<WriterCmd>,
+    pub(crate) remote: SocketAddr,
+}
+
+/// Serves one incoming connection to its end; logs instead of failing.
+pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
+    let remote = incoming.remote_address();
+    let mut shutdown = shared.shutdown.clone();
+    let joined = tokio::select! {
+        r = tokio::time::timeout(JOIN_TIMEOUT, join(&shared, incoming)) => match r {
+            Ok(r) => r,
+            Err(_) => Err(("no join within 5 s".to_owned(), None, None)),
+        },
+        _ = shutdown.wait_for(|s| *s) => Err(("server shutting down".to_owned(), None, None)),
+    };
+    let (connection, recv, id, room_tx, writer) = match joined {
+        Ok(v) => v,
+        Err((reason, connection, writer)) => {
+            shared.refused(remote, reason.clone());
+            match writer {
+                // The room queued the close message and the close itself.
+                Some(w) => {
+                    let _ = w.await;
+                }
+                None => {
+                    if let Some(c) = connection {
+                        c.close(close_code::REFUSED.into(), truncate(&reason).as_bytes());
+                    }
+                }
+            }
+            return;
+        }
+    };
+    read_loop(&connection, recv, id, &room_tx).await;
+    let _ = writer.await;
+}
+
+type Joined = (
+    quinn::Connection,
+    quinn::RecvStream,
+    PlayerId,
+    mpsc::Sender<RoomCmd>,
+    tokio::task::JoinHandle<()>,
+);
+
+type Refusal = (
+    String,
+    Option<quinn::Connection>,
+    Option<tokio::task::JoinHandle<()>>,
+);
+
+/// Handshake, the first stream, the join frame, and a seat.
+async fn join(shared: &Arc<Shared>, incoming: quinn::Incoming) -> Result<Joined, Refusal> {
+    let connection = incoming
+        .await
+        .map_err(|e| (format!("handshake failed: {e}"), None, None))?;
+    let fail = |reason: String| (reason, Some(connection.clone()), None);
+    let (send, mut recv) = connection
+        .accept_bi()
+        .await
+        .map_err(|e| fail(format!("no stream opened: {e}")))?;
+    let frame = match read_frame(&mut recv).await {
+        Ok(Some(f)) => f,
+        Ok(None) => return Err(fail("stream ended before the join".into())),
+        Err(e) => return Err(fail(format!("before joining: {e}"))),
+    };
+    let join = match ClientMessage::decode(&frame) {
+        Ok(ClientMessage::Join(j)) => j,
+        Ok(other) => return Err(fail(format!("{} before joining", other.kind()))),
+        Err(e) => return Err(fail(format!("undecodable join: {e}"))),
+    };
+    let (writer_tx, writer_rx) = mpsc::channel(WRITER_QUEUE);
+    let writer = tokio::spawn(write_loop(connection.clone(), send, writer_rx));
+    let peer = Peer {
+        connection: connection.clone(),
+        writer: writer_tx.clone(),
+        remote: connection.remote_address(),
+    };
+    let room_tx = match room::find_or_open(shared, &join.room) {
+        Ok(tx) => tx,
+        Err(close) => {
+            send_close(&writer_tx, &close);
+            return Err((close.detail, Some(connection), Some(writer)));
+        }
+    };
+    let (reply_tx, reply_rx) = oneshot::channel();
+    let request = RoomCmd::Join {
+        join: join.clone(),
+        peer,
+        reply: reply_tx,
+    };
+    if room_tx.send(request).await.is_err() {
+        let close = close_of(CloseReason::RoomClosed, "the room closed");
+        send_close(&writer_tx, &close);
+        return Err((close.detail, Some(connection), Some(writer)));
+    }
+    match reply_rx.await {
+        Ok(Ok(id)) => Ok((connection, recv, id, room_tx, writer)),
+        // The room already queued the close on the writer.
+        Ok(Err(close)) => Err((
+            format!(
+                "join of {:?} to room {:?} refused: {}",
+                join.player_name, join.room, close.detail
+            ),
+            Some(connection),
+            Some(writer),
+        )),
+        Err(_) => {
+            let close = close_of(CloseReason::RoomClosed, "the room closed");
+            send_close(&writer_tx, &close);
+            Err((close.detail, Some(connection), Some(writer)))
+        }
+    }
+}
+
+/// Queues a close message and the connection close on a writer.
+pub(crate) fn send_close(writer: &mpsc::Sender<WriterCmd>, close: &Close) {
+    if let Ok(bytes) = ServerMessage::Close(close.clone()).encode() {
+        let _ = writer.try_send(WriterCmd::Frame(bytes));
+    }
+    let _ = writer.try_send(close_cmd(close));
+}
+
+/// Forwards the client's frames and datagrams to the room until the
+/// connection ends or the client misbehaves.
+async fn read_loop(
+    connection: &quinn::Connection,
+    mut recv: quinn::RecvStream,
+    id: PlayerId,
+    room_tx: &mpsc::Sender<RoomCmd>,
+) {
+    // Frames are read by their own task so a frame is never cut in half
+    // when a datagram wins the select.
+    let (frames_tx, mut frames_rx) = mpsc::channel(64);
+    let frames = tokio::spawn(async move {
+        loop {
+            let r = read_frame(&mut recv).await;
+            let end = !matches!(r, Ok(Some(_)));
+            if frames_tx.send(r).await.is_err() || end {
+                break;
+            }
+        }
+    });
+    loop {
+        let cmd = tokio::select! {
+            frame = frames_rx.recv() => match frame {
+                Some(Ok(Some(bytes))) => checked(id, &bytes, Channel::Reliable),
+                Some(Ok(None)) | None => RoomCmd::Gone { id, why: "stream finished".into() },
+                Some(Err(FrameError::Length(e))) => RoomCmd::Misbehaved {
+                    id,
+                    detail: format!("bad frame: {e}"),
+                },
+                Some(Err(e)) => RoomCmd::Gone { id, why: e.to_string() },
+            },
+            datagram = connection.read_datagram() => match datagram {
+                Ok(bytes) => checked(id, &bytes, Channel::Datagram),
+                Err(e) => RoomCmd::Gone { id, why: e.to_string() },
+            },
+        };
+        let last = !matches!(cmd, RoomCmd::Message { .. });
+        if room_tx.send(cmd).await.is_err() || last {
+            break;
+        }
+    }
+    frames.abort();
+}
+
+/// Decodes a client message and checks its channel.
+fn checked(id: PlayerId, bytes: &[u8], channel: Channel) -> RoomCmd {
+    let what = match channel {
+        Channel::Reliable => "frame",
+        Channel::Datagram => "datagram",
+    };
+    match ClientMessage::decode(bytes) {
+        Ok(msg) if msg.channel() == channel => RoomCmd::Message {
+            id,
+            msg,
+            len: bytes.len(),
+            channel,
+        },
+        Ok(msg) => RoomCmd::Misbehaved {
+            id,
+            detail: format!("{} sent as a {what}", msg.kind()),
+        },
+        Err(e) => RoomCmd::Misbehaved {
+            id,
+            detail: format!("bad {what} of {} bytes: {e}", bytes.len()),
+        },
+    }
+}
+
+/// Writes the room's frames in order; on a close command, finishes the
+/// stream, gives the client a moment to read it, and closes the connection.
+async fn write_loop(
+    connection: quinn::Connection,
+    mut send: quinn::SendStream,
+    mut rx: mpsc::Receiver<WriterCmd>,
+) {
+    while let Some(cmd) = rx.recv().await {
+        match cmd {
+            WriterCmd::Frame(bytes) => {
+                if write_frame(&mut send, &bytes).await.is_err() {
+                    break;
+                }
+            }
+            WriterCmd::Close { code, reason } => {
+                let _ = send.finish();
+                // Resolves once the client has every byte of the stream (or
+                // stopped it): the close message is then delivered.
+                let _ = tokio::time::timeout(Duration::from_millis(500), send.stopped()).await;
+                connection.close(code.into(), truncate(&reason).as_bytes());
+                return;
+            }
+        }
+    }
+    connection.close(close_code::NORMAL.into(), b"");
+}
+
+/// Close reasons go into one QUIC packet; keep them short.
+fn truncate(s: &str) -> &str {
+    let mut end = s.len().min(200);
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    &s[..end]
+}
+
+/// The writer command that closes a client after `close` was queued.
+pub(crate) fn close_cmd(close: &Close) -> WriterCmd {
+    WriterCmd::Close {
+        code: close_code_for(close.reason),
+        reason: format!("{:?}: {}", close.reason, close.detail),
+    }
+}
+
+/// A close for a reason the room does not produce itself.
+pub(crate) fn close_of(reason: CloseReason, detail: impl Into<String>) -> Close {
+    let mut detail: String = detail.into();
+    let max = lockstep_proto::MAX_DETAIL_BYTES;
+    if detail.len() > max {
+        let mut cut = max;
+        while !detail.is_char_boundary(cut) {
+            cut -= 1;
+        }
+        detail.truncate(cut);
+    }
+    Close { reason, detail }
+}

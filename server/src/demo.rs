@@ -1,0 +1,263 @@
+//! The main job: the server on loopback with the demo scene and in-process
+//! bots over real QUIC, a status line per second, and a summary at the end.
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use lockstep_client::bot::{BotOptions, run_bots};
+use lockstep_client::offline::verify_replay_file;
+use tokio::sync::{mpsc, oneshot};
+
+use crate::{RoomReport, RoomStatus, ServerConfig, ServerError, ServerEvent, TlsSource, run};
+
+/// What the demo runs.
+#[derive(Clone, Debug)]
+pub struct DemoOptions {
+    /// Server settings; `events` is set by the demo.
+    pub server: ServerConfig,
+    /// Number of bots.
+    pub bots: usize,
+    /// Seed of the bots' input.
+    pub seed: u64,
+    /// How long the match lasts (it also ends on Ctrl-C).
+    pub duration: Duration,
+}
+
+impl DemoOptions {
+    /// Four bots, 20 s, on a free loopback port, dev certificate in `out/`.
+    pub fn new() -> Self {
+        let mut server = ServerConfig::new(SocketAddr::from(([127, 0, 0, 1], 0)));
+        server.tls = TlsSource::dev("out/dev-cert.pem");
+        Self {
+            server,
+            bots: 4,
+            seed: 1,
+            duration: Duration::from_secs(20),
+        }
+    }
+}
+
+impl Default for DemoOptions {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// What the demo did.
+#[derive(Clone, Debug)]
+pub struct DemoSummary {
+    /// The match, as the server saw it.
+    pub report: Option<RoomReport>,
+    /// Bots that finished without error.
+    pub bots_ok: usize,
+    /// Whether every bot reported the same hash for every tick they share.
+    pub bots_agree: bool,
+    /// The replay's verification line.
+    pub replay_check: Option<String>,
+}
+
+fn kb(bytes_per_sec: u64) -> String {
+    format!("{:.1} kB/s", bytes_per_sec as f64 / 1000.0)
+}
+
+/// One status line: tick, players, round trip, bytes per second per player,
+/// hash agreement.
+pub fn status_line(s: &RoomStatus) -> String {
+    let rtt = s.rtt.map_or_else(
+        || "-".into(),
+        |r| format!("{:.1} ms", r.as_secs_f64() * 1000.0),
+    );
+    let hashes = if s.mismatched_ticks == 0 {
+        format!("{} ticks compared, all agree", s.ticks_compared)
+    } else {
+        format!(
+            "{} ticks compared, {} MISMATCHED",
+            s.ticks_compared, s.mismatched_ticks
+        )
+    };
+    format!(
+        "tick {:6} | players {} | rtt {rtt} | per player: down {} up {} | hashes: {hashes}",
+        s.tick,
+        s.players,
+        kb(s.down_bytes_per_sec),
+        kb(s.up_bytes_per_sec)
+    )
+}
+
+/// Runs the demo until its duration passes or `interrupt` completes,
+/// printing status lines and the summary to stdout.
+///
+/// # Errors
+/// [`ServerError`] if the server cannot start.
+pub async fn run_demo(
+    mut options: DemoOptions,
+    interrupt: impl Future<Output = ()>,
+) -> Result<DemoSummary, ServerError> {
+    let (events_tx, mut events) = mpsc::unbounded_channel();
+    options.server.room.start_players = u8::try_from(options.bots.max(1)).unwrap_or(u8::MAX);
+    options.server.room.max_players = options
+        .server
+        .room
+        .max_players
+        .max(options.server.room.start_players);
+    let rate = u64::from(options.server.room.tick_rate);
+    let ticks = (options.duration.as_millis() as u64 * rate)
+        .div_ceil(1000)
+        .max(1);
+    options.server.room.match_ticks = Some(ticks);
+    let (stop_tx, stop_rx) = oneshot::channel::<()>();
+    let mut server_config = options.server.clone();
+    // The server holds the only sender: the channel closes when it stops.
+    server_config.events = Some(events_tx);
+    let server = tokio::spawn(run(server_config, async {
+        let _ = stop_rx.await;
+    }));
+    // Wait for the address and certificate.
+    let (addr, cert) = loop {
+        match events.recv().await {
+            Some(ServerEvent::Listening { addr, cert }) => break (addr, cert),
+            Some(_) => {}
+            None => {
+                return match server.await {
+                    Ok(Err(e)) => Err(e),
+                    _ => Err(ServerError::Config("the server stopped at start-up".into())),
+                };
+            }
+        }
+    };
+    let cert: PathBuf = match (cert, &options.server.tls) {
+        (Some(c), _) => c,
+        (None, TlsSource::Files { cert, .. }) => cert.clone(),
+        (None, TlsSource::SelfSigned { cert_out, .. }) => cert_out.clone(),
+    };
+    println!(
+        "demo: server on {addr}, {} bots, {} ticks at {rate} Hz ({:.0} s); Ctrl-C ends it early",
+        options.bots,
+        ticks,
+        options.duration.as_secs_f64()
+    );
+    let mut bot_options = BotOptions::new(addr, cert, "demo", options.bots);
+    bot_options.seed = options.seed;
+    let bots = tokio::spawn(async move { run_bots(&bot_options, std::future::pending()).await });
+    tokio::pin!(interrupt);
+    let mut stop_tx = Some(stop_tx);
+    let mut report = None;
+    loop {
+        tokio::select! {
+            () = &mut interrupt, if stop_tx.is_some() => {
+                println!("demo: interrupted; finishing the tick and closing the match");
+                if let Some(tx) = stop_tx.take() {
+                    let _ = tx.send(());
+                }
+            }
+            event = events.recv() => match event {
+                Some(ServerEvent::Status(s)) => println!("{}", status_line(&s)),
+                Some(ServerEvent::MatchStarted { players, .. }) => {
+                    println!("demo: match started with {players} players");
+                }
+                Some(ServerEvent::Desync { notice, .. }) => {
+                    println!("demo: DESYNC at tick {}: {:?}", notice.tick, notice.verdict);
+                }
+                Some(ServerEvent::MatchEnded(r)) => {
+                    report = Some(r);
+                    if let Some(tx) = stop_tx.take() {
+                        let _ = tx.send(());
+                    }
+                }
+                Some(_) => {}
+                None => break,
+            },
+        }
+    }
+    let server_result = server.await;
+    let bot_results = bots.await.unwrap_or_default();
+    if let Ok(Err(e)) = server_result {
+        return Err(e);
+    }
+    let oks: Vec<_> = bot_results.iter().filter_map(|r| r.as_ref().ok()).collect();
+    for (i, r) in bot_results.iter().enumerate() {
+        if let Err(e) = r {
+            println!("demo: bot-{i} failed: {e}");
+        }
+    }
+    let shortest = oks.iter().map(|r| r.hashes.len()).min().unwrap_or(0);
+    let bots_agree = (0..shortest).all(|t| oks.iter().all(|r| r.hashes[t] == oks[0].hashes[t]));
+    let replay_check =
+        report
+            .as_ref()
+            .and_then(|r| r.replay.as_ref())
+            .map(|p| match verify_replay_file(p) {
+                Ok(c) => format!(
+                    "OK, {} ticks re-simulated, {} hashes checked",
+                    c.ticks, c.checked
+                ),
+                Err(e) => format!("FAILED: {e}"),
+            });
+    let summary = DemoSummary {
+        report,
+        bots_ok: oks.len(),
+        bots_agree,
+        replay_check,
+    };
+    print_summary(&summary, options.bots);
+    Ok(summary)
+}
+
+fn print_summary(s: &DemoSummary, bots: usize) {
+    println!("== summary");
+    let Some(r) = &s.report else {
+        println!("no match was played");
+        return;
+    };
+    let secs = r.duration.as_secs_f64().max(1e-3);
+    println!(
+        "ticks played: {} in {:.1} s ({}); players: {}",
+        r.ticks,
+        secs,
+        r.end_reason,
+        r.players.len()
+    );
+    println!(
+        "hashes: {} ticks compared, {} mismatched, {} desync notices; bots agree on every tick: {}",
+        r.ticks_compared,
+        r.mismatched_ticks,
+        r.desyncs.len(),
+        if s.bots_agree { "yes" } else { "NO" }
+    );
+    for p in &r.players {
+        let t = p.connected_for.as_secs_f64().max(1e-3);
+        println!(
+            "  slot {} {:8}: down {} up {} (UDP incl. QUIC), largest datagram down {} B up {} B, \
+             rtt {}, {} inputs substituted",
+            p.slot.0,
+            p.name,
+            kb((p.udp_bytes_down as f64 / t) as u64),
+            kb((p.udp_bytes_up as f64 / t) as u64),
+            p.max_datagram_down,
+            p.max_datagram_up,
+            p.rtt.map_or_else(
+                || "-".into(),
+                |r| format!("{:.1} ms", r.as_secs_f64() * 1000.0)
+            ),
+            p.inputs_substituted
+        );
+    }
+    println!("bots finished: {}/{bots}", s.bots_ok);
+    match (&r.replay, &s.replay_check) {
+        (Some(p), Some(check)) => {
+            println!(
+                "replay: {} ({} ticks with an agreed hash)",
+                p.display(),
+                r.replay_hashed_ticks
+            );
+            println!("replay check: {check}");
+            println!(
+                "  re-check with: cargo run --release -p lockstep-client --bin lockstep -- replay {}",
+                p.display()
+            );
+        }
+        _ => println!("replay: not recorded"),
+    }
+}

@@ -1,0 +1,410 @@
+//! # lockstep-server
+//!
+//! The lockstep server: tokio + quinn around `lockstep_proto::Room`, the way
+//! `quinn` wraps `quinn-proto`. It relays inputs and compares hashes; it
+//! never simulates.
+//!
+//! - [`run`] is the whole server as a library function: it listens, accepts
+//!   connections, seats players in rooms (created on the first join of a
+//!   name), drives each room's tick clock, records every match as a replay,
+//!   and on `shutdown` finishes the current tick, closes every connection
+//!   with a reason, flushes the replays and waits for its tasks.
+//! - Each connection has a task that reads its stream frames and datagrams
+//!   and forwards decoded messages to its room (`conn`); each room has a task
+//!   that owns the [`Room`](lockstep_proto::Room) state machine and all
+//!   sending (`room`).
+//! - [`demo`] is the main job: the server with the demo scene and four
+//!   in-process bots, with a status line per second.
+//!
+//! Nothing a client sends can disturb a room beyond that client: malformed
+//! or oversized frames and datagrams, messages on the wrong channel, and
+//! everything the room rejects (another slot's inputs, ticks outside the
+//! window, conflicting hashes) close that client with a logged reason.
+
+#![warn(missing_docs)]
+
+mod conn;
+pub mod demo;
+pub mod log;
+mod room;
+mod tls;
+
+use std::collections::HashMap;
+use std::future::Future;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use lockstep_proto::{DesyncNotice, Slot};
+use thiserror::Error;
+use tokio::sync::{Semaphore, mpsc, watch};
+use tokio::task::JoinSet;
+
+pub use tls::TlsSource;
+
+/// Settings of every room the server opens.
+#[derive(Clone, Debug)]
+pub struct RoomSettings {
+    /// Seats per room (at most 16).
+    pub max_players: u8,
+    /// The match starts once this many players are seated and each has
+    /// sent its first input.
+    pub start_players: u8,
+    /// Ticks per second.
+    pub tick_rate: u16,
+    /// Ticks between an input's sampling and the tick it applies to; inputs
+    /// arrive on time while the round trip stays under `input_delay + 1`
+    /// ticks.
+    pub input_delay: u16,
+    /// A player heard from for this long is dropped; the room goes on.
+    pub silence_timeout: Duration,
+    /// End the match after this many ticks (`None`: until every player
+    /// left or the server shuts down).
+    pub match_ticks: Option<u64>,
+    /// After the last tick, how long to wait for the last hash reports
+    /// before closing the match.
+    pub final_reports_timeout: Duration,
+}
+
+impl Default for RoomSettings {
+    fn default() -> Self {
+        Self {
+            max_players: 8,
+            start_players: 2,
+            tick_rate: 60,
+            input_delay: 4,
+            silence_timeout: Duration::from_secs(5),
+            match_ticks: None,
+            final_reports_timeout: Duration::from_secs(2),
+        }
+    }
+}
+
+/// Everything [`run`] needs.
+#[derive(Clone, Debug)]
+pub struct ServerConfig {
+    /// UDP address to listen on (port 0 picks one; see
+    /// [`ServerEvent::Listening`]).
+    pub listen: SocketAddr,
+    /// The certificate.
+    pub tls: TlsSource,
+    /// Scene text sent to every player in the welcome.
+    pub scene: String,
+    /// Its name, for messages.
+    pub scene_name: String,
+    /// Settings of each room.
+    pub room: RoomSettings,
+    /// Directory where replays are written (`None`: no replays).
+    pub replay_dir: Option<PathBuf>,
+    /// Most rooms open at once; a join for a new name beyond it is refused.
+    pub max_rooms: usize,
+    /// Most connections at once; beyond it a connection is refused at once.
+    pub max_connections: usize,
+    /// Where the server reports what happens (listening address, matches,
+    /// a status per room per second, desyncs), for the demo and tests.
+    pub events: Option<mpsc::UnboundedSender<ServerEvent>>,
+}
+
+impl ServerConfig {
+    /// A server on `listen` with the demo scene, a dev certificate written
+    /// to `out/dev-cert.pem`, replays in `out/replays`, and default rooms.
+    pub fn new(listen: SocketAddr) -> Self {
+        Self {
+            listen,
+            tls: TlsSource::dev("out/dev-cert.pem"),
+            scene: lockstep_client::game::DemoGame::SCENE.to_owned(),
+            scene_name: "demo".into(),
+            room: RoomSettings::default(),
+            replay_dir: Some(PathBuf::from("out/replays")),
+            max_rooms: 16,
+            max_connections: 256,
+            events: None,
+        }
+    }
+}
+
+/// Why the server could not run.
+#[derive(Debug, Error)]
+pub enum ServerError {
+    /// The scene does not build.
+    #[error("scene {name}: {detail}")]
+    Scene {
+        /// Its name.
+        name: String,
+        /// What is wrong.
+        detail: String,
+    },
+    /// The room settings are incoherent.
+    #[error("room settings: {0}")]
+    Config(String),
+    /// The certificate could not be made or loaded.
+    #[error("tls: {0}")]
+    Tls(String),
+    /// A file or directory could not be written.
+    #[error("{0}: {1}")]
+    Io(PathBuf, #[source] std::io::Error),
+    /// The UDP socket could not be bound.
+    #[error("bind {0}: {1}")]
+    Bind(SocketAddr, #[source] std::io::Error),
+}
+
+/// What the server reports while it runs.
+#[derive(Clone, Debug)]
+pub enum ServerEvent {
+    /// Listening on `addr`; clients should trust `cert` (if generated).
+    Listening {
+        /// The bound address.
+        addr: SocketAddr,
+        /// The dev certificate file, if one was generated.
+        cert: Option<PathBuf>,
+    },
+    /// A match started: tick `t` closes at `epoch + (t + 1) / tick_rate`.
+    MatchStarted {
+        /// The room.
+        room: String,
+        /// When the tick clock started.
+        epoch: Instant,
+        /// Ticks per second.
+        tick_rate: u16,
+        /// Players seated.
+        players: usize,
+    },
+    /// Once per second per running room.
+    Status(RoomStatus),
+    /// The room found a desync.
+    Desync {
+        /// The room.
+        room: String,
+        /// The notice sent to the players.
+        notice: DesyncNotice,
+    },
+    /// A connection was refused or a player removed for cause.
+    Refused {
+        /// The peer.
+        remote: SocketAddr,
+        /// Why, as logged.
+        reason: String,
+    },
+    /// A match is over (or its room shut down); the replay is flushed.
+    MatchEnded(RoomReport),
+}
+
+/// A room's figures at one moment.
+#[derive(Clone, Debug)]
+pub struct RoomStatus {
+    /// The room.
+    pub room: String,
+    /// Next tick to close.
+    pub tick: u64,
+    /// Players seated.
+    pub players: usize,
+    /// Mean of the players' smoothed ping round trips.
+    pub rtt: Option<Duration>,
+    /// Mean UDP bytes per second sent to each player over the last second.
+    pub down_bytes_per_sec: u64,
+    /// Mean UDP bytes per second received from each player.
+    pub up_bytes_per_sec: u64,
+    /// Ticks whose hashes were compared so far.
+    pub ticks_compared: u64,
+    /// Compared ticks whose hashes differed.
+    pub mismatched_ticks: u64,
+}
+
+/// One player's part in a match.
+#[derive(Clone, Debug)]
+pub struct PlayerReport {
+    /// The seat.
+    pub slot: Slot,
+    /// Display name.
+    pub name: String,
+    /// The peer address.
+    pub remote: SocketAddr,
+    /// First tick without them and why, if they left before the end.
+    pub left: Option<(u64, String)>,
+    /// Smoothed ping round trip at the end.
+    pub rtt: Option<Duration>,
+    /// UDP bytes sent to the player (QUIC overhead included).
+    pub udp_bytes_down: u64,
+    /// UDP bytes received from the player.
+    pub udp_bytes_up: u64,
+    /// Protocol datagrams sent to the player, and their largest size.
+    pub datagrams_down: u64,
+    /// Largest protocol datagram sent to the player, in bytes.
+    pub max_datagram_down: usize,
+    /// Protocol datagrams received from the player.
+    pub datagrams_up: u64,
+    /// Largest protocol datagram received from the player, in bytes.
+    pub max_datagram_up: usize,
+    /// Ticks whose input the room substituted.
+    pub inputs_substituted: u64,
+    /// Hash reports accepted.
+    pub hash_reports: u64,
+    /// How long they were connected.
+    pub connected_for: Duration,
+}
+
+/// A finished match.
+#[derive(Clone, Debug)]
+pub struct RoomReport {
+    /// The room.
+    pub room: String,
+    /// Ticks played.
+    pub ticks: u64,
+    /// Ticks whose hashes were compared.
+    pub ticks_compared: u64,
+    /// Compared ticks whose hashes differed.
+    pub mismatched_ticks: u64,
+    /// Every desync notice, in order.
+    pub desyncs: Vec<DesyncNotice>,
+    /// Every player who was seated, by join order.
+    pub players: Vec<PlayerReport>,
+    /// The replay file, if recorded.
+    pub replay: Option<PathBuf>,
+    /// Ticks of the replay with an agreed hash.
+    pub replay_hashed_ticks: u64,
+    /// From the start of the tick clock to the end.
+    pub duration: Duration,
+    /// Why the match ended.
+    pub end_reason: String,
+}
+
+/// What [`run`] returns after shutting down.
+#[derive(Clone, Debug, Default)]
+pub struct ServerReport {
+    /// Every match played, in the order they ended.
+    pub matches: Vec<RoomReport>,
+    /// Connections refused or players removed for cause: peer and reason.
+    pub refused: Vec<(SocketAddr, String)>,
+}
+
+/// State shared by the accept loop, the connection tasks and the rooms.
+pub(crate) struct Shared {
+    pub(crate) config: ServerConfig,
+    pub(crate) scene_hash: u64,
+    pub(crate) rooms: Mutex<HashMap<String, room::RoomHandle>>,
+    pub(crate) shutdown: watch::Receiver<bool>,
+    pub(crate) report: Mutex<ServerReport>,
+    pub(crate) room_tasks: Mutex<JoinSet<()>>,
+    pub(crate) room_seq: std::sync::atomic::AtomicU64,
+}
+
+impl Shared {
+    pub(crate) fn emit(&self, event: ServerEvent) {
+        if let Some(tx) = &self.config.events {
+            let _ = tx.send(event);
+        }
+    }
+
+    pub(crate) fn refused(&self, remote: SocketAddr, reason: String) {
+        crate::log!("refused {remote}: {reason}");
+        if let Ok(mut r) = self.report.lock() {
+            r.refused.push((remote, reason.clone()));
+        }
+        self.emit(ServerEvent::Refused { remote, reason });
+    }
+}
+
+/// Runs the server until `shutdown` completes, then shuts down gracefully:
+/// stops accepting, lets every running room finish its current tick and
+/// collect the last hash reports, closes every connection with a reason,
+/// flushes the replays, and waits for every task.
+///
+/// # Errors
+/// [`ServerError`] if the scene does not build, the settings are incoherent,
+/// the certificate cannot be made, or the socket cannot be bound. Errors of
+/// single connections are logged, never returned.
+pub async fn run(
+    config: ServerConfig,
+    shutdown: impl Future<Output = ()>,
+) -> Result<ServerReport, ServerError> {
+    let world =
+        lockstep_core::scene::load_world(&config.scene, &config.scene_name).map_err(|e| {
+            ServerError::Scene {
+                name: config.scene_name.clone(),
+                detail: e.to_string(),
+            }
+        })?;
+    let scene_hash = world.state_hash();
+    room::check_settings(&config, scene_hash)?;
+    if let Some(dir) = &config.replay_dir {
+        std::fs::create_dir_all(dir).map_err(|e| ServerError::Io(dir.clone(), e))?;
+    }
+    let (server_config, cert) = tls::server_config(&config.tls)?;
+    let endpoint = quinn::Endpoint::server(server_config, config.listen)
+        .map_err(|e| ServerError::Bind(config.listen, e))?;
+    let addr = endpoint
+        .local_addr()
+        .map_err(|e| ServerError::Bind(config.listen, e))?;
+    crate::log!(
+        "listening on {addr} (scene {}, hash {scene_hash:016x}){}",
+        config.scene_name,
+        cert.as_ref()
+            .map(|c| format!(", dev certificate in {}", c.display()))
+            .unwrap_or_default()
+    );
+    let (shutdown_tx, shutdown_rx) = watch::channel(false);
+    let limit = Arc::new(Semaphore::new(config.max_connections));
+    let shared = Arc::new(Shared {
+        config,
+        scene_hash,
+        rooms: Mutex::new(HashMap::new()),
+        shutdown: shutdown_rx,
+        report: Mutex::new(ServerReport::default()),
+        room_tasks: Mutex::new(JoinSet::new()),
+        room_seq: std::sync::atomic::AtomicU64::new(0),
+    });
+    shared.emit(ServerEvent::Listening { addr, cert });
+    let mut connections = JoinSet::new();
+    tokio::pin!(shutdown);
+    loop {
+        tokio::select! {
+            () = &mut shutdown => break,
+            incoming = endpoint.accept() => {
+                let Some(incoming) = incoming else { break };
+                let remote = incoming.remote_address();
+                match limit.clone().try_acquire_owned() {
+                    Ok(permit) => {
+                        let shared = shared.clone();
+                        connections.spawn(async move {
+                            conn::serve(shared, incoming).await;
+                            drop(permit);
+                        });
+                    }
+                    Err(_) => {
+                        shared.refused(remote, "too many connections".into());
+                        incoming.refuse();
+                    }
+                }
+            }
+            Some(_) = connections.join_next(), if !connections.is_empty() => {}
+        }
+    }
+    crate::log!("shutting down: finishing every room's tick");
+    let _ = shutdown_tx.send(true);
+    // Rooms first: they finish their tick, close their players with a
+    // reason and flush their replays.
+    let mut rooms =
+        std::mem::take(&mut *shared.room_tasks.lock().unwrap_or_else(|e| e.into_inner()));
+    while rooms.join_next().await.is_some() {}
+    // Then the connection tasks, which end once their room closed them.
+    let drained = tokio::time::timeout(Duration::from_secs(3), async {
+        while connections.join_next().await.is_some() {}
+    })
+    .await;
+    if drained.is_err() {
+        crate::log!(
+            "{} connection tasks did not end in 3 s; aborting them",
+            connections.len()
+        );
+        connections.shutdown().await;
+    }
+    endpoint.close(
+        lockstep_client::net::close_code::SHUTDOWN.into(),
+        b"server shutting down",
+    );
+    let _ = tokio::time::timeout(Duration::from_secs(2), endpoint.wait_idle()).await;
+    crate::log!("server stopped");
+    let report = shared.report.lock().map(|r| r.clone()).unwrap_or_default();
+    Ok(report)
+}

@@ -1,0 +1,887 @@
+//! One room's task: owns the `Room` state machine, its tick clock, every
+//! send to its players, and its replay.
+//!
+//! The clock is drift-free: the room computes tick `t`'s deadline as
+//! `start + (t + 1)·dt` in integer nanoseconds, and this task sleeps until
+//! exactly that instant (`Room::poll_timeout`), never `sleep(dt)` in a loop,
+//! so a late wake-up delays one tick, not every tick after it. After every
+//! call into the room, its transmits and events are drained.
+
+use std::fs::File;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant, SystemTime};
+
+use bytes::Bytes;
+use lockstep_proto::{
+    BundleDatagram, Channel, ClientMessage, Close, CloseReason, DesyncNotice, Join,
+    MAX_DATAGRAM_BYTES, PROTOCOL_VERSION, PlayerId, Rejection, ReplayHeader, ReplayRecorder, Room,
+    RoomConfig, RoomEvent, ServerMessage, Verdict,
+};
+use tokio::sync::{mpsc, oneshot};
+
+use crate::conn::{Peer, WriterCmd, close_cmd, close_of, send_close};
+use crate::{PlayerReport, RoomReport, RoomStatus, ServerConfig, ServerError, ServerEvent, Shared};
+
+/// Commands from connection tasks to their room.
+#[derive(Debug)]
+pub(crate) enum RoomCmd {
+    /// Seat a player; the room answers and sends the welcome or the refusal.
+    Join {
+        join: Join,
+        peer: Peer,
+        reply: oneshot::Sender<Result<PlayerId, Close>>,
+    },
+    /// A decoded message on the right channel.
+    Message {
+        id: PlayerId,
+        msg: ClientMessage,
+        len: usize,
+        channel: Channel,
+    },
+    /// The client broke the protocol below the room's level.
+    Misbehaved { id: PlayerId, detail: String },
+    /// The connection ended.
+    Gone { id: PlayerId, why: String },
+}
+
+/// The registry's handle on a room task.
+pub(crate) struct RoomHandle {
+    tx: mpsc::Sender<RoomCmd>,
+    seq: u64,
+}
+
+/// Builds the room configuration the settings describe.
+fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig {
+    let s = &config.room;
+    let mut c = RoomConfig::new(name, config.scene.as_bytes().to_vec(), scene_hash);
+    c.tick_rate = s.tick_rate;
+    c.input_delay = s.input_delay;
+    c.max_players = s.max_players;
+    c.silence_timeout = s.silence_timeout;
+    c.input_window = c.input_window.max(s.input_delay.saturating_add(16));
+    let needed = c.ticks_in(c.hash_timeout).saturating_add(2);
+    c.hash_window_ticks = c
+        .hash_window_ticks
+        .max(u32::try_from(needed).unwrap_or(u32::MAX));
+    c
+}
+
+/// Checks the settings once at start-up, so a room can never fail to open.
+pub(crate) fn check_settings(config: &ServerConfig, scene_hash: u64) -> Result<(), ServerError> {
+    room_config(config, "check", scene_hash)
+        .validate()
+        .map_err(|e| ServerError::Config(e.to_string()))?;
+    let s = &config.room;
+    if s.start_players == 0 || s.start_players > s.max_players {
+        return Err(ServerError::Config(format!(
+            "start_players {} must be in 1..=max_players ({})",
+            s.start_players, s.max_players
+        )));
+    }
+    if s.match_ticks == Some(0) {
+        return Err(ServerError::Config("match_ticks must be positive".into()));
+    }
+    Ok(())
+}
+
+/// The sender of the open room named `name`, opening it if needed.
+pub(crate) fn find_or_open(
+    shared: &Arc<Shared>,
+    name: &str,
+) -> Result<mpsc::Sender<RoomCmd>, Close> {
+    if *shared.shutdown.borrow() {
+        return Err(close_of(
+            CloseReason::RoomClosed,
+            "the server is shutting down",
+        ));
+    }
+    let mut rooms = shared.rooms.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(h) = rooms.get(name)
+        && !h.tx.is_closed()
+    {
+        return Ok(h.tx.clone());
+    }
+    if rooms.len() >= shared.config.max_rooms {
+        return Err(close_of(
+            CloseReason::RoomFull,
+            format!("the server has {} rooms open, its limit", rooms.len()),
+        ));
+    }
+    if name.len() > lockstep_proto::MAX_NAME_BYTES {
+        return Err(close_of(CloseReason::WrongRoom, "room name too long"));
+    }
+    let config = room_config(&shared.config, name, shared.scene_hash);
+    // check_settings validated this configuration at start-up.
+    let room = Room::new(config).map_err(|e| close_of(CloseReason::RoomClosed, e.to_string()))?;
+    let (tx, rx) = mpsc::channel(4096);
+    let seq = shared.room_seq.fetch_add(1, Ordering::Relaxed);
+    let task = RoomTask::new(shared.clone(), name.to_owned(), room, seq);
+    shared
+        .room_tasks
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .spawn(task.run(rx));
+    rooms.insert(
+        name.to_owned(),
+        RoomHandle {
+            tx: tx.clone(),
+            seq,
+        },
+    );
+    Ok(tx)
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    /// Seating players; the clock has not started.
+    Lobby,
+    /// The clock runs; `end` is the first tick not to close, if known.
+    Running { epoch: Duration, end: Option<u64> },
+    /// No more ticks; collecting the last hash reports until `until`.
+    Finishing { until: Duration },
+    /// Everyone closed; the replay is flushed.
+    Done,
+}
+
+/// A seated player's connection and counters.
+struct Seat {
+    id: PlayerId,
+    peer: Peer,
+    report: usize,
+    joined_at: Instant,
+    /// The bundle ack of the last accepted input datagram.
+    bundle_ack: Option<u64>,
+    /// Newest tick whose hash the room accepted from this player.
+    last_hash: Option<u64>,
+    closing: bool,
+    /// UDP counters at the last status line, for rates.
+    last_udp: (u64, u64),
+}
+
+struct Replay {
+    recorder: ReplayRecorder,
+    path: PathBuf,
+    file: Option<File>,
+}
+
+struct RoomTask {
+    shared: Arc<Shared>,
+    seq: u64,
+    name: String,
+    room: Room,
+    base: Instant,
+    phase: Phase,
+    shutting_down: bool,
+    end_reason: String,
+    seats: Vec<Option<Seat>>,
+    players: Vec<PlayerReport>,
+    desyncs: Vec<DesyncNotice>,
+    replay: Option<Replay>,
+}
+
+impl RoomTask {
+    fn new(shared: Arc<Shared>, name: String, room: Room, seq: u64) -> Self {
+        let replay = shared.config.replay_dir.as_ref().and_then(|dir| {
+            let c = room.config();
+            let header = ReplayHeader {
+                protocol_version: PROTOCOL_VERSION,
+                room: name.clone(),
+                tick_rate: c.tick_rate,
+                input_delay: c.input_delay,
+                scene_hash: c.scene_hash,
+                scene: c.scene.clone(),
+            };
+            let decide_after = c.ticks_in(c.hash_timeout);
+            let recorder = match ReplayRecorder::new(header, decide_after) {
+                Ok(r) => r,
+                Err(e) => {
+                    crate::log!("room {name}: no replay: {e}");
+                    return None;
+                }
+            };
+            let secs = SystemTime::now()
+                .duration_since(SystemTime::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs());
+            let safe: String = name
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                        c
+                    } else {
+                        '_'
+                    }
+                })
+                .collect();
+            let path = dir.join(format!("{safe}-{secs}-{seq}.replay"));
+            let file = match File::create(&path) {
+                Ok(f) => Some(f),
+                Err(e) => {
+                    crate::log!("room {name}: cannot create {}: {e}", path.display());
+                    None
+                }
+            };
+            Some(Replay {
+                recorder,
+                path,
+                file,
+            })
+        });
+        crate::log!("room {name}: opened");
+        let seats = (0..room.config().max_players).map(|_| None).collect();
+        Self {
+            shared,
+            seq,
+            name,
+            room,
+            base: Instant::now(),
+            phase: Phase::Lobby,
+            shutting_down: false,
+            end_reason: String::new(),
+            seats,
+            players: Vec::new(),
+            desyncs: Vec::new(),
+            replay,
+        }
+    }
+
+    fn now(&self) -> Duration {
+        self.base.elapsed()
+    }
+
+    fn settings(&self) -> &crate::RoomSettings {
+        &self.shared.config.room
+    }
+
+    async fn run(mut self, mut rx: mpsc::Receiver<RoomCmd>) {
+        let mut shutdown = self.shared.shutdown.clone();
+        let mut status = tokio::time::interval(Duration::from_secs(1));
+        status.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+        while self.phase != Phase::Done {
+            let wake = tokio::time::Instant::from_std(self.base + self.next_wake());
+            tokio::select! {
+                biased;
+                _ = shutdown.wait_for(|s| *s), if !self.shutting_down => self.begin_shutdown(),
+                cmd = rx.recv() => match cmd {
+                    Some(cmd) => self.on_cmd(cmd),
+                    None => break,
+                },
+                () = tokio::time::sleep_until(wake) => self.on_timer(),
+                _ = status.tick() => self.on_status(),
+            }
+            self.pump();
+            self.advance();
+            self.pump();
+        }
+        self.finish();
+        // Stop taking joins: a join racing the end is refused by the
+        // closed channel.
+        rx.close();
+        while let Some(cmd) = rx.recv().await {
+            if let RoomCmd::Join { peer, reply, .. } = cmd {
+                let close = close_of(CloseReason::RoomClosed, "the match is over");
+                send_close(&peer.writer, &close);
+                let _ = reply.send(Err(close));
+            }
+        }
+    }
+
+    /// When the task must wake up on its own.
+    fn next_wake(&self) -> Duration {
+        let now = self.now();
+        match self.phase {
+            Phase::Lobby | Phase::Running { .. } => self
+                .room
+                .poll_timeout()
+                .unwrap_or(now + Duration::from_secs(1)),
+            // Resend the last bundles once per tick while waiting.
+            Phase::Finishing { until } => (now + self.period()).min(until),
+            Phase::Done => now,
+        }
+    }
+
+    fn period(&self) -> Duration {
+        Duration::from_nanos(1_000_000_000 / u64::from(self.room.config().tick_rate.max(1)))
+    }
+
+    fn begin_shutdown(&mut self) {
+        self.shutting_down = true;
+        match self.phase {
+            Phase::Running { epoch, .. } => {
+                // Finish the tick in progress, then stop.
+                let end = self.room.next_tick() + 1;
+                crate::log!("room {}: shutting down after tick {}", self.name, end - 1);
+                self.end_reason = "server shutting down".into();
+                self.phase = Phase::Running {
+                    epoch,
+                    end: Some(end),
+                };
+            }
+            Phase::Lobby => {
+                self.end_reason = "server shutting down before the match started".into();
+                self.close_everyone("server shutting down");
+                self.phase = Phase::Done;
+            }
+            Phase::Finishing { .. } | Phase::Done => {}
+        }
+    }
+
+    fn on_timer(&mut self) {
+        let now = self.now();
+        match self.phase {
+            Phase::Lobby => self.room.handle_timeout(now),
+            Phase::Running { epoch, end } => {
+                // Never close a tick at or past `end`, however late we woke.
+                let limit = end.map_or(now, |end| {
+                    epoch + self.room.config().deadline_offset(end.saturating_sub(1))
+                });
+                self.room.handle_timeout(now.min(limit));
+            }
+            Phase::Finishing { .. } => self.resend_final_bundles(),
+            Phase::Done => {}
+        }
+    }
+
+    /// Moves between phases.
+    fn advance(&mut self) {
+        let now = self.now();
+        match self.phase {
+            Phase::Lobby => {
+                if self.shutting_down {
+                    return;
+                }
+                let start = usize::from(self.settings().start_players);
+                if self.room.player_count() >= start && self.room.all_ready() {
+                    // all_ready() is true, so the room has not started.
+                    let _ = self.room.start(now);
+                    let end = self.settings().match_ticks;
+                    self.phase = Phase::Running { epoch: now, end };
+                    let players = self.room.player_count();
+                    crate::log!(
+                        "room {}: match started with {players} players at {} Hz, input delay {}",
+                        self.name,
+                        self.room.config().tick_rate,
+                        self.room.config().input_delay
+                    );
+                    self.shared.emit(ServerEvent::MatchStarted {
+                        room: self.name.clone(),
+                        epoch: self.base + now,
+                        tick_rate: self.room.config().tick_rate,
+                        players,
+                    });
+                }
+            }
+            Phase::Running { end, .. } => {
+                let next = self.room.next_tick();
+                if end.is_some_and(|e| next >= e) {
+                    if self.end_reason.is_empty() {
+                        self.end_reason = format!("match over after {next} ticks");
+                    }
+                    self.begin_finishing(now);
+                } else if self.room.player_count() == 0 {
+                    self.end_reason = format!("every player left by tick {next}");
+                    self.begin_finishing(now);
+                }
+            }
+            Phase::Finishing { until } => {
+                let last = self.room.next_tick().checked_sub(1);
+                let all_reported = self
+                    .seats
+                    .iter()
+                    .flatten()
+                    .all(|s| s.closing || s.last_hash >= last);
+                if all_reported || now >= until {
+                    if !all_reported {
+                        crate::log!(
+                            "room {}: closing without every final hash report",
+                            self.name
+                        );
+                    }
+                    let reason = self.end_reason.clone();
+                    self.close_everyone(&reason);
+                    self.phase = Phase::Done;
+                }
+            }
+            Phase::Done => {}
+        }
+    }
+
+    fn begin_finishing(&mut self, now: Duration) {
+        crate::log!(
+            "room {}: {}; collecting the last hash reports",
+            self.name,
+            self.end_reason
+        );
+        let until = now + self.settings().final_reports_timeout;
+        self.phase = Phase::Finishing { until };
+        self.resend_final_bundles();
+    }
+
+    /// No tick closes any more, so the room sends no more bundles; repeat
+    /// the ones a player has not acknowledged, as the room would have.
+    fn resend_final_bundles(&mut self) {
+        let Some(last) = self.room.next_tick().checked_sub(1) else {
+            return;
+        };
+        for seat in self.seats.iter().flatten() {
+            if seat.closing || seat.bundle_ack >= Some(last) {
+                continue;
+            }
+            let from = seat.bundle_ack.map_or(0, |a| a + 1);
+            let mut bundles: Vec<_> = (from..=last)
+                .rev()
+                .take(lockstep_proto::MAX_BUNDLES_PER_DATAGRAM)
+                .filter_map(|t| self.room.bundle(t).cloned())
+                .collect();
+            bundles.reverse();
+            while !bundles.is_empty() {
+                let msg = ServerMessage::Bundles(BundleDatagram {
+                    ack_input: None,
+                    bundles: bundles.clone(),
+                });
+                match msg.encode() {
+                    Ok(bytes) if bytes.len() <= MAX_DATAGRAM_BYTES => {
+                        let _ = seat.peer.connection.send_datagram(Bytes::from(bytes));
+                        break;
+                    }
+                    _ => {
+                        bundles.remove(0);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Copies the room's per-player counters into the reports (the room
+    /// forgets them when a player leaves).
+    fn snapshot_stats(&mut self) {
+        let ids: Vec<PlayerId> = self.room.players().map(|(id, _)| id).collect();
+        for id in ids {
+            let Some(stats) = self.room.player_stats(id).copied() else {
+                continue;
+            };
+            let Some(report) = self.seat(id).map(|s| s.report) else {
+                continue;
+            };
+            let p = &mut self.players[report];
+            p.rtt = stats.rtt;
+            p.inputs_substituted = stats.inputs_substituted;
+            p.hash_reports = stats.hash_reports;
+        }
+    }
+
+    fn close_everyone(&mut self, detail: &str) {
+        self.snapshot_stats();
+        let now = self.now();
+        let ids: Vec<PlayerId> = self.room.players().map(|(id, _)| id).collect();
+        for id in ids {
+            self.room.kick(now, id, CloseReason::RoomClosed, detail);
+        }
+        self.pump();
+    }
+
+    fn seat(&mut self, id: PlayerId) -> Option<&mut Seat> {
+        self.seats
+            .get_mut(id.slot.index())
+            .and_then(Option::as_mut)
+            .filter(|s| s.id == id)
+    }
+
+    fn on_cmd(&mut self, cmd: RoomCmd) {
+        let now = self.now();
+        match cmd {
+            RoomCmd::Join { join, peer, reply } => {
+                let result = if self.shutting_down {
+                    Err(close_of(
+                        CloseReason::RoomClosed,
+                        "the server is shutting down",
+                    ))
+                } else {
+                    self.room.join(now, &join).map_err(|e| e.to_close())
+                };
+                match result {
+                    Ok(id) => {
+                        self.players.push(PlayerReport {
+                            slot: id.slot,
+                            name: join.player_name.clone(),
+                            remote: peer.remote,
+                            left: None,
+                            rtt: None,
+                            udp_bytes_down: 0,
+                            udp_bytes_up: 0,
+                            datagrams_down: 0,
+                            max_datagram_down: 0,
+                            datagrams_up: 0,
+                            max_datagram_up: 0,
+                            inputs_substituted: 0,
+                            hash_reports: 0,
+                            connected_for: Duration::ZERO,
+                        });
+                        self.seats[id.slot.index()] = Some(Seat {
+                            id,
+                            peer,
+                            report: self.players.len() - 1,
+                            joined_at: Instant::now(),
+                            bundle_ack: None,
+                            last_hash: None,
+                            closing: false,
+                            last_udp: (0, 0),
+                        });
+                        let _ = reply.send(Ok(id));
+                    }
+                    Err(close) => {
+                        send_close(&peer.writer, &close);
+                        let _ = reply.send(Err(close));
+                    }
+                }
+            }
+            RoomCmd::Message {
+                id,
+                msg,
+                len,
+                channel,
+            } => {
+                let Some(seat) = self.seat(id) else { return };
+                let report = seat.report;
+                let (ack, hash) = match &msg {
+                    ClientMessage::Input(d) => (d.ack_bundle, None),
+                    ClientMessage::HashReport(h) => (None, Some((h.tick, h.hash))),
+                    _ => (None, None),
+                };
+                if channel == Channel::Datagram {
+                    let p = &mut self.players[report];
+                    p.datagrams_up += 1;
+                    p.max_datagram_up = p.max_datagram_up.max(len);
+                }
+                match self.room.handle_message(now, id, msg) {
+                    Ok(()) => {
+                        if let Some(seat) = self.seat(id) {
+                            seat.bundle_ack = seat.bundle_ack.max(ack);
+                            if let Some((tick, _)) = hash {
+                                seat.last_hash = seat.last_hash.max(Some(tick));
+                            }
+                        }
+                        if let (Some((tick, h)), Some(r)) = (hash, self.replay.as_mut()) {
+                            r.recorder.on_hash(id.slot, tick, h);
+                        }
+                    }
+                    Err(Rejection::UnknownPlayer(_)) => {}
+                    Err(rejection) => self.expel(id, &rejection.to_string()),
+                }
+            }
+            RoomCmd::Misbehaved { id, detail } => self.expel(id, &detail),
+            RoomCmd::Gone { id, why } => {
+                if let Some(seat) = self.seat(id)
+                    && !seat.closing
+                {
+                    crate::log!("room {}: slot {} disconnected: {why}", self.name, id.slot.0);
+                    self.snapshot_stats();
+                    self.room.disconnect(now, id);
+                }
+            }
+        }
+    }
+
+    /// Removes a player for breaking the protocol, with a logged reason.
+    fn expel(&mut self, id: PlayerId, detail: &str) {
+        let now = self.now();
+        let Some(seat) = self.seat(id) else { return };
+        if seat.closing {
+            return;
+        }
+        let remote = seat.peer.remote;
+        let reason = format!(
+            "room {}: slot {} closed for a protocol violation: {detail}",
+            self.name, id.slot.0
+        );
+        self.shared.refused(remote, reason);
+        self.snapshot_stats();
+        self.room
+            .kick(now, id, CloseReason::ProtocolViolation, detail);
+    }
+
+    /// Sends every queued transmit and handles every queued event.
+    fn pump(&mut self) {
+        while let Some(t) = self.room.poll_transmit() {
+            self.transmit(t.to, t.message);
+        }
+        while let Some(event) = self.room.poll_event() {
+            if let Some(r) = self.replay.as_mut() {
+                r.recorder.on_event(&event);
+            }
+            self.on_event(event);
+            // Leaving players may have queued nothing, but kicks did.
+            while let Some(t) = self.room.poll_transmit() {
+                self.transmit(t.to, t.message);
+            }
+        }
+    }
+
+    fn transmit(&mut self, to: PlayerId, message: ServerMessage) {
+        let now = self.now();
+        let name = self.name.clone();
+        let Some(seat) = self.seat(to) else { return };
+        let bytes = match message.encode() {
+            Ok(b) => b,
+            Err(e) => {
+                // The room never builds an out-of-bounds message.
+                crate::log!("room {name}: cannot encode {}: {e}", message.kind());
+                return;
+            }
+        };
+        match message.channel() {
+            Channel::Datagram => {
+                let len = bytes.len();
+                if seat
+                    .peer
+                    .connection
+                    .send_datagram(Bytes::from(bytes))
+                    .is_ok()
+                {
+                    let report = seat.report;
+                    let p = &mut self.players[report];
+                    p.datagrams_down += 1;
+                    p.max_datagram_down = p.max_datagram_down.max(len);
+                }
+            }
+            Channel::Reliable => {
+                let close = match &message {
+                    ServerMessage::Close(c) => Some(c.clone()),
+                    _ => None,
+                };
+                let queued = seat.peer.writer.try_send(WriterCmd::Frame(bytes)).is_ok();
+                if let Some(c) = close {
+                    seat.closing = true;
+                    let _ = seat.peer.writer.try_send(close_cmd(&c));
+                } else if !queued && !seat.closing {
+                    // The client does not read its stream.
+                    seat.closing = true;
+                    let remote = seat.peer.remote;
+                    seat.peer.connection.close(
+                        lockstep_client::net::close_code::OVERLOADED.into(),
+                        b"stream send queue full",
+                    );
+                    self.shared.refused(
+                        remote,
+                        format!("room {name}: slot {} does not read its stream", to.slot.0),
+                    );
+                    self.room.disconnect(now, to);
+                }
+            }
+        }
+    }
+
+    fn on_event(&mut self, event: RoomEvent) {
+        match event {
+            RoomEvent::PlayerJoined { id, name } => {
+                let remote = self.seat(id).map(|s| s.peer.remote);
+                crate::log!(
+                    "room {}: {name:?} joined in slot {} from {}",
+                    self.name,
+                    id.slot.0,
+                    remote.map_or_else(|| "?".into(), |r| r.to_string())
+                );
+            }
+            RoomEvent::PlayerLeft {
+                id,
+                reason,
+                from_tick,
+            } => {
+                crate::log!(
+                    "room {}: slot {} left ({reason:?}) from tick {from_tick}",
+                    self.name,
+                    id.slot.0
+                );
+                let index = id.slot.index();
+                if let Some(seat) = self.seats[index].take() {
+                    if !seat.closing {
+                        // Left or lost: nothing more to tell it.
+                        let _ = seat.peer.writer.try_send(WriterCmd::Close {
+                            code: lockstep_client::net::close_code::NORMAL,
+                            reason: format!("{reason:?}"),
+                        });
+                    }
+                    let ended = self.phase == Phase::Done
+                        || matches!(self.phase, Phase::Finishing { .. })
+                        || self.shutting_down && self.room.player_count() == 0;
+                    let p = &mut self.players[seat.report];
+                    fill_traffic(p, &seat);
+                    if !ended {
+                        p.left = Some((from_tick, format!("{reason:?}")));
+                    }
+                }
+            }
+            RoomEvent::TickClosed(_) | RoomEvent::LateInput { .. } => {}
+            RoomEvent::Desync(notice) => {
+                let hashes: Vec<String> = notice
+                    .hashes
+                    .iter()
+                    .map(|h| match h.hash {
+                        Some(x) => format!("slot {}={x:016x}", h.slot.0),
+                        None => format!("slot {}=none", h.slot.0),
+                    })
+                    .collect();
+                let verdict = match &notice.verdict {
+                    Verdict::Majority {
+                        majority_hash,
+                        wrong,
+                    } => format!(
+                        "majority {majority_hash:016x}, wrong: {:?}",
+                        wrong.iter().map(|s| s.0).collect::<Vec<_>>()
+                    ),
+                    Verdict::Undecided => "undecided (no strict majority)".into(),
+                };
+                crate::log!(
+                    "room {}: DESYNC at tick {}: {}; verdict: {verdict}",
+                    self.name,
+                    notice.tick,
+                    hashes.join(", ")
+                );
+                self.shared.emit(ServerEvent::Desync {
+                    room: self.name.clone(),
+                    notice: notice.clone(),
+                });
+                self.desyncs.push(notice);
+            }
+        }
+    }
+
+    fn on_status(&mut self) {
+        self.flush_replay(false);
+        self.snapshot_stats();
+        if !matches!(self.phase, Phase::Running { .. }) {
+            return;
+        }
+        let mut down = 0u64;
+        let mut up = 0u64;
+        let mut rtts = Vec::new();
+        let mut n = 0u64;
+        let ids: Vec<PlayerId> = self.room.players().map(|(id, _)| id).collect();
+        for id in ids {
+            let rtt = self.room.player_stats(id).and_then(|s| s.rtt);
+            rtts.extend(rtt);
+            if let Some(seat) = self.seat(id) {
+                let s = seat.peer.connection.stats();
+                let (tx, rx) = (s.udp_tx.bytes, s.udp_rx.bytes);
+                down += tx.saturating_sub(seat.last_udp.0);
+                up += rx.saturating_sub(seat.last_udp.1);
+                seat.last_udp = (tx, rx);
+                n += 1;
+            }
+        }
+        let stats = self.room.stats();
+        let rtt = (!rtts.is_empty()).then(|| rtts.iter().sum::<Duration>() / rtts.len() as u32);
+        self.shared.emit(ServerEvent::Status(RoomStatus {
+            room: self.name.clone(),
+            tick: self.room.next_tick(),
+            players: self.room.player_count(),
+            rtt,
+            down_bytes_per_sec: down / n.max(1),
+            up_bytes_per_sec: up / n.max(1),
+            ticks_compared: stats.ticks_compared,
+            mismatched_ticks: stats.mismatched_ticks,
+        }));
+    }
+
+    /// Appends the recorder's new records to the file; `sync` also asks the
+    /// OS to put them on disk (at the end of the match).
+    fn flush_replay(&mut self, sync: bool) {
+        let Some(r) = self.replay.as_mut() else {
+            return;
+        };
+        let bytes = r.recorder.take_bytes();
+        if let Some(f) = r.file.as_mut() {
+            let ok = f.write_all(&bytes).and_then(|()| f.flush());
+            let ok = if sync {
+                ok.and_then(|()| f.sync_data())
+            } else {
+                ok
+            };
+            if let Err(e) = ok {
+                crate::log!(
+                    "room {}: replay {}: {e}; recording stops",
+                    self.name,
+                    r.path.display()
+                );
+                r.file = None;
+            }
+        }
+    }
+
+    fn finish(&mut self) {
+        // Players still seated (the task was told to stop abruptly).
+        for index in 0..self.seats.len() {
+            if let Some(seat) = self.seats[index].take() {
+                let p = &mut self.players[seat.report];
+                fill_traffic(p, &seat);
+                if !seat.closing {
+                    let close = close_of(CloseReason::RoomClosed, self.end_reason.clone());
+                    send_close(&seat.peer.writer, &close);
+                }
+            }
+        }
+        if self.end_reason.is_empty() {
+            self.end_reason = "room closed".into();
+        }
+        let reason = self.end_reason.clone();
+        if let Some(r) = self.replay.as_mut() {
+            r.recorder.finish(&reason);
+        }
+        self.flush_replay(true);
+        let stats = *self.room.stats();
+        let duration = match self.phase {
+            Phase::Running { epoch, .. } => self.now().saturating_sub(epoch),
+            _ => self
+                .room
+                .config()
+                .deadline_offset(self.room.next_tick().saturating_sub(1)),
+        };
+        let report = RoomReport {
+            room: self.name.clone(),
+            ticks: self.room.next_tick(),
+            ticks_compared: stats.ticks_compared,
+            mismatched_ticks: stats.mismatched_ticks,
+            desyncs: self.desyncs.clone(),
+            players: self.players.clone(),
+            replay: self.replay.as_ref().map(|r| r.path.clone()),
+            replay_hashed_ticks: self
+                .replay
+                .as_ref()
+                .map_or(0, |r| r.recorder.hashed_ticks()),
+            duration,
+            end_reason: reason,
+        };
+        crate::log!(
+            "room {}: closed: {} ticks, {} compared, {} mismatched, {} desync notices{}",
+            self.name,
+            report.ticks,
+            report.ticks_compared,
+            report.mismatched_ticks,
+            report.desyncs.len(),
+            report
+                .replay
+                .as_ref()
+                .map(|p| format!(", replay {}", p.display()))
+                .unwrap_or_default()
+        );
+        {
+            let mut rooms = self.shared.rooms.lock().unwrap_or_else(|e| e.into_inner());
+            if rooms.get(&self.name).is_some_and(|h| h.seq == self.seq) {
+                rooms.remove(&self.name);
+            }
+        }
+        if let Ok(mut r) = self.shared.report.lock() {
+            r.matches.push(report.clone());
+        }
+        self.shared.emit(ServerEvent::MatchEnded(report));
+    }
+}
+
+fn fill_traffic(p: &mut PlayerReport, seat: &Seat) {
+    let s = seat.peer.connection.stats();
+    p.udp_bytes_down = s.udp_tx.bytes;
+    p.udp_bytes_up = s.udp_rx.bytes;
+    p.connected_for = seat.joined_at.elapsed();
+}

@@ -1,0 +1,553 @@
+//! End-to-end matches over real QUIC on 127.0.0.1: the server library, bots
+//! built on the client library, the replay format and the offline verifier.
+//!
+//! Every test runs its own server on a free port with its own certificate
+//! and replay directory, so the tests of this file run in parallel (cargo
+//! runs the test binaries one after another, so they share one file): the
+//! two 1,200-tick matches take 20 s each, and the whole file about as long.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use bytes::Bytes;
+use lockstep_client::bot::{BotOptions, run_bots};
+use lockstep_client::net::{ClientReport, client_config, load_certs, read_frame, write_frame};
+use lockstep_client::offline::verify_replay_file;
+use lockstep_proto::{
+    ClientMessage, CloseReason, InputDatagram, Replay, ServerMessage, Session, Slot, Verdict,
+};
+use lockstep_server::{ServerConfig, ServerError, ServerEvent, ServerReport, TlsSource, run};
+use lockstep_tests::link::{LinkConditioner, LinkConfig};
+use tokio::sync::{mpsc, oneshot};
+use tokio::task::JoinHandle;
+
+/// A server running in the test's runtime.
+struct TestServer {
+    addr: SocketAddr,
+    cert: PathBuf,
+    events: mpsc::UnboundedReceiver<ServerEvent>,
+    stop: Option<oneshot::Sender<()>>,
+    task: JoinHandle<Result<ServerReport, ServerError>>,
+}
+
+impl TestServer {
+    async fn start(name: &str, tweak: impl FnOnce(&mut ServerConfig)) -> TestServer {
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("e2e-{name}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        let mut config = ServerConfig::new(SocketAddr::from(([127, 0, 0, 1], 0)));
+        config.tls = TlsSource::dev(dir.join("cert.pem"));
+        config.replay_dir = Some(dir.join("replays"));
+        let (tx, mut events) = mpsc::unbounded_channel();
+        config.events = Some(tx);
+        tweak(&mut config);
+        let (stop, stop_rx) = oneshot::channel::<()>();
+        let task = tokio::spawn(run(config, async {
+            let _ = stop_rx.await;
+        }));
+        let (addr, cert) = loop {
+            match events.recv().await.expect("server stopped at start-up") {
+                ServerEvent::Listening { addr, cert } => break (addr, cert.expect("dev cert")),
+                _ => continue,
+            }
+        };
+        TestServer {
+            addr,
+            cert,
+            events,
+            stop: Some(stop),
+            task,
+        }
+    }
+
+    /// Waits for an event matching `pick`, up to `timeout`.
+    async fn wait_for<T>(
+        &mut self,
+        timeout: Duration,
+        mut pick: impl FnMut(&ServerEvent) -> Option<T>,
+    ) -> T {
+        tokio::time::timeout(timeout, async {
+            loop {
+                let e = self.events.recv().await.expect("server events ended");
+                if let Some(t) = pick(&e) {
+                    return t;
+                }
+            }
+        })
+        .await
+        .expect("timed out waiting for a server event")
+    }
+
+    async fn shutdown(mut self) -> ServerReport {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        tokio::time::timeout(Duration::from_secs(15), self.task)
+            .await
+            .expect("server did not shut down in 15 s")
+            .expect("server task")
+            .expect("server run")
+    }
+}
+
+fn bots_ok(
+    results: Vec<Result<ClientReport, lockstep_client::net::ClientError>>,
+) -> Vec<ClientReport> {
+    results
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| r.unwrap_or_else(|e| panic!("bot {i}: {e}")))
+        .collect()
+}
+
+/// Every bot reported the same hash for every tick it applied.
+fn assert_same_hashes(bots: &[ClientReport], ticks: usize) {
+    for b in bots {
+        assert_eq!(
+            b.hashes.len(),
+            ticks,
+            "slot {} applied {} ticks",
+            b.slot.0,
+            b.hashes.len()
+        );
+    }
+    for t in 0..ticks {
+        let h = bots[0].hashes[t];
+        for b in &bots[1..] {
+            assert_eq!(
+                b.hashes[t], h,
+                "tick {t}: slot {} differs from slot 0",
+                b.slot.0
+            );
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn four_bots_agree_on_every_tick_of_1200_and_the_replay_reverifies() {
+    let started = Instant::now();
+    let mut server = TestServer::start("agree", |c| {
+        c.room.start_players = 4;
+        c.room.match_ticks = Some(1200);
+    })
+    .await;
+    let bots = run_bots(
+        &BotOptions::new(server.addr, &server.cert, "agree", 4),
+        std::future::pending(),
+    )
+    .await;
+    let bots = bots_ok(bots);
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    let report = server.shutdown().await;
+    assert_same_hashes(&bots, 1200);
+    for b in &bots {
+        assert_eq!(b.desyncs().count(), 0);
+        let close = b.close.as_ref().expect("closed by the server");
+        assert_eq!(close.reason, CloseReason::RoomClosed);
+    }
+    assert_eq!(ended.ticks, 1200);
+    assert_eq!(ended.ticks_compared, 1200);
+    assert_eq!(ended.mismatched_ticks, 0);
+    assert!(ended.desyncs.is_empty());
+    assert_eq!(report.matches.len(), 1);
+    assert!(report.refused.is_empty(), "{:?}", report.refused);
+    let path = ended.replay.expect("replay recorded");
+    let check = verify_replay_file(&path).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked, check.players), (1200, 1200, 4));
+    assert_eq!(check.final_hash, bots[0].hashes[1199]);
+    // Figures for docs/protocol.md.
+    let secs = ended.duration.as_secs_f64();
+    for p in &ended.players {
+        println!(
+            "slot {}: UDP down {:.0} B/s up {:.0} B/s; datagrams down {} (max {} B) up {} (max {} B); substituted {}",
+            p.slot.0,
+            p.udp_bytes_down as f64 / secs,
+            p.udp_bytes_up as f64 / secs,
+            p.datagrams_down,
+            p.max_datagram_down,
+            p.datagrams_up,
+            p.max_datagram_up,
+            p.inputs_substituted
+        );
+    }
+    let b = &bots[0];
+    println!(
+        "bot 0 protocol bytes: datagrams up {} B in {} (mean {:.1} B), down {} B in {} (mean {:.1} B), frames up {} B in {}",
+        b.traffic.datagram_bytes_sent,
+        b.traffic.datagrams_sent,
+        b.traffic.datagram_bytes_sent as f64 / b.traffic.datagrams_sent as f64,
+        b.traffic.datagram_bytes_received,
+        b.traffic.datagrams_received,
+        b.traffic.datagram_bytes_received as f64 / b.traffic.datagrams_received as f64,
+        b.traffic.frame_bytes_sent,
+        b.traffic.frames_sent
+    );
+    println!("agree: wall time {:.1} s", started.elapsed().as_secs_f64());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300() {
+    let mut server = TestServer::start("diverge", |c| {
+        c.room.start_players = 4;
+        c.room.match_ticks = Some(420);
+    })
+    .await;
+    let mut options = BotOptions::new(server.addr, &server.cert, "diverge", 4);
+    options.diverge = Some((2, 300));
+    let bots = bots_ok(run_bots(&options, std::future::pending()).await);
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    let odd = bots
+        .iter()
+        .find(|b| b.slot == Slot(2))
+        .expect("bot in slot 2");
+    let good: Vec<_> = bots.iter().filter(|b| b.slot != Slot(2)).collect();
+    // Same up to tick 299, different from tick 300 on.
+    assert_eq!(odd.hashes[..300], good[0].hashes[..300]);
+    assert_ne!(odd.hashes[300], good[0].hashes[300]);
+    // The room saw it on that tick, said who, and said it once.
+    assert_eq!(ended.desyncs.len(), 1, "{:?}", ended.desyncs);
+    let notice = &ended.desyncs[0];
+    assert_eq!(notice.tick, 300);
+    match &notice.verdict {
+        Verdict::Majority {
+            majority_hash,
+            wrong,
+        } => {
+            assert_eq!(wrong, &vec![Slot(2)]);
+            assert_eq!(*majority_hash, good[0].hashes[300]);
+        }
+        Verdict::Undecided => panic!("expected a majority verdict"),
+    }
+    assert_eq!(ended.mismatched_ticks, 120, "ticks 300..420 all mismatch");
+    // Every player was told, with their own hash alongside.
+    for b in &bots {
+        let n: Vec<_> = b.desyncs().collect();
+        assert_eq!(n.len(), 1);
+        assert_eq!(n[0].tick, 300);
+    }
+    // The replay keeps the majority's hashes: it verifies.
+    let check = verify_replay_file(&ended.replay.expect("replay")).expect("replay verifies");
+    assert_eq!(
+        (check.ticks, check.checked, check.desyncs_recorded),
+        (420, 420, 1)
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lossy_jittery_link_keeps_1200_ticks_in_sync_and_none_over_150_ms_late() {
+    let mut server = TestServer::start("link", |c| {
+        c.room.start_players = 4;
+        c.room.match_ticks = Some(1200);
+        // 50 ± 10 ms each way: a 100–120 ms round trip needs 7–8 ticks.
+        c.room.input_delay = 10;
+    })
+    .await;
+    let link = LinkConditioner::start(
+        server.addr,
+        LinkConfig {
+            latency: Duration::from_millis(50),
+            jitter: Duration::from_millis(10),
+            loss: 0.05,
+            duplicate: 0.02,
+            reorder: 0.05,
+            seed: 0x5eed,
+        },
+    )
+    .await
+    .expect("link conditioner");
+    let options = BotOptions::new(link.local_addr(), &server.cert, "link", 4);
+    let bots_task = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    let (epoch, rate) = server
+        .wait_for(Duration::from_secs(20), |e| match e {
+            ServerEvent::MatchStarted {
+                epoch, tick_rate, ..
+            } => Some((*epoch, *tick_rate)),
+            _ => None,
+        })
+        .await;
+    let bots = bots_ok(bots_task.await.expect("bots"));
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    let stats = link.stats();
+    link.stop().await;
+    server.shutdown().await;
+    assert_same_hashes(&bots, 1200);
+    assert!(ended.desyncs.is_empty());
+    assert_eq!(ended.mismatched_ticks, 0);
+    // Lateness: when the bundle became applicable at the client (in order)
+    // minus the tick's deadline on the server's clock (same process).
+    let deadline = |t: u64| epoch + Duration::from_nanos((t + 1) * 1_000_000_000 / u64::from(rate));
+    let mut worst = Duration::ZERO;
+    let mut worst_at = (0, 0);
+    let mut total = Duration::ZERO;
+    for b in &bots {
+        for (i, at) in b.delivered_at.iter().enumerate() {
+            let late = at.saturating_duration_since(deadline(i as u64));
+            total += late;
+            if late > worst {
+                worst = late;
+                worst_at = (b.slot.0, i);
+            }
+        }
+    }
+    let mean = total / (bots.len() * 1200) as u32;
+    let secs = ended.duration.as_secs_f64();
+    println!(
+        "link: worst lateness {:.1} ms (slot {}, tick {}), mean {:.1} ms; link {:?}",
+        worst.as_secs_f64() * 1000.0,
+        worst_at.0,
+        worst_at.1,
+        mean.as_secs_f64() * 1000.0,
+        stats
+    );
+    for p in &ended.players {
+        println!(
+            "link slot {}: UDP down {:.0} B/s up {:.0} B/s, max datagram down {} B up {} B, rtt {:?}, substituted {}",
+            p.slot.0,
+            p.udp_bytes_down as f64 / secs,
+            p.udp_bytes_up as f64 / secs,
+            p.max_datagram_down,
+            p.max_datagram_up,
+            p.rtt,
+            p.inputs_substituted
+        );
+    }
+    assert!(stats.dropped > 100 && stats.duplicated > 20, "{stats:?}");
+    assert!(
+        worst <= Duration::from_millis(150),
+        "worst lateness {worst:?}"
+    );
+}
+
+/// A raw client: connects, joins, returns its stream and welcome.
+async fn raw_join(
+    server: SocketAddr,
+    cert: &std::path::Path,
+    room: &str,
+    name: &str,
+) -> (
+    quinn::Endpoint,
+    quinn::Connection,
+    quinn::SendStream,
+    quinn::RecvStream,
+    Slot,
+) {
+    let (endpoint, connection, mut send, mut recv) = raw_connect(server, cert).await;
+    let join = Session::join_message(room, name).encode().expect("join");
+    write_frame(&mut send, &join).await.expect("write join");
+    let frame = read_frame(&mut recv)
+        .await
+        .expect("welcome")
+        .expect("frame");
+    let ServerMessage::Welcome(w) = ServerMessage::decode(&frame).expect("decode") else {
+        panic!("expected a welcome");
+    };
+    (endpoint, connection, send, recv, w.slot)
+}
+
+async fn raw_connect(
+    server: SocketAddr,
+    cert: &std::path::Path,
+) -> (
+    quinn::Endpoint,
+    quinn::Connection,
+    quinn::SendStream,
+    quinn::RecvStream,
+) {
+    let config = client_config(&load_certs(cert).expect("cert")).expect("tls");
+    let mut endpoint = quinn::Endpoint::client("127.0.0.1:0".parse().unwrap()).expect("socket");
+    endpoint.set_default_client_config(config);
+    let connection = endpoint
+        .connect(server, "localhost")
+        .expect("connect")
+        .await
+        .expect("handshake");
+    let (send, recv) = connection.open_bi().await.expect("stream");
+    (endpoint, connection, send, recv)
+}
+
+fn inputs(slot: Slot, first_tick: u64, n: usize) -> Bytes {
+    let m = ClientMessage::Input(InputDatagram {
+        slot,
+        ack_bundle: None,
+        first_tick,
+        inputs: vec![vec![0, 0, 0]; n],
+    });
+    Bytes::from(m.encode().expect("encode"))
+}
+
+/// Reads frames until the server's close message; returns its reason.
+async fn close_reason(recv: &mut quinn::RecvStream) -> Option<(CloseReason, String)> {
+    let read = async {
+        while let Ok(Some(frame)) = read_frame(recv).await {
+            if let Ok(ServerMessage::Close(c)) = ServerMessage::decode(&frame) {
+                return Some((c.reason, c.detail));
+            }
+        }
+        None
+    };
+    tokio::time::timeout(Duration::from_secs(10), read)
+        .await
+        .ok()
+        .flatten()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn garbage_oversized_frames_foreign_or_far_inputs_and_silence_are_refused_and_the_match_completes()
+ {
+    let mut server = TestServer::start("evil", |c| {
+        c.room.start_players = 7;
+        c.room.match_ticks = Some(300);
+        c.room.silence_timeout = Duration::from_secs(2);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+
+    // Not seated: garbage instead of a join.
+    let (_e1, c1, mut s1, _r1) = raw_connect(addr, &cert).await;
+    s1.write_all(&[8, 0, 0, 0, 0xde, 0xad, 0xbe, 0xef, 1, 2, 3, 4])
+        .await
+        .unwrap();
+    // Seated, then a garbage datagram before its first input: removed
+    // before the match can start with it.
+    let (_e2, c2, _s2, mut r2, _) = raw_join(addr, &cert, "evil", "garbage-datagram").await;
+    c2.send_datagram(Bytes::from_static(&[1, 0, 0xff, 0xff, 0xff]))
+        .unwrap();
+    assert_eq!(
+        close_reason(&mut r2).await.map(|c| c.0),
+        Some(CloseReason::ProtocolViolation)
+    );
+    // Seated and ready, misbehaving once the match runs.
+    let (_e3, c3, _s3, mut r3, slot3) = raw_join(addr, &cert, "evil", "foreign-inputs").await;
+    let (_e4, c4, mut s4, mut r4, slot4) = raw_join(addr, &cert, "evil", "oversized-frame").await;
+    let (_e5, c5, _s5, mut r5, slot5) = raw_join(addr, &cert, "evil", "far-future").await;
+    let (_e6, c6, _s6, mut r6, slot6) = raw_join(addr, &cert, "evil", "silent").await;
+    for (c, slot) in [(&c3, slot3), (&c4, slot4), (&c5, slot5), (&c6, slot6)] {
+        c.send_datagram(inputs(slot, 0, 5)).unwrap();
+    }
+    let options = BotOptions::new(addr, &cert, "evil", 3);
+    let bots_task = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    // Inputs for another player's slot.
+    c3.send_datagram(inputs(slot4, 40, 2)).unwrap();
+    // A frame header claiming 16 MiB.
+    s4.write_all(&(16u32 << 20).to_le_bytes()).await.unwrap();
+    // An input far beyond the window.
+    c5.send_datagram(inputs(slot5, 10_000, 1)).unwrap();
+    let (reason3, detail3) = close_reason(&mut r3)
+        .await
+        .expect("close for foreign inputs");
+    let (reason4, detail4) = close_reason(&mut r4)
+        .await
+        .expect("close for the oversized frame");
+    assert_eq!(reason3, CloseReason::ProtocolViolation);
+    assert!(detail3.contains("slot"), "{detail3}");
+    assert_eq!(reason4, CloseReason::ProtocolViolation);
+    assert!(detail4.contains("frame"), "{detail4}");
+    let (reason5, detail5) = close_reason(&mut r5).await.expect("close for the far tick");
+    assert_eq!(reason5, CloseReason::ProtocolViolation);
+    assert!(
+        detail5.contains("tick 10000 outside the window"),
+        "{detail5}"
+    );
+    // The silent one is dropped after the silence timeout; the room goes on.
+    let (reason6, _) = close_reason(&mut r6).await.expect("close for silence");
+    assert_eq!(reason6, CloseReason::TimedOut);
+    let bots = bots_ok(bots_task.await.expect("bots"));
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    let report = server.shutdown().await;
+    // The other players' match completed, in sync, to the last tick.
+    assert_same_hashes(&bots, 300);
+    assert_eq!(ended.ticks, 300);
+    assert_eq!(ended.mismatched_ticks, 0);
+    assert!(
+        c1.close_reason().is_some(),
+        "the garbage connection was closed"
+    );
+    let reasons: Vec<&str> = report.refused.iter().map(|(_, r)| r.as_str()).collect();
+    println!("refused: {reasons:#?}");
+    assert_eq!(reasons.len(), 5, "{reasons:?}");
+    assert!(reasons.iter().any(|r| r.contains("outside the window")));
+    let left: Vec<_> = ended
+        .players
+        .iter()
+        .map(|p| (p.name.as_str(), p.left.as_ref().map(|l| l.1.as_str())))
+        .collect();
+    assert!(left.contains(&("silent", Some("TimedOut"))), "{left:?}");
+    assert!(
+        left.contains(&("foreign-inputs", Some("Kicked"))),
+        "{left:?}"
+    );
+    assert_eq!(
+        left.iter().filter(|l| l.1.is_none()).count(),
+        3,
+        "bots stay: {left:?}"
+    );
+    assert!(reasons.iter().any(|r| r.contains("undecodable join")));
+    assert!(reasons.iter().any(|r| r.contains("bad datagram")));
+    assert!(reasons.iter().any(|r| r.contains("input for slot")));
+    assert!(reasons.iter().any(|r| r.contains("bad frame")));
+    let check = verify_replay_file(&ended.replay.expect("replay")).expect("replay verifies");
+    assert_eq!(check.ticks, 300);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn graceful_shutdown_mid_match_finishes_the_tick_and_flushes_a_replay_that_verifies() {
+    let mut server = TestServer::start("shutdown", |c| {
+        c.room.start_players = 3;
+    })
+    .await;
+    let options = BotOptions::new(server.addr, &server.cert, "shutdown", 3);
+    let bots_task = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let report = server.shutdown().await;
+    let bots = bots_ok(bots_task.await.expect("bots"));
+    assert_eq!(report.matches.len(), 1);
+    let m = &report.matches[0];
+    assert_eq!(m.end_reason, "server shutting down");
+    assert!((100..=140).contains(&m.ticks), "{} ticks", m.ticks);
+    // Every bot got every bundle, the last one included, and the close.
+    assert_same_hashes(&bots, m.ticks as usize);
+    for b in &bots {
+        assert_eq!(
+            b.close.as_ref().map(|c| c.reason),
+            Some(CloseReason::RoomClosed)
+        );
+    }
+    let path = m.replay.clone().expect("replay");
+    let replay = Replay::parse(&std::fs::read(&path).unwrap()).unwrap();
+    assert!(!replay.truncated);
+    assert_eq!(replay.end.as_ref().map(|e| e.0), Some(m.ticks));
+    let check = verify_replay_file(&path).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked), (m.ticks, m.ticks));
+}
