@@ -397,23 +397,46 @@ fn drive_acceleration(v: Vec3, input: DemoInput) -> Vec3 {
     }
 }
 
-/// The box of a static body with one unrotated box collider: (min, max).
-fn static_box(world: &World, name: &str) -> Result<(Vec3, Vec3), GameError> {
+fn bad_body(name: &str, problem: &str) -> GameError {
+    GameError::BadBody {
+        name: name.to_owned(),
+        problem: problem.to_owned(),
+    }
+}
+
+/// The body called `name`, which must be of `kind` and carry exactly one
+/// collider, with that collider.
+fn single_collider<'w>(
+    world: &'w World,
+    name: &str,
+    kind: BodyKind,
+) -> Result<
+    (
+        lockstep_core::BodyRef<'w>,
+        &'w lockstep_core::collider::Collider,
+    ),
+    GameError,
+> {
     let h = world
         .find_body(name)
         .ok_or_else(|| GameError::MissingBody(name.to_owned()))?;
-    let bad = |problem: &str| GameError::BadBody {
-        name: name.to_owned(),
-        problem: problem.to_owned(),
-    };
-    let body = world.body(h).map_err(|e| bad(&e.to_string()))?;
-    if body.kind() != BodyKind::Static {
-        return Err(bad("expected a static body"));
+    let body = world.body(h).map_err(|e| bad_body(name, &e.to_string()))?;
+    if body.kind() != kind {
+        return Err(bad_body(name, &format!("expected a {} body", kind.name())));
     }
     let [c] = body.colliders() else {
-        return Err(bad("expected exactly one collider"));
+        return Err(bad_body(name, "expected exactly one collider"));
     };
-    let collider = world.collider(*c).map_err(|e| bad(&e.to_string()))?;
+    let collider = world
+        .collider(*c)
+        .map_err(|e| bad_body(name, &e.to_string()))?;
+    Ok((body, collider))
+}
+
+/// The box of a static body with one unrotated box collider: (min, max).
+fn static_box(world: &World, name: &str) -> Result<(Vec3, Vec3), GameError> {
+    let (body, collider) = single_collider(world, name, BodyKind::Static)?;
+    let bad = |problem: &str| bad_body(name, problem);
     let Shape::Cuboid(cuboid) = &collider.shape else {
         return Err(bad("expected a box shape"));
     };
@@ -427,21 +450,9 @@ fn static_box(world: &World, name: &str) -> Result<(Vec3, Vec3), GameError> {
 /// A player body: dynamic, with one sphere at its origin. Returns the
 /// handle and the radius.
 fn player_ball(world: &World, name: &str) -> Result<(BodyHandle, Scalar), GameError> {
-    let h = world
-        .find_body(name)
-        .ok_or_else(|| GameError::MissingBody(name.to_owned()))?;
-    let bad = |problem: &str| GameError::BadBody {
-        name: name.to_owned(),
-        problem: problem.to_owned(),
-    };
-    let body = world.body(h).map_err(|e| bad(&e.to_string()))?;
-    if body.kind() != BodyKind::Dynamic {
-        return Err(bad("expected a dynamic body"));
-    }
-    let [c] = body.colliders() else {
-        return Err(bad("expected exactly one collider"));
-    };
-    let collider = world.collider(*c).map_err(|e| bad(&e.to_string()))?;
+    let (body, collider) = single_collider(world, name, BodyKind::Dynamic)?;
+    let h = body.handle();
+    let bad = |problem: &str| bad_body(name, problem);
     let Shape::Sphere(sphere) = &collider.shape else {
         return Err(bad("expected a sphere shape"));
     };

@@ -396,19 +396,7 @@ impl Client {
                 result = Err(e);
                 break;
             }
-            while let Some(ev) = ctx.session.poll_event() {
-                let ev = match ev {
-                    SessionEvent::Desync { notice, local_hash } => {
-                        ClientEvent::Desync { notice, local_hash }
-                    }
-                    SessionEvent::Closed(c) => {
-                        report.close = Some(c.clone());
-                        ClientEvent::Closed(c)
-                    }
-                };
-                on_event(&ev);
-                report.events.push(ev);
-            }
+            drain_events(&mut ctx.session, &mut report, &mut on_event);
             if ctx.session.is_closed() {
                 break;
             }
@@ -461,19 +449,7 @@ impl Client {
             }
         }
         // Collect what the session said last (the close arrives as an event).
-        while let Some(ev) = ctx.session.poll_event() {
-            let ev = match ev {
-                SessionEvent::Desync { notice, local_hash } => {
-                    ClientEvent::Desync { notice, local_hash }
-                }
-                SessionEvent::Closed(c) => {
-                    report.close = Some(c.clone());
-                    ClientEvent::Closed(c)
-                }
-            };
-            on_event(&ev);
-            report.events.push(ev);
-        }
+        drain_events(&mut ctx.session, &mut report, &mut on_event);
         if report.close.is_some() && matches!(result, Err(ClientError::ConnectionLost(_))) {
             result = Ok(());
         }
@@ -672,5 +648,27 @@ fn nudge_one_body(world: &mut World) {
         let v = b.linear_velocity();
         let nudged = Vec3::new(v.x + Scalar::DELTA, v.y, v.z);
         let _ = world.set_linear_velocity(h, nudged);
+    }
+}
+
+/// Hands every pending session event to `on_event` and records it in the
+/// report (a close also sets `report.close`).
+fn drain_events(
+    session: &mut Session,
+    report: &mut ClientReport,
+    on_event: &mut impl FnMut(&ClientEvent),
+) {
+    while let Some(ev) = session.poll_event() {
+        let ev = match ev {
+            SessionEvent::Desync { notice, local_hash } => {
+                ClientEvent::Desync { notice, local_hash }
+            }
+            SessionEvent::Closed(c) => {
+                report.close = Some(c.clone());
+                ClientEvent::Closed(c)
+            }
+        };
+        on_event(&ev);
+        report.events.push(ev);
     }
 }
