@@ -17,8 +17,8 @@
 //!    when that axis is a face normal it is taken from the mesh's own
 //!    triangle normal (so a flat floor gives exactly its normal). Points come
 //!    from every triangle whose axis is within about 7° of it (cosine ≥
-//!    1 − 2⁻⁷), each with its own depth; points closer than 2⁻¹² m to a kept
-//!    one merge into it (the deeper wins). Contacts from triangles facing
+//!    1 − 2⁻⁷), each with its own depth (at most 256; more set
+//!    [`MeshContact::truncated`]). Contacts from triangles facing
 //!    other ways (a sphere in a sharp V groove) are dropped for this step:
 //!    one manifold, one normal.
 //! 4. Reduce to at most four: the deepest point (among those within 2⁻¹² m
@@ -26,7 +26,8 @@
 //!    normal), the farthest from it, then the points making the largest
 //!    positive and negative triangle areas with those two. On a flat face
 //!    contact this keeps the corners of the contact polygon, as box–box
-//!    does.
+//!    does. Of two kept points within 2⁻¹² m of each other (the same corner
+//!    seen from two triangles) only the deeper stays.
 //!
 //! Feature ids: `(triangle index & 0x3ffff) << 14 | label`, the label
 //! naming the features inside the triangle contact (see
@@ -51,7 +52,7 @@ use crate::shape::{Capsule, ConvexHull, Cuboid, HeightField, Shape, Sphere, TriM
 pub const MAX_MESH_TRIANGLES: usize = 64;
 
 /// Most contact points gathered before the reduction to four.
-const MAX_MESH_POINTS: usize = 128;
+const MAX_MESH_POINTS: usize = 256;
 
 /// Triangle axes with a cosine to the manifold normal of at least this
 /// (1 − 2⁻⁷, about 7.2°) contribute points.
@@ -239,15 +240,6 @@ fn contact_convex_source<S: TriangleSource>(
                 depth: tp.depth,
                 id: tri_id | (tp.id as u32 & 0x3fff),
             };
-            for q in pts[..np].iter_mut() {
-                let d = q.p - g.p;
-                if d.x.abs() <= MERGE_DIST && d.y.abs() <= MERGE_DIST && d.z.abs() <= MERGE_DIST {
-                    if g.depth > q.depth {
-                        *q = g;
-                    }
-                    return;
-                }
-            }
             if np < MAX_MESH_POINTS {
                 pts[np] = g;
                 np += 1;
@@ -259,21 +251,44 @@ fn contact_convex_source<S: TriangleSource>(
     if np == 0 {
         return info;
     }
-    let keep = reduce_to_four(&pts[..np], axis);
+    let (mut keep, mut nk) = reduce_to_four(&pts[..np], axis);
+    keep[..nk].sort_unstable();
+    // The same point from two triangles (a shared corner or seam): keep
+    // the deeper (the first on ties). Only small sets can keep both, since
+    // the reduction otherwise picks distinct extremes.
+    let mut i = 0;
+    while i < nk {
+        let mut dup = false;
+        for j in 0..nk {
+            let (a, b) = (&pts[keep[i]], &pts[keep[j]]);
+            let d = a.p - b.p;
+            let near =
+                d.x.abs() <= MERGE_DIST && d.y.abs() <= MERGE_DIST && d.z.abs() <= MERGE_DIST;
+            if j != i && near && (b.depth > a.depth || (b.depth == a.depth && j < i)) {
+                dup = true;
+                break;
+            }
+        }
+        if dup {
+            keep.copy_within(i + 1..nk, i);
+            nk -= 1;
+        } else {
+            i += 1;
+        }
+    }
     out.normal = if bsat.kind == Axis::TriFace {
         let (_, n) = src.corners(cand[bi]).unwrap_or(([Vec3::ZERO; 3], Vec3::Y));
         -pose_b.transform_vector(n)
     } else {
         -pose_a.transform_vector(axis)
     };
-    for (i, g) in pts[..np].iter().enumerate() {
-        if keep & (1u128 << i) != 0 {
-            out.push(ContactPoint {
-                point: pose_a.transform_point(g.p),
-                depth: g.depth,
-                id: FeatureId(g.id),
-            });
-        }
+    for &k in &keep[..nk] {
+        let g = pts[k];
+        out.push(ContactPoint {
+            point: pose_a.transform_point(g.p),
+            depth: g.depth,
+            id: FeatureId(g.id),
+        });
     }
     info.hit = !out.is_empty();
     info
@@ -291,12 +306,13 @@ fn across_sq(d: Vec3, n: Vec3) -> u128 {
     d.cross(n).length_squared_wide()
 }
 
-/// A bit mask of at most four of `pts` (see the module docs, step 4).
+/// The indices of at most four of `pts` (see the module docs, step 4) and
+/// how many.
 // Determinism: scans in index order with strict comparisons.
-fn reduce_to_four(pts: &[Gathered], n: Vec3) -> u128 {
+fn reduce_to_four(pts: &[Gathered], n: Vec3) -> ([usize; 4], usize) {
     let len = pts.len();
     if len <= 4 {
-        return (1u128 << len) - 1;
+        return ([0, 1, 2, 3], len);
     }
     let max_depth = pts.iter().map(|g| g.depth).fold(Scalar::MIN, Scalar::max);
     let mut i0 = usize::MAX;
@@ -320,7 +336,8 @@ fn reduce_to_four(pts: &[Gathered], n: Vec3) -> u128 {
         }
     }
     let p1 = pts[i1].p;
-    let mut mask = (1u128 << i0) | (1u128 << i1);
+    let mut keep = [i0, i1, 0, 0];
+    let mut count = 2;
     let (mut ip, mut ineg) = (usize::MAX, usize::MAX);
     let (mut bp, mut bn) = (0i128, 0i128);
     for (i, g) in pts.iter().enumerate() {
@@ -337,10 +354,11 @@ fn reduce_to_four(pts: &[Gathered], n: Vec3) -> u128 {
     }
     for i in [ip, ineg] {
         if i != usize::MAX {
-            mask |= 1u128 << i;
+            keep[count] = i;
+            count += 1;
         }
     }
-    mask
+    (keep, count)
 }
 
 macro_rules! mesh_pair {

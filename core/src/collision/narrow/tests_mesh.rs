@@ -738,3 +738,42 @@ fn mesh_timing() {
         "box on 32x32 mesh floor: {mesh_ns:.0} ns/call; on 32x32 height field: {field_ns:.0} ns/call; TriMesh::new (BVH + edge flags) of 100k triangles: {build_ms:.1} ms"
     );
 }
+
+#[test]
+fn box_and_the_same_box_as_a_hull_agree_on_a_bumpy_mesh() {
+    let mut rng = Rng::new(21);
+    let (mesh, _) = bumpy_mesh(&mut rng);
+    let mesh: Shape = mesh.into();
+    let b = Cuboid::new(v(0.4, 0.25, 0.3)).unwrap();
+    let as_box: Shape = b.into();
+    let as_hull: Shape = ConvexHull::from_points(&b.corners()).unwrap().into();
+    let (mut worst, mut hits, mut same_normal) = (0.0f64, 0, 0);
+    for i in 0..500 {
+        let pose = Transform::new(
+            v(
+                rng.uniform(-2.0, 2.0),
+                rng.uniform(0.0, 0.6),
+                rng.uniform(-2.0, 2.0),
+            ),
+            rng.quat(),
+        );
+        let mb = run(&as_box, &pose, &mesh, &Transform::IDENTITY, 0.05);
+        let mh = run(&as_hull, &pose, &mesh, &Transform::IDENTITY, 0.05);
+        assert_eq!(mb.is_empty(), mh.is_empty(), "pose {i}");
+        if mb.is_empty() {
+            continue;
+        }
+        // Deep overlaps (more than a third of the box) may pick different
+        // but equally valid features through the face/edge tolerances.
+        if f(max_depth(&mb)).max(f(max_depth(&mh))) > 0.15 {
+            continue;
+        }
+        hits += 1;
+        worst = worst.max((f(max_depth(&mb)) - f(max_depth(&mh))).abs());
+        same_normal += (norm(sub(vf(mb.normal), vf(mh.normal))) < 1e-6) as u32;
+    }
+    eprintln!("box vs hull-box: max depth difference {worst:e}, {same_normal}/{hits} same normal");
+    assert!(hits >= 150, "{hits}");
+    assert!(worst <= 1e-6, "{worst}");
+    assert!(same_normal * 100 >= hits * 95, "{same_normal}/{hits}");
+}

@@ -56,7 +56,8 @@ const BOX_LOOPS: [[u32; 4]; 6] = [
     [4, 5, 7, 6],
 ];
 
-/// Box edges as corner pairs: the four along x, then y, then z.
+/// Box edges as corner pairs: the four along x, then y, then z, each group
+/// ordered by the corner bits of the other two axes.
 const BOX_EDGE_LIST: [[u32; 2]; 12] = [
     [0, 1],
     [2, 3],
@@ -71,6 +72,24 @@ const BOX_EDGE_LIST: [[u32; 2]; 12] = [
     [2, 6],
     [3, 7],
 ];
+
+/// The box edge along axis `i` that supports the box in direction `d`:
+/// index `4i + b₁ + 2b₂` in [`BOX_EDGE_LIST`], with `b₁`, `b₂` set when
+/// `d` is not negative on the other two axes (in increasing order).
+fn box_edge(i: usize, d: Vec3) -> usize {
+    let (j, k) = match i {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    4 * i + (!d.get(j).is_negative()) as usize + 2 * (!d.get(k).is_negative()) as usize
+}
+
+fn unit(k: usize) -> Vec3 {
+    let mut e = Vec3::ZERO;
+    e.set(k, Scalar::ONE);
+    e
+}
 
 /// The segment of a capsule as an edge list.
 const SEGMENT_EDGE: [[u32; 2]; 1] = [[0, 1]];
@@ -334,6 +353,22 @@ fn signed_ratio(num: i128, den: i128) -> Scalar {
     Scalar::from_bits(if neg { -q } else { q })
 }
 
+/// Whether `u / |l|` (with `u` a Q64.64 dot product along the unnormalised
+/// axis `l`, `l2 = |l|²` in Q64.64) is at most `bound`, decided on squares
+/// without a square root. Rounding (about 2⁻³² relative) can only matter for
+/// an axis that would beat the bound by less than that; the decision is
+/// deterministic either way.
+fn cannot_beat(u: i128, l2: u128, bound: Scalar) -> bool {
+    let u = Scalar::from_wide(u);
+    let u2 = u.wide_mul(u);
+    let b2 = Scalar::from_wide(bound.wide_mul(bound)).wide_mul(Scalar::from_wide(l2 as i128));
+    if bound.is_negative() {
+        u.is_negative() && u2 >= b2
+    } else {
+        !u.is_positive() || u2 <= b2
+    }
+}
+
 /// Separation of the shape from the triangle along unit `d` (from the
 /// triangle towards the shape), with both projection ranges.
 fn separation(shape: &Convex, tri: &Triangle, d: Vec3) -> Scalar {
@@ -390,52 +425,69 @@ pub(crate) fn triangle_sat(
         }
     }
     let verts = shape.vertices();
+    let edges = shape.edges();
+    // A box needs one edge per axis: the one supporting it along the axis,
+    // picked from the axis's signs once the orientation is known.
+    let boxed = matches!(shape.kind, Kind::Box(..));
+    let candidates = if boxed { 3 } else { edges.len() };
     for k in 0..3 {
-        let (t0, t1) = (tri.v[k], tri.v[(k + 1) % 3]);
+        let (t0, t1, t2) = (tri.v[k], tri.v[(k + 1) % 3], tri.v[(k + 2) % 3]);
         let e = t1 - t0;
-        for (ei, &[ia, ib]) in shape.edges().iter().enumerate() {
-            let (va, vb) = (verts[ia as usize], verts[ib as usize]);
-            let l = e.cross(vb - va);
+        for c in 0..candidates {
+            let dir = if boxed {
+                unit(c)
+            } else {
+                let [ia, ib] = edges[c];
+                verts[ib as usize] - verts[ia as usize]
+            };
+            let l = e.cross(dir);
             if l.length_squared_wide() < MIN_AXIS_SQ {
                 continue;
             }
-            let Some(l) = l.try_normalize() else {
+            // Orientation: the triangle edge must be the triangle's top
+            // along the axis (its third corner not above), an exact sign
+            // test; the shape then lies on the axis's positive side.
+            let l = if l.dot_wide(t2 - t0) > 0 { -l } else { l };
+            let ei = if boxed { box_edge(c, -l) } else { c };
+            let va = verts[edges[ei][0] as usize];
+            let need = if matches!(best.kind, Axis::Edge(..)) {
+                best.sep
+            } else {
+                best.sep + sat_tolerance(best.sep)
+            };
+            // Cheap prune before the normalisation: the edge's own
+            // projection above the triangle edge bounds the separation.
+            if cannot_beat(
+                l.dot_wide(va - t0),
+                l.length_squared_wide(),
+                need + shape.radius,
+            ) {
+                continue;
+            }
+            let Some(axis) = l.try_normalize() else {
                 continue;
             };
-            let (tmin, tmax) = tri.project(l);
-            let pa = l.dot(va);
-            let pt = l.dot(t0);
-            // Orientation +l: the shape edge is the low side, the triangle
-            // edge the high side; −l the reverse. Bounds from the edge's own
-            // projection prune pairs that cannot win.
-            for sign in [1i64, -1] {
-                let (axis, upper, edge_pt, tri_far, tri_edge_pt) = if sign == 1 {
-                    (l, pa - shape.radius - tmax, pa, tmax, pt)
-                } else {
-                    (-l, tmin - pa - shape.radius, -pa, -tmin, -pt)
+            let tmax = tri.project(axis).1;
+            let pa = axis.dot(va);
+            // The edge's own projection bounds the separation from above.
+            if pa - shape.radius - tmax <= need {
+                continue;
+            }
+            let smin = match shape.kind {
+                Kind::Box(h, _) => -Scalar::from_wide(axis.abs().dot_wide(h)),
+                _ => shape.project(axis).0,
+            };
+            let s = smin - shape.radius - tmax;
+            if s > margin {
+                return None;
+            }
+            let supporting = boxed || pa - smin <= SUPPORT_TOL;
+            if supporting && s > need {
+                best = TriSat {
+                    axis,
+                    sep: s,
+                    kind: Axis::Edge(k, ei),
                 };
-                let need = if matches!(best.kind, Axis::Edge(..)) {
-                    best.sep
-                } else {
-                    best.sep + sat_tolerance(best.sep)
-                };
-                if upper <= need {
-                    continue;
-                }
-                let (smin, _) = shape.project(axis);
-                let s = smin - shape.radius - tri_far;
-                if s > margin {
-                    return None;
-                }
-                let supporting =
-                    edge_pt - smin <= SUPPORT_TOL && tri_far - tri_edge_pt <= SUPPORT_TOL;
-                if supporting && s > need {
-                    best = TriSat {
-                        axis,
-                        sep: s,
-                        kind: Axis::Edge(k, ei),
-                    };
-                }
             }
         }
     }
