@@ -350,7 +350,7 @@ fn sphere_and_capsule_depths_match_f64_closest_points_over_seeded_poses() {
         ),
     );
     let (mut worst_s, mut worst_c, mut hits) = (0.0f64, 0.0f64, 0);
-    for i in 0..600 {
+    for i in 0..1000 {
         let local = v(
             rng.uniform(-2.0, 2.0),
             rng.uniform(0.0, 0.8),
@@ -416,9 +416,9 @@ fn sphere_and_capsule_depths_match_f64_closest_points_over_seeded_poses() {
         }
     }
     eprintln!("sphere max depth error {worst_s:e}, capsule {worst_c:e}, {hits} contacts");
-    assert!(hits >= 150, "{hits}");
+    assert!(hits >= 300, "{hits}");
     assert!(worst_s <= 1e-6, "sphere {worst_s}");
-    assert!(worst_c <= 1e-4, "capsule {worst_c}");
+    assert!(worst_c <= 1e-6, "capsule {worst_c}");
 }
 
 #[test]

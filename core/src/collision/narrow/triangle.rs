@@ -807,7 +807,7 @@ pub(crate) fn triangle_points(
             sink(TriPoint {
                 p: (s + q).half(),
                 depth: -sat.sep,
-                id: 0x3800 | code << 1 | end,
+                id: 0x3c00 | code << 1 | end,
             });
         }
     }
