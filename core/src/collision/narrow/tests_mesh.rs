@@ -718,6 +718,39 @@ fn mesh_timing() {
         }
     }
     let field_ns = t.elapsed().as_nanos() as f64 / (rounds * poses.len()) as f64;
+    let ball = crate::shape::Sphere::new(s(0.5)).unwrap();
+    let t = Instant::now();
+    for _ in 0..rounds {
+        for p in &poses {
+            black_box(contact_sphere_trimesh(
+                &ball,
+                p,
+                &mesh,
+                &Transform::IDENTITY,
+                s(0.02),
+                &mut m,
+            ));
+        }
+    }
+    let sphere_ns = t.elapsed().as_nanos() as f64 / (rounds * poses.len()) as f64;
+    let tris: u32 = poses
+        .iter()
+        .map(|p| {
+            mesh_contact::contact_box_trimesh_info(
+                &body,
+                p,
+                &mesh,
+                &Transform::IDENTITY,
+                s(0.02),
+                &mut m,
+            )
+            .triangles
+        })
+        .sum();
+    eprintln!(
+        "sphere on 32x32 mesh floor: {sphere_ns:.0} ns/call; box visits {:.1} triangles per call",
+        tris as f64 / poses.len() as f64
+    );
     let mut rng = Rng::new(4);
     let n = 100_000u32;
     let verts: Vec<Vec3> = (0..3 * n)

@@ -95,8 +95,9 @@ fn unit(k: usize) -> Vec3 {
 const SEGMENT_EDGE: [[u32; 2]; 1] = [[0, 1]];
 
 /// Most vertices a clipped polygon may hold: a hull face of up to
-/// `MAX_POLY − 3` corners clipped by a triangle's three side planes. Larger
-/// incident faces fall back to the single deepest corner (documented).
+/// `MAX_POLY − 3` corners clipped by a triangle's three side planes (or a
+/// triangle clipped by such a face's sides). Larger faces fall back to the
+/// single deepest point.
 pub const MAX_POLY: usize = 40;
 
 /// Edge cross products shorter than this (squared, Q64.64: sine² below
@@ -754,7 +755,14 @@ pub(crate) fn triangle_points(
                 poly.push(v, k as u16);
             }
             let mut other = Poly::new();
+            if lp.len() + 3 > MAX_POLY {
+                // Too many side planes for the buffer: deepest corner only.
+                poly.len = 0;
+            }
             for (j, &i) in lp.iter().enumerate() {
+                if poly.len == 0 {
+                    break;
+                }
                 let (a, b) = (verts[i as usize], verts[lp[(j + 1) % lp.len()] as usize]);
                 poly.clip(m.cross(b - a), a, (j & 7) as u16, &mut other);
                 std::mem::swap(&mut poly, &mut other);
