@@ -152,6 +152,103 @@ impl HeightField {
         Some([[a, d, b], [a, c, d]])
     }
 
+    /// Number of triangles: two per cell, numbered
+    /// `2 · (row · (cols − 1) + col) + k` with `k` as in
+    /// [`cell_triangles`](Self::cell_triangles). The narrow phase visits
+    /// triangles in this order.
+    pub fn triangle_count(&self) -> u64 {
+        2 * (self.rows as u64 - 1) * (self.cols as u64 - 1)
+    }
+
+    /// Triangle `index` (numbered as in
+    /// [`triangle_count`](Self::triangle_count)), or `None` past the end.
+    pub fn triangle(&self, index: u64) -> Option<[Vec3; 3]> {
+        let cell = index / 2;
+        let w = self.cols as u64 - 1;
+        let (row, col) = (cell / w, cell % w);
+        let row = u32::try_from(row).ok()?;
+        let tris = self.cell_triangles(row, col as u32)?;
+        Some(tris[(index % 2) as usize])
+    }
+
+    /// The cells whose footprint overlaps `aabb` in x and z:
+    /// `(rows, cols)` as inclusive ranges `([row_lo, row_hi], [col_lo,
+    /// col_hi])`, clamped to the grid, or `None` when the box misses the
+    /// grid (in x, z, or in y against the height range). Computed in
+    /// integers from the box's corners, so a box of any size costs the same;
+    /// one raw unit of slack covers the grid coordinates' rounding.
+    pub fn cell_range(&self, aabb: &Aabb) -> Option<([u32; 2], [u32; 2])> {
+        let b = self.local_aabb;
+        if aabb.max.y < b.min.y || aabb.min.y > b.max.y {
+            return None;
+        }
+        let cols = self.cell_span(aabb.min.x, aabb.max.x, self.cols, self.scale.x)?;
+        let rows = self.cell_span(aabb.min.z, aabb.max.z, self.rows, self.scale.z)?;
+        Some((rows, cols))
+    }
+
+    /// The inclusive range of cells (of `n − 1`, spacing `step`) overlapped
+    /// by `[lo, hi]` on one axis.
+    fn cell_span(&self, lo: Scalar, hi: Scalar, n: u32, step: Scalar) -> Option<[u32; 2]> {
+        let s2 = 2 * step.to_bits() as i128;
+        let shift = (n as i128 - 1) * step.to_bits() as i128;
+        // Cell index c has its left sample at (2c − (n − 1))·step/2.
+        let cell =
+            |x: Scalar, slack: i128| (2 * (x.to_bits() as i128 + slack) + shift).div_euclid(s2);
+        let first = cell(lo, -1);
+        let last = cell(hi, 1);
+        let top = n as i128 - 2;
+        if last < 0 || first > top {
+            return None;
+        }
+        Some([first.max(0) as u32, last.min(top) as u32])
+    }
+
+    /// Whether edge `k` (corner `k` to corner `(k + 1) % 3`) of triangle
+    /// `index` is a convex crease a body can hit; computed on the fly from
+    /// the neighbouring triangle in the grid with the same rule as
+    /// [`TriMesh::edge_active`](super::TriMesh::edge_active). Edges on the
+    /// grid's border are active. `false` past the end.
+    pub fn edge_active(&self, index: u64, k: usize) -> bool {
+        if index >= self.triangle_count() || k > 2 {
+            return false;
+        }
+        let cell = index / 2;
+        let w = self.cols as u64 - 1;
+        let (r, c) = ((cell / w) as i64, (cell % w) as i64);
+        // The neighbour across edge k, as (row, col, k') of its cell, and
+        // the neighbour's vertex off the shared edge as a grid sample.
+        let (nb, far): ((i64, i64, u64), (i64, i64)) = match (index % 2, k) {
+            (0, 0) => ((r, c, 1), (r + 1, c)),
+            (0, 1) => ((r, c + 1, 1), (r + 1, c + 2)),
+            (0, _) => ((r - 1, c, 1), (r - 1, c)),
+            (_, 0) => ((r, c - 1, 0), (r, c - 1)),
+            (_, 1) => ((r + 1, c, 0), (r + 2, c + 1)),
+            (_, _) => ((r, c, 0), (r, c + 1)),
+        };
+        let inside = |row: i64, col: i64, rows: u32, cols: u32| {
+            row >= 0 && col >= 0 && row < rows as i64 && col < cols as i64
+        };
+        if !inside(nb.0, nb.1, self.rows - 1, self.cols - 1) {
+            return true;
+        }
+        let (Some(tri), Some(nbt), Some(w)) = (
+            self.triangle(index),
+            self.cell_triangles(nb.0 as u32, nb.1 as u32),
+            self.vertex(far.0 as u32, far.1 as u32),
+        ) else {
+            return true;
+        };
+        let nbt = nbt[nb.2 as usize];
+        match (
+            super::TriMesh::triangle_normal(tri[0], tri[1], tri[2]),
+            super::TriMesh::triangle_normal(nbt[0], nbt[1], nbt[2]),
+        ) {
+            (Some(n1), Some(n2)) => super::TriMesh::crease_is_active(n1, n2, tri[k], w),
+            _ => true,
+        }
+    }
+
     /// The grid's footprint (symmetric about the origin in x and z), spanning
     /// the lowest and highest scaled heights.
     pub fn local_aabb(&self) -> Aabb {

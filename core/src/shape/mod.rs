@@ -34,7 +34,7 @@ pub use heightfield::HeightField;
 pub use hull::{ConvexHull, HullFace};
 pub use mass::MassProperties;
 pub use sphere::Sphere;
-pub use trimesh::TriMesh;
+pub use trimesh::{TriMesh, TriangleQuery};
 
 use crate::math::{Aabb, Mat3, Scalar, Transform, Vec3};
 

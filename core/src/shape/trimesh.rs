@@ -4,6 +4,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use super::ShapeError;
 use super::wide::{BigInt, raw, unit_of_wide};
+
 use crate::math::{Aabb, Vec3};
 
 /// A triangle mesh for static geometry: terrain pieces, walls, ramps.
@@ -16,12 +17,45 @@ use crate::math::{Aabb, Vec3};
 /// Validated on construction (indices in range, no zero-area triangle), and
 /// again when deserialised; the per-triangle unit normals are computed once
 /// from the exact cross products.
+///
+/// Construction also builds what the narrow phase needs, all derived (never
+/// serialised, rebuilt on load, so a snapshot cannot carry a stale copy):
+/// * a static AABB tree over the triangles (the mid-phase, see
+///   [`query_triangles`](Self::query_triangles));
+/// * per-triangle "active edge" flags (see
+///   [`edge_active`](Self::edge_active)) so contacts on seams between
+///   coplanar triangles do not bump.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TriMesh {
     vertices: Vec<Vec3>,
     indices: Vec<[u32; 3]>,
     normals: Vec<Vec3>,
     local_aabb: Aabb,
+    nodes: Vec<BvhNode>,
+    order: Vec<u32>,
+    edge_flags: Vec<u8>,
+}
+
+/// Most triangles a leaf of the mesh's AABB tree holds.
+const LEAF_SIZE: usize = 4;
+
+/// Deepest traversal stack the query needs: the median split halves the
+/// triangle count at each level, so depth ≤ log₂(2³²) + 1.
+const QUERY_STACK: usize = 64;
+
+/// Two triangles whose unit normals have a dot product above `1 − 2⁻¹²`
+/// (an angle below about 1.27°) count as coplanar: their shared edge is not
+/// a feature a body can hit.
+pub(crate) const COPLANAR_COS_BITS: i64 = (1i64 << 32) - (1i64 << 20);
+
+/// A node of the mesh's AABB tree: a leaf (`count > 0`) owns
+/// `order[start..start + count]`; an inner node's children are the next node
+/// and node `start`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct BvhNode {
+    aabb: Aabb,
+    start: u32,
+    count: u32,
 }
 
 /// The exact cross product `(b − a) × (c − a)` of raw points, with
@@ -69,6 +103,25 @@ fn exact_normal(a: Vec3, b: Vec3, c: Vec3) -> [i128; 3] {
 }
 
 impl TriMesh {
+    /// Whether the edge from `p` shared by a triangle with unit normal `n1` and
+    /// a neighbour with unit normal `n2`, whose vertex off the edge is `w`, is a
+    /// feature a body can touch: only a convex (outward) crease sharper than the
+    /// coplanar threshold is. Flat and concave edges are "inactive": a contact
+    /// normal coming from them is replaced by the face normal (no seam bumps).
+    pub(crate) fn crease_is_active(n1: Vec3, n2: Vec3, p: Vec3, w: Vec3) -> bool {
+        if n1.dot(n2).to_bits() > COPLANAR_COS_BITS {
+            return false;
+        }
+        // Convex: the neighbour's far vertex lies below this triangle's plane.
+        n1.dot_wide(w - p) < 0
+    }
+
+    /// The unit normal of triangle `a, b, c` (`(b − a) × (c − a)` normalised from
+    /// the exact cross product), or `None` for a degenerate triangle.
+    pub(crate) fn triangle_normal(a: Vec3, b: Vec3, c: Vec3) -> Option<Vec3> {
+        unit_of_wide(exact_normal(a, b, c))
+    }
+
     /// A mesh from a vertex list and triangles indexing into it.
     ///
     /// # Errors
@@ -102,12 +155,227 @@ impl TriMesh {
         let local_aabb = vertices
             .iter()
             .fold(Aabb::new(first, first), |b, &v| b.include_point(v));
-        Ok(TriMesh {
+        let mut mesh = TriMesh {
             vertices,
             indices,
             normals,
             local_aabb,
-        })
+            nodes: Vec::new(),
+            order: Vec::new(),
+            edge_flags: Vec::new(),
+        };
+        mesh.build_tree();
+        mesh.build_edge_flags();
+        Ok(mesh)
+    }
+
+    /// The box around triangle `t`'s corners.
+    fn triangle_aabb(&self, t: usize) -> Aabb {
+        let [a, b, c] = self.indices[t].map(|i| self.vertices[i as usize]);
+        Aabb::new(a.min(b).min(c), a.max(b).max(c))
+    }
+
+    /// Builds the AABB tree top down: each node splits its triangles at the
+    /// median of their centroids along the longest axis of the centroids'
+    /// box.
+    // Determinism: the split orders triangles by the exact centroid sum
+    // (i128, no division) and then by index, a total key, so the set in each
+    // child — and hence the whole tree — is unique; leaves list their
+    // triangles in ascending index.
+    fn build_tree(&mut self) {
+        let n = self.indices.len();
+        let sums: Vec<[i128; 3]> = self
+            .indices
+            .iter()
+            .map(|tri| {
+                let mut s = [0i128; 3];
+                for &i in tri {
+                    let v = raw(self.vertices[i as usize]);
+                    for k in 0..3 {
+                        s[k] += v[k] as i128;
+                    }
+                }
+                s
+            })
+            .collect();
+        let boxes: Vec<Aabb> = (0..n).map(|t| self.triangle_aabb(t)).collect();
+        let mut order: Vec<u32> = (0..n as u32).collect();
+        let mut nodes = Vec::with_capacity(2 * n.div_ceil(LEAF_SIZE));
+        // Explicit work stack instead of recursion: (node slot, start, end).
+        let mut work = vec![(usize::MAX, 0usize, n)];
+        while let Some((parent, start, end)) = work.pop() {
+            let me = nodes.len();
+            if parent != usize::MAX {
+                let p: &mut BvhNode = &mut nodes[parent];
+                p.start = me as u32;
+            }
+            let range = &mut order[start..end];
+            let aabb = range
+                .iter()
+                .skip(1)
+                .fold(boxes[range[0] as usize], |b, &t| {
+                    b.union(&boxes[t as usize])
+                });
+            if range.len() <= LEAF_SIZE {
+                range.sort_unstable();
+                nodes.push(BvhNode {
+                    aabb,
+                    start: start as u32,
+                    count: range.len() as u32,
+                });
+                continue;
+            }
+            let mut lo = sums[range[0] as usize];
+            let mut hi = lo;
+            for &t in range.iter() {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(sums[t as usize][k]);
+                    hi[k] = hi[k].max(sums[t as usize][k]);
+                }
+            }
+            let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+            let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+                0
+            } else if ext[1] >= ext[2] {
+                1
+            } else {
+                2
+            };
+            let mid = range.len() / 2;
+            range.select_nth_unstable_by_key(mid, |&t| (sums[t as usize][axis], t));
+            nodes.push(BvhNode {
+                aabb,
+                start: 0,
+                count: 0,
+            });
+            // The right child is pushed first so the left one is built next
+            // and lands right after its parent.
+            work.push((me, start + mid, end));
+            work.push((usize::MAX, start, start + mid));
+        }
+        self.nodes = nodes;
+        self.order = order;
+    }
+
+    /// Marks each triangle edge active or not (see `crease_is_active`).
+    /// Edges are matched by their end positions (not vertex indices), so an
+    /// unwelded triangle soup is handled too. An edge with no neighbour (the
+    /// mesh border) or more than one (non-manifold) stays active.
+    // Determinism: the edge list is sorted by a total key (positions, then
+    // triangle and edge number).
+    fn build_edge_flags(&mut self) {
+        type Key = ([i64; 3], [i64; 3]);
+        let mut edges: Vec<(Key, u32, u8)> = Vec::with_capacity(3 * self.indices.len());
+        for (t, tri) in self.indices.iter().enumerate() {
+            for k in 0..3 {
+                let p = raw(self.vertices[tri[k] as usize]);
+                let q = raw(self.vertices[tri[(k + 1) % 3] as usize]);
+                edges.push(((p.min(q), p.max(q)), t as u32, k as u8));
+            }
+        }
+        edges.sort_unstable();
+        let mut flags = vec![0b111u8; self.indices.len()];
+        let mut i = 0;
+        while i < edges.len() {
+            let mut j = i + 1;
+            while j < edges.len() && edges[j].0 == edges[i].0 {
+                j += 1;
+            }
+            if j - i == 2 {
+                for (me, other) in [(i, i + 1), (i + 1, i)] {
+                    let (_, t, k) = edges[me];
+                    let (_, u, l) = edges[other];
+                    let tri = self.indices[t as usize];
+                    let p = self.vertices[tri[k as usize] as usize];
+                    let w = self.vertices[self.indices[u as usize][(l as usize + 2) % 3] as usize];
+                    let n1 = self.normals[t as usize];
+                    let n2 = self.normals[u as usize];
+                    if !TriMesh::crease_is_active(n1, n2, p, w) {
+                        flags[t as usize] &= !(1 << k);
+                    }
+                }
+            }
+            i = j;
+        }
+        self.edge_flags = flags;
+    }
+
+    /// Whether edge `k` of triangle `t` (from corner `k` to corner
+    /// `(k + 1) % 3`) is a convex crease a body can hit, computed from the
+    /// mesh's adjacency at construction. False for edges between coplanar
+    /// (within about 1.27°) or concave neighbours: the narrow phase replaces
+    /// a normal from such an edge by the face normal so bodies slide over
+    /// seams without bumping. `false` past the end.
+    pub fn edge_active(&self, t: usize, k: usize) -> bool {
+        self.edge_flags
+            .get(t)
+            .is_some_and(|f| k < 3 && f & (1 << k) != 0)
+    }
+
+    /// The triangles whose bounding box overlaps `aabb` (local frame),
+    /// written to `out` in ascending index order: the mid-phase of the
+    /// mesh's contacts. Returns how many were written.
+    ///
+    /// When more than `out.len()` triangles overlap, the `out.len()` lowest
+    /// indices are kept (so the answer does not depend on the tree's shape)
+    /// and the result's `truncated` is set, for the caller to count.
+    ///
+    /// Never allocates: the traversal stack is fixed (the tree's depth is
+    /// bounded by its median splits).
+    pub fn query_triangles(&self, aabb: &Aabb, out: &mut [u32]) -> TriangleQuery {
+        let cap = out.len();
+        let mut count = 0usize;
+        let mut truncated = false;
+        if cap == 0 || self.nodes.is_empty() {
+            return TriangleQuery {
+                count: 0,
+                truncated: !self.nodes.is_empty() && self.nodes[0].aabb.overlaps(aabb),
+            };
+        }
+        let mut stack = [0u32; QUERY_STACK];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !node.aabb.overlaps(aabb) {
+                continue;
+            }
+            if node.count == 0 {
+                let me = stack[top];
+                if top + 2 > QUERY_STACK {
+                    // Cannot happen for median-split trees; stay safe.
+                    truncated = true;
+                    continue;
+                }
+                stack[top] = node.start;
+                stack[top + 1] = me + 1;
+                top += 2;
+                continue;
+            }
+            let s = node.start as usize;
+            for &t in &self.order[s..s + node.count as usize] {
+                if !self.triangle_aabb(t as usize).overlaps(aabb) {
+                    continue;
+                }
+                if count < cap {
+                    out[count] = t;
+                    count += 1;
+                } else {
+                    truncated = true;
+                    // Keep the lowest indices: replace the largest kept.
+                    let (imax, &vmax) = out
+                        .iter()
+                        .enumerate()
+                        .max_by_key(|&(_, v)| *v)
+                        .unwrap_or((0, &0));
+                    if t < vmax {
+                        out[imax] = t;
+                    }
+                }
+            }
+        }
+        out[..count].sort_unstable();
+        TriangleQuery { count, truncated }
     }
 
     /// The vertex positions.
@@ -136,6 +404,16 @@ impl TriMesh {
     pub fn local_aabb(&self) -> Aabb {
         self.local_aabb
     }
+}
+
+/// What [`TriMesh::query_triangles`] found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TriangleQuery {
+    /// How many triangle indices were written.
+    pub count: usize,
+    /// Whether more triangles overlapped than the buffer holds (the lowest
+    /// indices were kept).
+    pub truncated: bool,
 }
 
 #[derive(Serialize)]

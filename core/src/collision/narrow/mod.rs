@@ -13,9 +13,10 @@
 //! - Integer arithmetic only; ties go to the lowest feature index; every
 //!   degenerate case has a documented fallback instead of a panic.
 //!
-//! Kind order for the dispatcher: sphere < capsule < box < hull. A pair whose
-//! first shape ranks after the second is computed swapped and
-//! [flipped](Manifold::flipped).
+//! Kind order for the dispatcher: sphere < capsule < box < hull < triangle
+//! mesh < height field. A pair whose first shape ranks after the second is
+//! computed swapped and [flipped](Manifold::flipped). Convex shapes against
+//! meshes and height fields are in [`mesh_contact`] (the mesh is always B).
 
 pub mod box_box;
 pub mod capsule_box;
@@ -24,21 +25,30 @@ pub mod clip;
 pub mod epa;
 pub mod gjk;
 pub mod hull_contact;
+pub mod mesh_contact;
 pub mod segment;
 pub mod sphere_box;
 pub mod sphere_capsule;
 pub mod sphere_sphere;
+pub mod triangle;
 
 #[cfg(test)]
 mod tests_analytic;
 #[cfg(test)]
 mod tests_box;
+#[cfg(test)]
+mod tests_mesh;
 
 pub use box_box::contact_box_box;
 pub use capsule_box::contact_capsule_box;
 pub use capsule_capsule::contact_capsule_capsule;
 pub use hull_contact::{
     contact_box_hull, contact_capsule_hull, contact_hull_hull, contact_sphere_hull,
+};
+pub use mesh_contact::{
+    MAX_MESH_TRIANGLES, MeshContact, contact_box_heightfield, contact_box_trimesh,
+    contact_capsule_heightfield, contact_capsule_trimesh, contact_hull_heightfield,
+    contact_hull_trimesh, contact_sphere_heightfield, contact_sphere_trimesh,
 };
 pub use segment::{SegmentClosest, closest_point_on_segment, closest_points_segments};
 pub use sphere_box::contact_sphere_box;
@@ -58,9 +68,11 @@ use crate::shape::Shape;
 /// the shapes swapped and the manifold [flipped](Manifold::flipped): the
 /// normal still points from `shape_a` to `shape_b`, points keep their order.
 ///
-/// Triangle meshes and height fields are not handled yet (they need the
-/// per-triangle mid-phase of a later step): any pair involving one returns
-/// `false` with `out` empty.
+/// Convex shapes against triangle meshes and height fields go to
+/// [`mesh_contact`] (mesh or height field as B, flipped when given as A).
+/// Mesh–mesh, mesh–height-field and height-field–height-field pairs return
+/// `false` with `out` empty: both shapes are static-only, so the broad phase
+/// never creates such pairs.
 pub fn contact(
     shape_a: &Shape,
     pose_a: &Transform,
@@ -98,7 +110,43 @@ pub fn contact(
         (ConvexHull(a), Sphere(b)) => contact_sphere_hull(b, pose_b, a, pose_a, margin, out),
         (ConvexHull(a), Capsule(b)) => contact_capsule_hull(b, pose_b, a, pose_a, margin, out),
         (ConvexHull(a), Cuboid(b)) => contact_box_hull(b, pose_b, a, pose_a, margin, out),
-        (TriMesh(_) | HeightField(_), _) | (_, TriMesh(_) | HeightField(_)) => {
+        (Sphere(a), TriMesh(b)) => {
+            return contact_sphere_trimesh(a, pose_a, b, pose_b, margin, out);
+        }
+        (Capsule(a), TriMesh(b)) => {
+            return contact_capsule_trimesh(a, pose_a, b, pose_b, margin, out);
+        }
+        (Cuboid(a), TriMesh(b)) => return contact_box_trimesh(a, pose_a, b, pose_b, margin, out),
+        (ConvexHull(a), TriMesh(b)) => {
+            return contact_hull_trimesh(a, pose_a, b, pose_b, margin, out);
+        }
+        (Sphere(a), HeightField(b)) => {
+            return contact_sphere_heightfield(a, pose_a, b, pose_b, margin, out);
+        }
+        (Capsule(a), HeightField(b)) => {
+            return contact_capsule_heightfield(a, pose_a, b, pose_b, margin, out);
+        }
+        (Cuboid(a), HeightField(b)) => {
+            return contact_box_heightfield(a, pose_a, b, pose_b, margin, out);
+        }
+        (ConvexHull(a), HeightField(b)) => {
+            return contact_hull_heightfield(a, pose_a, b, pose_b, margin, out);
+        }
+        (TriMesh(a), Sphere(b)) => contact_sphere_trimesh(b, pose_b, a, pose_a, margin, out),
+        (TriMesh(a), Capsule(b)) => contact_capsule_trimesh(b, pose_b, a, pose_a, margin, out),
+        (TriMesh(a), Cuboid(b)) => contact_box_trimesh(b, pose_b, a, pose_a, margin, out),
+        (TriMesh(a), ConvexHull(b)) => contact_hull_trimesh(b, pose_b, a, pose_a, margin, out),
+        (HeightField(a), Sphere(b)) => {
+            contact_sphere_heightfield(b, pose_b, a, pose_a, margin, out)
+        }
+        (HeightField(a), Capsule(b)) => {
+            contact_capsule_heightfield(b, pose_b, a, pose_a, margin, out)
+        }
+        (HeightField(a), Cuboid(b)) => contact_box_heightfield(b, pose_b, a, pose_a, margin, out),
+        (HeightField(a), ConvexHull(b)) => {
+            contact_hull_heightfield(b, pose_b, a, pose_a, margin, out)
+        }
+        (TriMesh(_) | HeightField(_), TriMesh(_) | HeightField(_)) => {
             out.clear();
             return false;
         }

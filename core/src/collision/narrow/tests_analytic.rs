@@ -493,7 +493,7 @@ fn dispatch_swaps_and_flips_mixed_pairs_exactly() {
 }
 
 #[test]
-fn mesh_and_heightfield_pairs_report_no_contact_yet() {
+fn static_only_pairs_report_no_contact_and_convex_mesh_pairs_do() {
     use crate::shape::{HeightField, TriMesh};
     let mesh: Shape = TriMesh::new(
         vec![
@@ -508,18 +508,35 @@ fn mesh_and_heightfield_pairs_report_no_contact_yet() {
     let field: Shape = HeightField::new(2, 2, vec![Scalar::ZERO; 4], Vec3::splat(Scalar::ONE))
         .unwrap()
         .into();
+    // Mesh and height field are static-only: such pairs are never created.
+    for (a, b) in [
+        (&mesh, &mesh),
+        (&mesh, &field),
+        (&field, &mesh),
+        (&field, &field),
+    ] {
+        assert!(run(a, &Transform::IDENTITY, b, &at(0.5, 0.0, 0.5), 0.1).is_empty());
+    }
+    // Convex shapes against them go to the mesh contacts (tests_mesh.rs).
     for other in [sphere(1.0), cuboid(1.0, 1.0, 1.0)] {
-        assert!(run(&other, &at(0.5, 0.0, 0.5), &mesh, &Transform::IDENTITY, 0.1).is_empty());
-        assert!(
-            run(
-                &field,
-                &Transform::IDENTITY,
-                &other,
-                &at(0.5, 0.0, 0.5),
-                0.1
-            )
-            .is_empty()
+        let m = run(
+            &other,
+            &at(0.25, 0.5, 0.25),
+            &mesh,
+            &Transform::IDENTITY,
+            0.1,
         );
+        assert_eq!(m.normal, -Vec3::Y);
+        assert_close(max_depth(&m), 0.5, 1e-9, "depth on the mesh");
+        let m = run(
+            &field,
+            &Transform::IDENTITY,
+            &other,
+            &at(0.25, 0.5, 0.25),
+            0.1,
+        );
+        assert_eq!(m.normal, Vec3::Y);
+        assert_close(max_depth(&m), 0.5, 1e-9, "depth on the field");
     }
 }
 
