@@ -255,3 +255,27 @@ fn resting_pairs_of_sleeping_bodies_are_kept_and_removal_ends_the_touch() {
     assert_eq!(events(&w), vec![(ContactEventKind::EndTouch, 0, 1)]);
     assert!(w.contact_pairs().is_empty());
 }
+
+#[test]
+fn removing_a_touching_collider_ends_its_contacts_and_snapshots_stay_valid() {
+    let mut w = zero_g();
+    let a = ball(&mut w, "a", v(0.0, 0.0, 0.0), Vec3::ZERO);
+    ball(&mut w, "b", v(0.9, 0.0, 0.0), Vec3::ZERO);
+    let r = w.step();
+    assert_eq!(r.begin_events, 1);
+    let collider = w.body(a).unwrap().colliders()[0];
+    w.remove_collider(collider).unwrap();
+    // The last step's events, plus the end of the removed collider's touch.
+    assert_eq!(
+        events(&w),
+        vec![
+            (ContactEventKind::BeginTouch, 0, 1),
+            (ContactEventKind::EndTouch, 0, 1)
+        ]
+    );
+    assert!(w.contact_pairs().is_empty());
+    let restored = World::restore(&w.snapshot()).expect("a world without the collider restores");
+    assert_eq!(restored.state_hash(), w.state_hash());
+    let r = w.step();
+    assert_eq!(r.candidate_pairs, 0, "the removed collider's proxy is gone");
+}

@@ -289,6 +289,8 @@ impl World {
             .colliders
             .remove(h.0)
             .ok_or(WorldError::InvalidCollider(h))?;
+        let _ = self.broad.destroy_proxy(c.proxy);
+        self.contacts.remove_collider(h);
         if let Some(cold) = self.bodies.cold_mut(c.body) {
             cold.colliders.retain(|x| *x != h);
         }
