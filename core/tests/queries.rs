@@ -551,7 +551,8 @@ fn sphere_sweep_equals_a_ray_against_the_inflated_sphere() {
         }
     }
     assert!(hits > 100 && misses > 20, "{hits} hits, {misses} misses");
-    // Measured: the worst stop is SWEEP_TOLERANCE / 2 along the normal.
+    // The stop is within the tolerance along the normal.
+    println!("worst stop along the normal: {worst:e} m ({hits} hits, {misses} misses)");
     assert!(worst <= tol, "{worst}");
 }
 

@@ -475,6 +475,29 @@ impl BroadPhase {
         }
     }
 
+    /// [`ray_cast`](Self::ray_cast) for a moving box (see
+    /// [`DynamicTree::box_cast`]): the candidates of a shape sweep, with the
+    /// same `Some(max)` / `None` protocol and the same determinism contract.
+    pub fn box_cast(
+        &self,
+        start: &Aabb,
+        translation: Vec3,
+        max: Scalar,
+        mut f: impl FnMut(ProxyId, ProxyKey, Scalar) -> Option<Scalar>,
+    ) {
+        let mut max = max;
+        for tree in [&self.static_tree, &self.moving_tree] {
+            let r = tree.box_cast(start, translation, max, |_, data, m| {
+                let i = data as u32;
+                f(ProxyId(i), self.slots[i as usize].key, m)
+            });
+            match r {
+                Some(m) => max = m,
+                None => return,
+            }
+        }
+    }
+
     /// Rebuilds both trees with the binned SAH (see
     /// [`DynamicTree::rebuild`]); pairs are not affected. Useful after
     /// loading a level proxy by proxy.

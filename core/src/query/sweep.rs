@@ -38,9 +38,10 @@ use crate::shape::Shape;
 /// of it, so a face-on approach stops after one step.
 pub const SWEEP_TOLERANCE: Scalar = Scalar::from_bits(1 << 18);
 
-/// The most GJK distance evaluations per convex pair. A head-on approach
-/// needs 1–2; glancing approaches past curved or edged features converge
-/// more slowly but stay under ~20 in the tests.
+/// The most GJK distance evaluations per convex pair. A face-on approach
+/// needs 2 (one advance, one check); glancing approaches past curved or
+/// edged features converge more slowly (each advance closes a fixed share
+/// of the remaining gap).
 pub const MAX_SWEEP_ITERATIONS: usize = 32;
 
 /// Where a sweep first touches one shape.

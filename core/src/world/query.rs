@@ -8,6 +8,13 @@
 //! entered at the best fraction so far), and every other query sorts its
 //! candidates or results by collider handle.
 //!
+//! Candidates come from the broad phase's fat boxes as the last step (or
+//! `set_pose`) left them: the collision stage refreshes them at the start
+//! of a step, and the margin plus the predictive stretch along the velocity
+//! cover the step's motion, so a body that moved within its fat box is
+//! found; one whose velocity changed by more than `margin / dt` within the
+//! step (a violent collision) may be missed until the next step.
+//!
 //! Queries take `&self` and change nothing: not the state, not the state
 //! hash, not the world's fault flags. Arithmetic faults a query might raise
 //! (only with coordinates beyond the ranges the per-shape code documents)
@@ -182,28 +189,46 @@ impl World {
     ) -> Result<Option<ShapeHit>, QueryError> {
         check_convex(shape)?;
         contained(|| {
-            let start = shape.aabb(pose);
-            let end = Aabb::new(start.min + translation, start.max + translation);
             let mut best: Option<ShapeHit> = None;
-            for key in self.sorted_candidates(&start.union(&end)) {
-                let Some((h, c, cpose)) = self.query_candidate(key, filter) else {
-                    continue;
-                };
-                let limit = best.map_or(Scalar::ONE, |b| b.fraction);
-                if let Some(x) = sweep_shape(shape, pose, translation, &c.shape, &cpose, limit)?
-                    && best.is_none_or(|b| x.fraction < b.fraction)
-                {
-                    best = Some(ShapeHit {
-                        collider: h,
-                        body: c.body,
-                        fraction: x.fraction,
-                        point: x.point,
-                        normal: x.normal,
-                        initially_overlapping: x.initially_overlapping,
-                    });
-                }
+            let mut error = None;
+            // The tree walk clips to the best fraction so far but still
+            // visits boxes entered exactly there, so the minimum of
+            // (fraction, handle) does not depend on the visit order.
+            self.broad.box_cast(
+                &shape.aabb(pose),
+                translation,
+                Scalar::ONE,
+                |_, key, max| {
+                    let Some((h, c, cpose)) = self.query_candidate(key, filter) else {
+                        return Some(max);
+                    };
+                    match sweep_shape(shape, pose, translation, &c.shape, &cpose, max) {
+                        Ok(Some(x)) => {
+                            if best.is_none_or(|b| (x.fraction, h) < (b.fraction, b.collider)) {
+                                best = Some(ShapeHit {
+                                    collider: h,
+                                    body: c.body,
+                                    fraction: x.fraction,
+                                    point: x.point,
+                                    normal: x.normal,
+                                    initially_overlapping: x.initially_overlapping,
+                                });
+                                return Some(x.fraction);
+                            }
+                            Some(max)
+                        }
+                        Ok(None) => Some(max),
+                        Err(e) => {
+                            error = Some(e);
+                            None
+                        }
+                    }
+                },
+            );
+            match error {
+                Some(e) => Err(e),
+                None => Ok(best),
             }
-            Ok(best)
         })
     }
 

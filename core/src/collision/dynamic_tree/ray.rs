@@ -123,6 +123,36 @@ impl DynamicTree {
         origin: Vec3,
         translation: Vec3,
         max: Scalar,
+        f: impl FnMut(LeafId, u64, Scalar) -> Option<Scalar>,
+    ) -> Option<Scalar> {
+        self.cast(origin, translation, Vec3::ZERO, max, f)
+    }
+
+    /// Like [`ray_cast`](Self::ray_cast) for a moving box: visits every
+    /// proxy whose fat box the box `start` touches while it moves by
+    /// `translation · t`, `t ∈ [0, max]` (each node box is grown by `start`'s
+    /// extents and crossed by the segment of its lower corner). For shape
+    /// sweeps: `start` is the moving shape's box at the start pose.
+    pub fn box_cast(
+        &self,
+        start: &Aabb,
+        translation: Vec3,
+        max: Scalar,
+        f: impl FnMut(LeafId, u64, Scalar) -> Option<Scalar>,
+    ) -> Option<Scalar> {
+        let size = start.max - start.min;
+        self.cast(start.min, translation, size, max, f)
+    }
+
+    /// The traversal: a box of size `size` whose lower corner runs along
+    /// the segment from `origin` touches a node box `[lo, hi]` exactly when
+    /// the segment touches `[lo − size, hi]` (`size = 0` for a ray).
+    fn cast(
+        &self,
+        origin: Vec3,
+        translation: Vec3,
+        size: Vec3,
+        max: Scalar,
         mut f: impl FnMut(LeafId, u64, Scalar) -> Option<Scalar>,
     ) -> Option<Scalar> {
         let mut max = max;
@@ -134,7 +164,15 @@ impl DynamicTree {
         while let Some(i) = stack.pop() {
             let node = &self.nodes[i as usize];
             let b = &node.aabb;
-            if segment_box(origin, translation, b.min, b.max, Frac::from_scalar(max)).is_none() {
+            if segment_box(
+                origin,
+                translation,
+                b.min - size,
+                b.max,
+                Frac::from_scalar(max),
+            )
+            .is_none()
+            {
                 continue;
             }
             if node.is_leaf() {
