@@ -916,3 +916,147 @@ fn query_timing() {
     );
     assert!(hits > rays.len() / 2);
 }
+
+/// The f64 slab test, for cross-checking the exact one away from ties.
+fn slab_f64(o: [f64; 3], d: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..3 {
+        if d[k] == 0.0 {
+            if o[k] < lo[k] || o[k] > hi[k] {
+                return None;
+            }
+            continue;
+        }
+        let (a, b) = ((lo[k] - o[k]) / d[k], (hi[k] - o[k]) / d[k]);
+        t0 = t0.max(a.min(b));
+        t1 = t1.min(a.max(b));
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+#[test]
+fn tree_ray_traversal_visits_exactly_the_boxes_the_segment_touches() {
+    use lockstep_core::collision::DynamicTree;
+    let mut st = 17u64;
+    let mut tree = DynamicTree::new(s(0.1));
+    for i in 0..400u64 {
+        let c = [
+            lcg(&mut st) * 100.0 - 50.0,
+            lcg(&mut st) * 20.0,
+            lcg(&mut st) * 100.0 - 50.0,
+        ];
+        let h = [lcg(&mut st) * 3.0, lcg(&mut st) * 3.0, lcg(&mut st) * 3.0];
+        tree.create_proxy(
+            Aabb::new(
+                v(c[0] - h[0], c[1] - h[1], c[2] - h[2]),
+                v(c[0] + h[0], c[1] + h[1], c[2] + h[2]),
+            ),
+            i,
+        );
+    }
+    let (mut checked, mut visited_total) = (0, 0);
+    for _ in 0..300 {
+        let mut p = || {
+            v(
+                lcg(&mut st) * 120.0 - 60.0,
+                lcg(&mut st) * 30.0 - 5.0,
+                lcg(&mut st) * 120.0 - 60.0,
+            )
+        };
+        let (o, e) = (p(), p());
+        let d = e - o;
+        let mut visited = Vec::new();
+        tree.ray_cast(o, d, Scalar::ONE, |_, data, max| {
+            visited.push(data);
+            Some(max)
+        });
+        visited.sort_unstable();
+        let mut want = Vec::new();
+        tree.for_each_proxy(|_, data, fat| {
+            if DynamicTree::segment_touches(o, d, Scalar::ONE, fat) {
+                want.push(data);
+            }
+            // The exact test agrees with f64 wherever f64 is not near a tie.
+            let f = |x: Vec3| [x.x.to_f64(), x.y.to_f64(), x.z.to_f64()];
+            let r = slab_f64(f(o), f(d), f(fat.min), f(fat.max));
+            let margin = r.is_none_or(|(t0, t1)| t1 - t0 > 1e-9);
+            if margin {
+                checked += 1;
+                assert_eq!(
+                    r.is_some(),
+                    DynamicTree::segment_touches(o, d, Scalar::ONE, fat)
+                );
+            }
+        });
+        want.sort_unstable();
+        assert_eq!(visited, want);
+        visited_total += visited.len();
+        // Clipping at the nearest box entry still finds every box entered
+        // there and none beyond.
+        let entry = |data: u64| {
+            let mut t = None;
+            tree.for_each_proxy(|_, d2, fat| {
+                if d2 == data {
+                    let f = |x: Vec3| [x.x.to_f64(), x.y.to_f64(), x.z.to_f64()];
+                    t = slab_f64(f(o), f(d), f(fat.min), f(fat.max)).map(|r| r.0);
+                }
+            });
+            t.unwrap_or(2.0)
+        };
+        let nearest = want.iter().map(|&x| entry(x)).fold(2.0, f64::min);
+        let mut clipped = Vec::new();
+        tree.ray_cast(o, d, Scalar::ONE, |_, data, max| {
+            clipped.push(data);
+            Some(max.min(s(entry(data)).max(Scalar::ZERO)))
+        });
+        if nearest <= 1.0 {
+            assert!(clipped.iter().any(|&x| (entry(x) - nearest).abs() < 1e-9));
+        }
+        assert!(clipped.len() <= want.len());
+    }
+    assert!(
+        visited_total > 300 && checked > 100_000,
+        "{visited_total} {checked}"
+    );
+}
+
+#[test]
+fn world_ray_queries_match_brute_force_over_every_collider() {
+    use lockstep_core::query::cast_ray_shape;
+    let w = scene();
+    let f = QueryFilter::default().triggers(true);
+    let mut st = 23u64;
+    let mut all = Vec::new();
+    let mut hits = 0;
+    for _ in 0..300 {
+        let mut p = || {
+            v(
+                lcg(&mut st) * 24.0 - 12.0,
+                lcg(&mut st) * 14.0 - 6.0,
+                lcg(&mut st) * 24.0 - 12.0,
+            )
+        };
+        let (o, e) = (p(), p());
+        let ray = Ray::new(o, e - o);
+        let mut brute: Vec<(Scalar, ColliderHandle)> = w
+            .colliders()
+            .filter_map(|(h, c)| {
+                let pose = c.world_pose(&w.body(c.body).unwrap().pose());
+                cast_ray_shape(&c.shape, &pose, &ray, Scalar::ONE).map(|x| (x.fraction, h))
+            })
+            .collect();
+        brute.sort_unstable();
+        w.cast_ray_all(&ray, &f, &mut all);
+        let got: Vec<(Scalar, ColliderHandle)> =
+            all.iter().map(|h| (h.fraction, h.collider)).collect();
+        assert_eq!(got, brute);
+        let closest = w
+            .cast_ray_closest(&ray, &f)
+            .map(|h| (h.fraction, h.collider));
+        assert_eq!(closest, brute.first().copied());
+        let any = w.cast_ray_any(&ray, &f).map(|h| h.collider);
+        assert_eq!(any, brute.iter().map(|x| x.1).min());
+        hits += brute.len();
+    }
+    assert!(hits > 150, "{hits}");
+}
