@@ -1060,3 +1060,35 @@ fn world_ray_queries_match_brute_force_over_every_collider() {
     }
     assert!(hits > 150, "{hits}");
 }
+
+#[test]
+fn overlaps_and_box_sweeps_against_a_height_field() {
+    let (w, field) = one(Vec3::ZERO, ramp(9));
+    let mut out = Vec::new();
+    let f = QueryFilter::default();
+    // Above (0.3, −0.4) the surface is at 2.15; a ball of radius 0.5 touches
+    // it with its centre 0.5·√1.25 higher (the plane's slope is 0.5).
+    let above = |y: f64| Transform::from_translation(v(0.3, y, -0.4));
+    let reach = 0.5 * 1.25f64.sqrt();
+    w.overlap_shape(&sphere(0.5), &above(2.15 + reach - 1e-4), &f, &mut out)
+        .unwrap();
+    assert_eq!(out.len(), 1);
+    assert_eq!(out[0].collider, field);
+    w.overlap_shape(&sphere(0.5), &above(2.15 + reach + 1e-4), &f, &mut out)
+        .unwrap();
+    assert!(out.is_empty());
+    // A unit cube dropped onto the ramp lands on its uphill bottom edge: its
+    // centre stops where the corner (x + 0.5, y − 0.5) meets y = 0.5 x + 2.
+    let h = w
+        .cast_shape(&cuboid(0.5, 0.5, 0.5), &above(10.0), v(0.0, -20.0, 0.0), &f)
+        .unwrap()
+        .unwrap();
+    let y = 0.5 * (0.3 + 0.5) + 2.0 + 0.5;
+    let short = ((10.0 - y) / 20.0 - h.fraction.to_f64()) * 20.0;
+    let cos = 1.0 / 1.25f64.sqrt();
+    assert!(
+        (-1e-8..=SWEEP_TOLERANCE.to_f64() / cos).contains(&short),
+        "{short}"
+    );
+    assert!(!h.initially_overlapping);
+}
