@@ -12,6 +12,7 @@ pub mod collider;
 pub mod collision;
 pub mod hash;
 pub mod math;
+pub mod query;
 pub mod scene;
 pub mod shape;
 pub mod snapshot;

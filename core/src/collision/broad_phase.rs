@@ -446,6 +446,58 @@ impl BroadPhase {
         }
     }
 
+    /// Calls `f(id, key, max)` for every proxy (both trees) whose fat box
+    /// the segment `origin + t · translation`, `t ∈ [0, max]`, touches; `f`
+    /// returns `Some(m)` to go on with `max = min(max, m)` or `None` to stop
+    /// (see [`DynamicTree::ray_cast`]). For scene queries: does not change
+    /// any state.
+    ///
+    /// Determinism: the static tree is visited first, then the moving tree
+    /// with the clipped `max`, each in an order that depends on its shape;
+    /// callers take a minimum over a total order or sort what they collect.
+    pub fn ray_cast(
+        &self,
+        origin: Vec3,
+        translation: Vec3,
+        max: Scalar,
+        mut f: impl FnMut(ProxyId, ProxyKey, Scalar) -> Option<Scalar>,
+    ) {
+        let mut max = max;
+        for tree in [&self.static_tree, &self.moving_tree] {
+            let r = tree.ray_cast(origin, translation, max, |_, data, m| {
+                let i = data as u32;
+                f(ProxyId(i), self.slots[i as usize].key, m)
+            });
+            match r {
+                Some(m) => max = m,
+                None => return,
+            }
+        }
+    }
+
+    /// [`ray_cast`](Self::ray_cast) for a moving box (see
+    /// [`DynamicTree::box_cast`]): the candidates of a shape sweep, with the
+    /// same `Some(max)` / `None` protocol and the same determinism contract.
+    pub fn box_cast(
+        &self,
+        start: &Aabb,
+        translation: Vec3,
+        max: Scalar,
+        mut f: impl FnMut(ProxyId, ProxyKey, Scalar) -> Option<Scalar>,
+    ) {
+        let mut max = max;
+        for tree in [&self.static_tree, &self.moving_tree] {
+            let r = tree.box_cast(start, translation, max, |_, data, m| {
+                let i = data as u32;
+                f(ProxyId(i), self.slots[i as usize].key, m)
+            });
+            match r {
+                Some(m) => max = m,
+                None => return,
+            }
+        }
+    }
+
     /// Rebuilds both trees with the binned SAH (see
     /// [`DynamicTree::rebuild`]); pairs are not affected. Useful after
     /// loading a level proxy by proxy.

@@ -3,6 +3,7 @@
 mod body_ref;
 mod collide;
 mod config;
+mod query;
 mod state_hash;
 mod step;
 

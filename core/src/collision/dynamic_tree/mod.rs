@@ -25,8 +25,11 @@ use thiserror::Error;
 
 use crate::math::{Aabb, Scalar, Vec3};
 
+mod ray;
 mod rebuild;
 mod validate;
+
+pub(crate) use ray::{Frac, segment_box};
 
 use rebuild::RebuildScratch;
 
