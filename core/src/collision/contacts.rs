@@ -26,7 +26,8 @@ use super::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
 /// point (same feature id) next step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PointImpulse {
-    /// Accumulated normal impulse, N·s.
+    /// Accumulated normal impulse, N·s, over one substep (the solver
+    /// applies it again at the start of every substep: warm starting).
     pub normal: Scalar,
     /// Accumulated friction impulses along the two tangent directions.
     pub tangent: [Scalar; 2],
@@ -189,6 +190,11 @@ impl ContactSet {
     /// The current pairs, ascending by (A, B) handle index.
     pub fn pairs(&self) -> &[ContactPair] {
         &self.pairs
+    }
+
+    /// The current pairs, mutably (the solver writes the impulses back).
+    pub(crate) fn pairs_mut(&mut self) -> &mut [ContactPair] {
+        &mut self.pairs
     }
 
     /// The events of the last update, in pair order.

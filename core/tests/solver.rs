@@ -1,0 +1,252 @@
+//! The contact solver against closed forms (the accuracy cases of
+//! `shared/SCENES.md`): collisions, bouncing, friction, rolling, stacking,
+//! mass ratios, overlap recovery, warm starting. Each test prints its error.
+
+use lockstep_core::shape::{Cuboid, Shape, Sphere};
+use lockstep_core::{
+    BodyDesc, BodyHandle, ColliderDesc, Material, Scalar, Vec3, World, WorldConfig,
+};
+
+const G: f64 = 9.81;
+
+fn s(v: f64) -> Scalar {
+    Scalar::from_f64_lossy(v)
+}
+
+fn v(x: f64, y: f64, z: f64) -> Vec3 {
+    Vec3::new(s(x), s(y), s(z))
+}
+
+fn f(v: Vec3) -> [f64; 3] {
+    [v.x.to_f64(), v.y.to_f64(), v.z.to_f64()]
+}
+
+fn mat(friction: f64, restitution: f64) -> Material {
+    Material {
+        friction: s(friction),
+        restitution: s(restitution),
+    }
+}
+
+fn world_with(gravity: Vec3, sleep: bool) -> World {
+    let mut cfg = WorldConfig {
+        gravity,
+        ..WorldConfig::default()
+    };
+    cfg.sleep.enabled = sleep;
+    World::new(cfg).unwrap()
+}
+
+/// A static ground whose top face is y = 0.
+fn ground(w: &mut World, m: Material) -> BodyHandle {
+    let g = w
+        .create_body(&BodyDesc::fixed().name("ground").position(v(0.0, -1.0, 0.0)))
+        .unwrap();
+    w.add_collider(
+        g,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(200.0, 1.0, 200.0),
+        }))
+        .material(m),
+    )
+    .unwrap();
+    g
+}
+
+fn cube(w: &mut World, at: Vec3, half: f64, density: f64, m: Material) -> BodyHandle {
+    let b = w.create_body(&BodyDesc::dynamic().position(at)).unwrap();
+    w.add_collider(
+        b,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(half, half, half),
+        }))
+        .density(s(density))
+        .material(m),
+    )
+    .unwrap();
+    b
+}
+
+fn ball(w: &mut World, at: Vec3, vel: Vec3, r: f64, m: Material) -> BodyHandle {
+    let b = w
+        .create_body(&BodyDesc::dynamic().position(at).linear_velocity(vel))
+        .unwrap();
+    w.add_collider(
+        b,
+        ColliderDesc::new(Shape::Sphere(Sphere { radius: s(r) })).material(m),
+    )
+    .unwrap();
+    b
+}
+
+fn step(w: &mut World) {
+    let r = w.step();
+    assert!(r.faults.is_empty(), "arithmetic fault at tick {}", r.tick);
+}
+
+fn pos(w: &World, b: BodyHandle) -> [f64; 3] {
+    f(w.body(b).unwrap().center_of_mass())
+}
+
+fn vel(w: &World, b: BodyHandle) -> [f64; 3] {
+    f(w.body(b).unwrap().linear_velocity())
+}
+
+fn gravity_down_slope(theta_deg: f64) -> Vec3 {
+    // The slope is the ground; tilting gravity by θ about z is the same
+    // physics as a ramp at θ, without a rotated box in the way.
+    let t = theta_deg.to_radians();
+    v(G * t.sin(), -G * t.cos(), 0.0)
+}
+
+#[test]
+fn resting_box_is_held_by_warm_started_impulses() {
+    let mut w = world_with(v(0.0, -G, 0.0), false);
+    ground(&mut w, Material::default());
+    let b = cube(&mut w, v(0.0, 0.5, 0.0), 0.5, 1.0, Material::default());
+    let mut totals = Vec::new();
+    for _ in 0..240 {
+        step(&mut w);
+        let pair = w
+            .contact_pairs()
+            .iter()
+            .find(|p| p.touching)
+            .expect("box touches the ground");
+        let total: f64 = pair.impulses[..pair.manifold.count as usize]
+            .iter()
+            .map(|i| i.normal.to_f64())
+            .sum();
+        totals.push(total);
+    }
+    // Per substep the ground carries m·g·h.
+    let expected = 1.0 * G / 240.0;
+    let last = totals[totals.len() - 1];
+    let drift = (totals[totals.len() - 1] - totals[totals.len() - 60]).abs() / expected;
+    let sink = 0.5 - pos(&w, b)[1];
+    println!(
+        "resting box: impulse {last:.6e} vs m g h {expected:.6e}; change over 1 s {drift:.2e}; sink {sink:.2e} m"
+    );
+    assert!((last - expected).abs() / expected < 1e-3);
+    assert!(drift < 1e-3, "warm-started impulses are stable");
+    assert!(sink.abs() < 5e-3, "box sinks {sink} m");
+    assert!(vel(&w, b)[1].abs() < 1e-3);
+}
+
+#[test]
+fn elastic_head_on_spheres_swap_velocities() {
+    let mut w = world_with(Vec3::ZERO, false);
+    let m = mat(0.0, 1.0);
+    let a = ball(&mut w, v(-2.0, 0.0, 0.0), v(3.0, 0.0, 0.0), 0.5, m);
+    let b = ball(&mut w, v(2.0, 0.0, 0.0), v(-3.0, 0.0, 0.0), 0.5, m);
+    let momentum =
+        |w: &World| w.body(a).unwrap().linear_velocity() + w.body(b).unwrap().linear_velocity();
+    let p0 = momentum(&w);
+    for _ in 0..120 {
+        step(&mut w);
+        assert_eq!(momentum(&w), p0, "momentum is exact");
+    }
+    let (va, vb) = (vel(&w, a)[0], vel(&w, b)[0]);
+    let energy = 0.5 * (va * va + vb * vb);
+    let e0 = 0.5 * (9.0 + 9.0);
+    let err = (energy - e0).abs() / e0;
+    println!("elastic spheres: va {va:.6}, vb {vb:.6}, energy error {err:.2e}");
+    assert!(err < 1e-3);
+    assert!((va + 3.0).abs() < 3e-3 && (vb - 3.0).abs() < 3e-3);
+}
+
+#[test]
+fn sliding_box_stops_at_v_squared_over_two_mu_g() {
+    let mut w = world_with(v(0.0, -G, 0.0), false);
+    let m = mat(0.5, 0.0);
+    ground(&mut w, m);
+    let b = cube(&mut w, v(0.0, 0.5, 0.0), 0.5, 1.0, m);
+    // Settle, then launch.
+    for _ in 0..30 {
+        step(&mut w);
+    }
+    let x0 = pos(&w, b)[0];
+    w.set_linear_velocity(b, v(5.0, 0.0, 0.0)).unwrap();
+    for _ in 0..180 {
+        step(&mut w);
+    }
+    let d = pos(&w, b)[0] - x0;
+    let expected = 25.0 / (2.0 * 0.5 * G);
+    let err = (d - expected).abs() / expected;
+    println!("sliding box: stopped after {d:.4} m vs {expected:.4} m: error {err:.4}");
+    assert!(vel(&w, b)[0].abs() < 1e-3, "stopped");
+    assert!(err < 0.02);
+}
+
+/// Distance and speed of a box on a `theta` slope after 2 s from rest.
+fn ramp(theta: f64, mu: f64) -> (f64, f64) {
+    let mut w = world_with(gravity_down_slope(theta), false);
+    let m = mat(mu, 0.0);
+    ground(&mut w, m);
+    let b = cube(&mut w, v(0.0, 0.5, 0.0), 0.5, 1.0, m);
+    let x0 = pos(&w, b)[0];
+    for _ in 0..120 {
+        step(&mut w);
+    }
+    (pos(&w, b)[0] - x0, vel(&w, b)[0])
+}
+
+#[test]
+fn box_on_30_degree_ramp_sticks_or_slides_with_the_closed_form_acceleration() {
+    let (d, speed) = ramp(30.0, 0.7);
+    println!("ramp mu=0.7: moved {d:.2e} m, speed {speed:.2e} m/s");
+    assert!(d.abs() < 1e-3 && speed.abs() < 1e-3, "sticks");
+    let (_, speed) = ramp(30.0, 0.3);
+    let t = 30f64.to_radians();
+    let a = G * (t.sin() - 0.3 * t.cos());
+    let measured = speed / 2.0;
+    let err = (measured - a).abs() / a;
+    println!("ramp mu=0.3: a {measured:.5} vs {a:.5}: error {err:.4}");
+    assert!(err < 0.02);
+}
+
+#[test]
+fn sphere_rolls_down_a_20_degree_incline_at_five_sevenths_g_sin_theta() {
+    let mut w = world_with(gravity_down_slope(20.0), false);
+    let m = mat(0.6, 0.0);
+    ground(&mut w, m);
+    let r = 0.5;
+    let b = ball(&mut w, v(0.0, r, 0.0), Vec3::ZERO, r, m);
+    for _ in 0..120 {
+        step(&mut w);
+    }
+    let speed = vel(&w, b)[0];
+    let omega = f(w.body(b).unwrap().angular_velocity())[2];
+    let a = 5.0 / 7.0 * G * 20f64.to_radians().sin();
+    let measured = speed / 2.0;
+    let err = (measured - a).abs() / a;
+    let slip = (speed + omega * r).abs() / speed;
+    println!(
+        "rolling sphere: a {measured:.5} vs {a:.5}: error {err:.4}; v vs ω r mismatch {slip:.2e}"
+    );
+    assert!(err < 0.02);
+    assert!(slip < 0.02, "rolls without slipping");
+}
+
+#[test]
+fn overlapping_boxes_separate_within_a_second_below_5_m_per_s() {
+    let mut w = world_with(v(0.0, -G, 0.0), false);
+    ground(&mut w, Material::default());
+    let a = cube(&mut w, v(0.0, 0.5, 0.0), 0.5, 1.0, Material::default());
+    let b = cube(&mut w, v(0.5, 0.5, 0.0), 0.5, 1.0, Material::default());
+    let mut fastest: f64 = 0.0;
+    let mut separated_at = None;
+    for t in 1..=60 {
+        step(&mut w);
+        for h in [a, b] {
+            let u = vel(&w, h);
+            fastest = fastest.max((u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt());
+        }
+        let gap = pos(&w, b)[0] - pos(&w, a)[0] - 1.0;
+        if separated_at.is_none() && gap > -1e-3 {
+            separated_at = Some(t);
+        }
+    }
+    println!("overlap recovery: separated at tick {separated_at:?}, fastest {fastest:.3} m/s");
+    assert!(separated_at.is_some(), "separated within 1 s");
+    assert!(fastest < 5.0);
+}
