@@ -154,6 +154,45 @@ fn elastic_head_on_spheres_swap_velocities() {
     assert!((va + 3.0).abs() < 3e-3 && (vb - 3.0).abs() < 3e-3);
 }
 
+/// Drops a ball with restitution `e` and returns the first two apex
+/// heights above the ground (of the ball's bottom).
+fn apexes(e: f64) -> (f64, f64) {
+    let mut w = world_with(v(0.0, -G, 0.0), false);
+    ground(&mut w, mat(0.0, e));
+    let r = 0.25;
+    let b = ball(&mut w, v(0.0, 10.0 + r, 0.0), Vec3::ZERO, r, mat(0.0, e));
+    let mut apex = Vec::new();
+    let mut prev_vy = 0.0;
+    for _ in 0..60 * 12 {
+        step(&mut w);
+        let vy = vel(&w, b)[1];
+        if prev_vy > 0.0 && vy <= 0.0 {
+            // Peak of the parabola through the last tick's velocity.
+            let y = pos(&w, b)[1] - r;
+            apex.push(y + vy * vy / (2.0 * G));
+        }
+        prev_vy = vy;
+        if apex.len() == 2 {
+            break;
+        }
+    }
+    assert_eq!(apex.len(), 2, "two bounces");
+    (apex[0] / 10.0, apex[1] / apex[0])
+}
+
+#[test]
+fn bouncing_ball_apex_ratio_is_e_squared() {
+    for e in [0.5, 0.9] {
+        let (r1, r2) = apexes(e);
+        let (err1, err2) = ((r1 - e * e).abs() / (e * e), (r2 - e * e).abs() / (e * e));
+        println!(
+            "bounce e={e}: apex ratios {r1:.5}, {r2:.5} vs {:.5}: errors {err1:.4}, {err2:.4}",
+            e * e
+        );
+        assert!(err1 < 0.02 && err2 < 0.02);
+    }
+}
+
 #[test]
 fn sliding_box_stops_at_v_squared_over_two_mu_g() {
     let mut w = world_with(v(0.0, -G, 0.0), false);
@@ -228,6 +267,24 @@ fn sphere_rolls_down_a_20_degree_incline_at_five_sevenths_g_sin_theta() {
 }
 
 #[test]
+fn heavy_box_on_light_box_penetrates_less_than_2_cm() {
+    let mut w = world_with(v(0.0, -G, 0.0), false);
+    ground(&mut w, Material::default());
+    let light = cube(&mut w, v(0.0, 0.5, 0.0), 0.5, 1.0, Material::default());
+    let heavy = cube(&mut w, v(0.0, 1.5, 0.0), 0.5, 100.0, Material::default());
+    let mut worst: f64 = 0.0;
+    for _ in 0..600 {
+        step(&mut w);
+        let gap = (pos(&w, heavy)[1] - 0.5) - (pos(&w, light)[1] + 0.5);
+        worst = worst.max(-gap);
+    }
+    let speed = vel(&w, heavy)[1].abs() + vel(&w, light)[1].abs();
+    println!("mass ratio 1:100: worst penetration {worst:.2e} m, final speed {speed:.2e}");
+    assert!(worst < 0.02);
+    assert!(speed < 0.1, "no explosion");
+}
+
+#[test]
 fn overlapping_boxes_separate_within_a_second_below_5_m_per_s() {
     let mut w = world_with(v(0.0, -G, 0.0), false);
     ground(&mut w, Material::default());
@@ -249,4 +306,58 @@ fn overlapping_boxes_separate_within_a_second_below_5_m_per_s() {
     println!("overlap recovery: separated at tick {separated_at:?}, fastest {fastest:.3} m/s");
     assert!(separated_at.is_some(), "separated within 1 s");
     assert!(fastest < 5.0);
+}
+
+/// A small pile in mid-contact: boxes landing on each other and a ball.
+fn pile() -> World {
+    let mut w = world_with(v(0.0, -G, 0.0), true);
+    ground(&mut w, Material::default());
+    for i in 0..6 {
+        let x = (i % 3) as f64 * 0.6 - 0.6;
+        cube(
+            &mut w,
+            v(x, 0.5 + i as f64 * 0.9, 0.1 * i as f64),
+            0.4,
+            1.0,
+            mat(0.6, 0.2),
+        );
+    }
+    ball(
+        &mut w,
+        v(0.2, 7.0, 0.0),
+        v(0.0, -3.0, 0.0),
+        0.3,
+        mat(0.4, 0.6),
+    );
+    w
+}
+
+#[test]
+fn contact_scenes_repeat_bit_for_bit_and_restore_mid_contact() {
+    let mut a = pile();
+    let mut b = pile();
+    for _ in 0..45 {
+        step(&mut a);
+        step(&mut b);
+        assert_eq!(a.state_hash(), b.state_hash());
+    }
+    assert!(a.step().touching_pairs > 0, "mid-contact at the snapshot");
+    b.step();
+    let mut restored = World::restore(&a.snapshot()).unwrap();
+    for t in 0..240 {
+        let (ra, rr) = (a.step(), restored.step());
+        assert!(ra.faults.is_empty());
+        assert_eq!(ra.contact_constraints, rr.contact_constraints);
+        assert_eq!(
+            a.state_hash(),
+            restored.state_hash(),
+            "tick {t} after restore"
+        );
+    }
+    assert!(
+        a.contact_pairs()
+            .iter()
+            .any(|p| p.impulses[0].normal.is_positive()),
+        "the hashed pairs carry impulses"
+    );
 }

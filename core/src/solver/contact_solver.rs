@@ -235,6 +235,9 @@ impl ContactSolver {
                 continue;
             }
             let Some(pi) = info(p) else { continue };
+            if pi.slot_a as usize >= hot.len() || pi.slot_b as usize >= hot.len() {
+                continue;
+            }
             let (ma, mb) = (moves(pi.slot_a), moves(pi.slot_b));
             let dyn_a = ma && hot[pi.slot_a as usize].kind == BodyKind::Dynamic;
             let dyn_b = mb && hot[pi.slot_b as usize].kind == BodyKind::Dynamic;
@@ -316,7 +319,7 @@ impl ContactSolver {
             let t1 = n.cross(t0);
             c.normal = n;
             c.tangent = [t0, t1];
-            c.count = p.manifold.count as usize;
+            c.count = p.manifold.points().len();
             let ca = if c.a == NONE { Vec3::ZERO } else { ba.center0 };
             let cb = if c.b == NONE { Vec3::ZERO } else { bb.center0 };
             for (k, (mp, imp)) in p.manifold.points().iter().zip(&p.impulses).enumerate() {
@@ -461,11 +464,11 @@ impl ContactSolver {
                 let old = cp.normal_impulse;
                 let new = (old + lambda).max(Scalar::ZERO);
                 let d = new - old;
-                if use_bias && cp.max_normal_impulse.is_zero() && new.is_positive() {
-                    // First push this tick: the approach speed at impact
-                    // (gravity included up to this substep) is what
-                    // restitution reflects, not the speed at the start of
-                    // the tick.
+                if cp.max_normal_impulse.is_zero() && new.is_positive() {
+                    // First push this tick (in a solve or a relax pass):
+                    // the approach speed at impact, gravity included up to
+                    // this substep, is what restitution reflects, not the
+                    // speed at the start of the tick.
                     cp.relative_velocity = cp.relative_velocity.min(vn);
                 }
                 cp.normal_impulse = new;
