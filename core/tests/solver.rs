@@ -361,3 +361,81 @@ fn contact_scenes_repeat_bit_for_bit_and_restore_mid_contact() {
         "the hashed pairs carry impulses"
     );
 }
+
+#[test]
+fn stack_of_20_boxes_stands_for_60_seconds() {
+    // The default world: sleeping on (with one solve and one relax pass per
+    // substep the stack alone keeps rocking by a few centimetres; resting
+    // boxes falling asleep is what keeps it still).
+    let mut w = world_with(v(0.0, -G, 0.0), true);
+    ground(&mut w, Material::default());
+    let boxes: Vec<_> = (0..20)
+        .map(|i| {
+            cube(
+                &mut w,
+                v(0.0, 0.5 + i as f64, 0.0),
+                0.5,
+                1.0,
+                Material::default(),
+            )
+        })
+        .collect();
+    let top = boxes[19];
+    for _ in 0..60 {
+        step(&mut w);
+    }
+    let settled = pos(&w, top);
+    for _ in 0..59 * 60 {
+        step(&mut w);
+    }
+    let p = pos(&w, top);
+    let drift =
+        ((p[0] - settled[0]).powi(2) + (p[1] - settled[1]).powi(2) + (p[2] - settled[2]).powi(2))
+            .sqrt();
+    let sag = 19.5 - p[1];
+    let lateral = (p[0] * p[0] + p[2] * p[2]).sqrt();
+    println!(
+        "stack of 20: top box drift after settling {drift:.2e} m; sag {sag:.2e} m, off-axis {lateral:.2e} m"
+    );
+    assert!(drift < 0.01);
+    // Standing: the top box within 5 cm of the axis (a twentieth of a box)
+    // and the stack no more than 5 cm shorter (soft contacts sag under load).
+    assert!(lateral < 0.05 && sag < 0.05, "no topple");
+}
+
+#[test]
+fn pyramid_of_base_20_stands_for_60_seconds() {
+    // The default world: sleeping on (see the stack of 20).
+    let mut w = world_with(v(0.0, -G, 0.0), true);
+    ground(&mut w, Material::default());
+    let mut boxes = Vec::new();
+    for row in 0..20 {
+        for i in 0..(20 - row) {
+            let x = i as f64 - (19 - row) as f64 * 0.5;
+            boxes.push(cube(
+                &mut w,
+                v(x, 0.5 + row as f64, 0.0),
+                0.5,
+                1.0,
+                Material::default(),
+            ));
+        }
+    }
+    for _ in 0..60 {
+        step(&mut w);
+    }
+    let settled: Vec<_> = boxes.iter().map(|&b| pos(&w, b)).collect();
+    for _ in 0..60 * 59 {
+        step(&mut w);
+    }
+    let worst = boxes
+        .iter()
+        .zip(&settled)
+        .map(|(&b, p0)| {
+            let p = pos(&w, b);
+            ((p[0] - p0[0]).powi(2) + (p[1] - p0[1]).powi(2) + (p[2] - p0[2]).powi(2)).sqrt()
+        })
+        .fold(0.0, f64::max);
+    println!("pyramid of 20: worst box moved {worst:.2e} m after settling");
+    assert!(worst < 0.01);
+}
