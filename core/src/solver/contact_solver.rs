@@ -533,8 +533,10 @@ impl ContactSolver {
 /// resting contacts, so the friction impulses carried from last tick keep
 /// their directions while a normal wobbles.
 fn tangent_of(n: Vec3) -> Vec3 {
-    // 0.57735 ≈ 1/√3: every unit vector has a component at least this big.
-    if n.x.abs() >= Scalar::from_ratio(57_735, 100_000) {
+    // 0.57735 ≈ 1/√3 (bits of 0.57735·2³²): every unit vector has a
+    // component at least this big.
+    const SWITCH: Scalar = Scalar::from_bits(2_479_700_526);
+    if n.x.abs() >= SWITCH {
         Vec3::new(n.y, -n.x, Scalar::ZERO).normalize_or_zero()
     } else {
         Vec3::new(Scalar::ZERO, n.z, -n.y).normalize_or_zero()
