@@ -22,11 +22,16 @@ use crate::math::Scalar;
 
 use super::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
 
+/// How far a contact point may move between steps and still inherit an old
+/// point's impulses when its feature id changed, m.
+pub const MATCH_DISTANCE: Scalar = Scalar::from_bits(1 << 26); // 1/64 m
+
 /// What the solver accumulated on one contact point, carried to the same
 /// point (same feature id) next step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PointImpulse {
-    /// Accumulated normal impulse, N·s.
+    /// Accumulated normal impulse, N·s, over one substep (the solver
+    /// applies it again at the start of every substep: warm starting).
     pub normal: Scalar,
     /// Accumulated friction impulses along the two tangent directions.
     pub tangent: [Scalar; 2],
@@ -79,13 +84,42 @@ impl ContactPair {
     }
 
     /// Installs this step's manifold, carrying each point's impulses over
-    /// from last step's point with the same feature id (new points start at
-    /// zero).
+    /// from last step's point with the same feature id, or else from the
+    /// nearest unclaimed old point within [`MATCH_DISTANCE`] (new points
+    /// start at zero).
     pub fn update_manifold(&mut self, new: &Manifold) {
         let mut impulses = [PointImpulse::default(); MAX_MANIFOLD_POINTS];
+        let old = self.manifold.points();
+        let mut used = [false; MAX_MANIFOLD_POINTS];
+        let mut matched = [false; MAX_MANIFOLD_POINTS];
         for (i, p) in new.points().iter().enumerate() {
-            if let Some(j) = self.manifold.points().iter().position(|q| q.id == p.id) {
+            if let Some(j) = old.iter().position(|q| q.id == p.id)
+                && !used[j]
+            {
                 impulses[i] = self.impulses[j];
+                used[j] = true;
+                matched[i] = true;
+            }
+        }
+        // A point whose features changed (a box pair that swapped its
+        // reference face as it tilted a hair) keeps the impulse of the
+        // nearest unclaimed old point within MATCH_DISTANCE: losing the warm
+        // start there rocks tall stacks.
+        let limit = MATCH_DISTANCE.wide_mul(MATCH_DISTANCE) as u128;
+        for (i, p) in new.points().iter().enumerate() {
+            if matched[i] {
+                continue;
+            }
+            let mut best: Option<(usize, u128)> = None;
+            for (j, q) in old.iter().enumerate() {
+                let d = (p.point - q.point).length_squared_wide();
+                if !used[j] && d <= limit && best.is_none_or(|(_, b)| d < b) {
+                    best = Some((j, d));
+                }
+            }
+            if let Some((j, _)) = best {
+                impulses[i] = self.impulses[j];
+                used[j] = true;
             }
         }
         self.manifold = *new;
@@ -189,6 +223,11 @@ impl ContactSet {
     /// The current pairs, ascending by (A, B) handle index.
     pub fn pairs(&self) -> &[ContactPair] {
         &self.pairs
+    }
+
+    /// The current pairs, mutably (the solver writes the impulses back).
+    pub(crate) fn pairs_mut(&mut self) -> &mut [ContactPair] {
+        &mut self.pairs
     }
 
     /// The events of the last update, in pair order.
@@ -370,9 +409,29 @@ mod tests {
         let mut m = Manifold::EMPTY;
         m.normal = Vec3::Y;
         for &(id, depth) in points {
-            m.push(point(Vec3::ZERO, Scalar::from_ratio(depth as i64, 100), id));
+            // Each feature at its own place, a metre apart.
+            let at = Vec3::new(Scalar::from_int(id as i32), Scalar::ZERO, Scalar::ZERO);
+            m.push(point(at, Scalar::from_ratio(depth as i64, 100), id));
         }
         m
+    }
+
+    #[test]
+    fn a_point_with_new_features_inherits_the_nearest_old_impulse() {
+        let mut p = ContactPair::new(ch(0), ch(1), PairKind::Solid);
+        p.update_manifold(&manifold(&[(10, 1), (11, 1)]));
+        p.impulses[0].normal = Scalar::from_int(5);
+        p.impulses[1].normal = Scalar::from_int(6);
+        // Feature 11 renamed 40 but 1 mm from where 11 was; feature 41 is
+        // far from everything.
+        let mut m = manifold(&[(10, 1)]);
+        let near = Vec3::new(Scalar::from_ratio(11_001, 1000), Scalar::ZERO, Scalar::ZERO);
+        m.push(point(near, Scalar::ZERO, 40));
+        m.push(point(Vec3::from_ints(30, 0, 0), Scalar::ZERO, 41));
+        p.update_manifold(&m);
+        assert_eq!(p.impulses[0].normal, Scalar::from_int(5));
+        assert_eq!(p.impulses[1].normal, Scalar::from_int(6));
+        assert_eq!(p.impulses[2], PointImpulse::default());
     }
 
     #[test]

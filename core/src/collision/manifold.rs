@@ -66,9 +66,10 @@ impl Manifold {
         count: 0,
     };
 
-    /// The points in use.
+    /// The points in use (a count beyond capacity, as from a corrupted
+    /// snapshot, is read as full).
     pub fn points(&self) -> &[ContactPoint] {
-        &self.points[..self.count as usize]
+        &self.points[..(self.count as usize).min(MAX_MANIFOLD_POINTS)]
     }
 
     /// Whether there is no contact.

@@ -1,5 +1,6 @@
-//! The step's numerical stages: integration and sleeping (the contact
-//! solver and islands join here).
+//! The step's numerical stages: integration, the contact solver and
+//! sleeping (islands join here).
 
+pub(crate) mod contact_solver;
 pub mod integrate;
 pub mod sleep;

@@ -132,12 +132,21 @@ impl World {
             let c = colliders.get(ch.0)?;
             let hot = bodies.hot(c.body)?;
             let cold = bodies.cold(c.body)?;
-            Some((c, c.world_pose(&hot.origin_pose(cold.local_center))))
+            Some((
+                c,
+                c.world_pose(&hot.origin_pose(cold.local_center)),
+                hot.linear_velocity,
+            ))
         };
+        // Speculative distance: the fixed margin plus how far the two bodies
+        // close in one tick, so a fast body gets its contact point before it
+        // passes the surface, and the solver stops it exactly there (no
+        // overlap to push out, and a bounce from the right height).
         let narrow_phase =
             |a: ColliderHandle, b: ColliderHandle, out: &mut crate::collision::Manifold| {
-                if let (Some((ca, pa)), Some((cb, pb))) = (pose_of(a), pose_of(b)) {
-                    narrow::contact(&ca.shape, &pa, &cb.shape, &pb, margin, out);
+                if let (Some((ca, pa, va)), Some((cb, pb, vb))) = (pose_of(a), pose_of(b)) {
+                    let reach = margin + (vb - va).length() * dt;
+                    narrow::contact(&ca.shape, &pa, &cb.shape, &pb, reach, out);
                 }
             };
         let resting = |p: &crate::collision::ContactPair| {

@@ -11,6 +11,8 @@ use crate::solver::sleep::SleepConfig;
 
 /// The most substeps a step may be split into.
 pub const MAX_SUBSTEPS: u32 = 64;
+/// The most solver (or relax) passes per substep.
+pub const MAX_SOLVER_ITERATIONS: u32 = 64;
 /// The highest tick rate accepted, Hz.
 pub const MAX_TICK_RATE: u32 = 10_000;
 
@@ -25,18 +27,39 @@ pub struct WorldConfig {
     pub substeps: u32,
     /// Sleep thresholds.
     pub sleep: SleepConfig,
-    /// Speculative contact distance, m: shapes closer than this get contact
-    /// points (with negative depth) before they touch, so the solver can stop
-    /// them without a gap or an overlap.
+    /// Speculative contact distance, m: shapes closer than this (plus the
+    /// distance their bodies close in one tick) get contact points (with
+    /// negative depth) before they touch, so the solver can stop them
+    /// without a gap or an overlap.
     pub contact_margin: Scalar,
     /// How far the broad phase's fat boxes extend beyond the shapes, m: a
     /// body moving less than this per step does not touch the trees.
     pub broad_phase_margin: Scalar,
+    /// Contact solver passes with bias (push-out) per substep, ≥ 1.
+    pub solver_iterations: u32,
+    /// Contact solver passes without bias (relax) per substep, ≥ 1.
+    pub relax_iterations: u32,
+    /// Stiffness of the soft contact, Hz: overlaps are pushed out like a
+    /// spring of this frequency (capped at a quarter of the substep rate so
+    /// it stays stable).
+    pub contact_hertz: Scalar,
+    /// Damping ratio of the soft contact (≥ 0; large values push out
+    /// without overshoot).
+    pub contact_damping_ratio: Scalar,
+    /// The fastest the solver pushes overlapping shapes apart, m/s.
+    pub max_push_out: Scalar,
+    /// Approach speed under which contacts do not bounce, m/s (keeps
+    /// resting contacts from jittering).
+    pub restitution_threshold: Scalar,
 }
 
 impl Default for WorldConfig {
     /// Gravity (0, −9.81, 0), 60 Hz, 4 substeps, default sleep settings,
-    /// 2 cm contact margin, 10 cm broad-phase margin.
+    /// 2 cm contact margin, 10 cm broad-phase margin; one solve and one
+    /// relax pass per substep, contacts at 60 Hz with damping ratio 10,
+    /// push-out at most 3 m/s, no bounce under 1 m/s (Box2D v3's values,
+    /// except the contact frequency: Box2D's 30 Hz lets a stack of 20 sag
+    /// 11 cm; 60 Hz is still a quarter of the 240 Hz substep rate).
     fn default() -> WorldConfig {
         WorldConfig {
             gravity: Vec3::new(Scalar::ZERO, Scalar::from_ratio(-981, 100), Scalar::ZERO),
@@ -45,6 +68,12 @@ impl Default for WorldConfig {
             sleep: SleepConfig::default(),
             contact_margin: Scalar::from_ratio(1, 50),
             broad_phase_margin: Scalar::from_ratio(1, 10),
+            solver_iterations: 1,
+            relax_iterations: 1,
+            contact_hertz: Scalar::from_int(60),
+            contact_damping_ratio: Scalar::from_int(10),
+            max_push_out: Scalar::from_int(3),
+            restitution_threshold: Scalar::ONE,
         }
     }
 }
@@ -70,6 +99,24 @@ impl WorldConfig {
         if self.contact_margin.is_negative() || self.broad_phase_margin.is_negative() {
             return Err(WorldError::InvalidConfig(
                 "contact and broad-phase margins must not be negative".into(),
+            ));
+        }
+        if self.solver_iterations == 0
+            || self.relax_iterations == 0
+            || self.solver_iterations > MAX_SOLVER_ITERATIONS
+            || self.relax_iterations > MAX_SOLVER_ITERATIONS
+        {
+            return Err(WorldError::InvalidConfig(format!(
+                "solver and relax iterations must be in 1..={MAX_SOLVER_ITERATIONS}"
+            )));
+        }
+        if self.contact_hertz.is_negative()
+            || self.contact_damping_ratio.is_negative()
+            || self.max_push_out.is_negative()
+            || self.restitution_threshold.is_negative()
+        {
+            return Err(WorldError::InvalidConfig(
+                "contact hertz, damping ratio, push-out speed and restitution threshold must not be negative".into(),
             ));
         }
         let s = &self.sleep;
@@ -127,6 +174,9 @@ pub struct StepReport {
     pub end_events: u32,
     /// Broad-phase proxies moved in their trees this step.
     pub proxies_reinserted: u32,
+    /// Contact constraints solved (solid pairs with points and at least
+    /// one awake dynamic body).
+    pub contact_constraints: u32,
     /// Times an internal buffer had to grow during the step (an allocation:
     /// zero once the world is warm).
     pub buffer_growths: u32,

@@ -8,7 +8,9 @@ mod state_hash;
 mod step;
 
 pub use body_ref::BodyRef;
-pub use config::{MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig, WorldError};
+pub use config::{
+    MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig, WorldError,
+};
 pub use state_hash::STATE_HASH_VERSION;
 
 use serde::{Deserialize, Serialize};
@@ -19,6 +21,7 @@ use crate::collider::{Collider, ColliderDesc, ColliderHandle, MassSpec};
 use crate::collision::{BroadPhase, ContactEvent, ContactPair, ContactSet, ProxyId, ProxyKey};
 use crate::math::{FaultScope, Faults, Quat, Scalar, SymMat3, Transform, Vec3};
 use crate::shape::MassProperties;
+use crate::solver::contact_solver::ContactSolver;
 use crate::solver::integrate::{momentum_from_omega, omega_from_momentum};
 
 /// A physics world: everything one simulation needs, and nothing global.
@@ -38,6 +41,10 @@ pub struct World {
     /// Scratch: the broad phase's candidate pairs (reused every step).
     #[serde(skip)]
     candidates: Vec<(ProxyKey, ProxyKey)>,
+    /// Scratch: the contact solver's bodies and constraints (reused every
+    /// step).
+    #[serde(skip)]
+    solver: ContactSolver,
 }
 
 impl PartialEq for World {
@@ -66,6 +73,7 @@ impl World {
             contacts: ContactSet::default(),
             faults: Faults::NONE,
             candidates: Vec::new(),
+            solver: ContactSolver::default(),
         })
     }
 

@@ -10,7 +10,7 @@ use super::World;
 /// Version of the hashed layout; bumped whenever the list of hashed words
 /// changes, so hashes from different layouts never compare equal by
 /// accident.
-pub const STATE_HASH_VERSION: u64 = 2;
+pub const STATE_HASH_VERSION: u64 = 3;
 
 impl World {
     /// The canonical hash of everything that influences later steps: the
@@ -31,6 +31,12 @@ impl World {
         h.scalar(c.sleep.time_to_sleep);
         h.scalar(c.contact_margin);
         h.scalar(c.broad_phase_margin);
+        h.word(c.solver_iterations as u64);
+        h.word(c.relax_iterations as u64);
+        h.scalar(c.contact_hertz);
+        h.scalar(c.contact_damping_ratio);
+        h.scalar(c.max_push_out);
+        h.scalar(c.restitution_threshold);
         h.word(self.bodies.len() as u64);
         for (handle, hot, cold) in self.bodies.iter() {
             h.word(handle.index() as u64);

@@ -1,7 +1,8 @@
 //! `World::step`: the named stages, in order.
 
 use crate::body::BodyKind;
-use crate::math::Vec3;
+use crate::math::{Scalar, Vec3};
+use crate::solver::contact_solver::{PairInfo, Softness, SolverParams, SolverStats};
 use crate::solver::{integrate, sleep};
 
 use super::{StepReport, World, rotation_delta};
@@ -16,14 +17,18 @@ impl World {
     ///    the tick, candidate pairs, narrow phase, persistent manifolds and
     ///    contact/trigger events (read them with
     ///    [`World::contact_events`]);
-    /// 2. per substep: `integrate_velocities` (gravity, forces, torques,
-    ///    damping, the gyroscopic midpoint), then `integrate_positions`;
-    /// 3. `finish_velocities`: end-of-tick angular velocities from momenta;
-    /// 4. `snap_kinematic`: targeted kinematic bodies land exactly on their
+    /// 2. `prepare_contacts`: solver bodies and contact constraints from the
+    ///    touching and speculative points (effective masses, anchors);
+    /// 3. per substep: `integrate_velocities` (gravity, forces, torques,
+    ///    damping, the gyroscopic midpoint), `warm_start`, `solve` (soft,
+    ///    with push-out), `integrate_positions`, `relax` (no push-out);
+    /// 4. `restitution`, then `store_impulses` for warm starting next tick;
+    /// 5. `finish_velocities`: end-of-tick angular velocities from momenta;
+    /// 6. `snap_kinematic`: targeted kinematic bodies land exactly on their
     ///    targets and stop;
-    /// 5. `clear_forces`;
-    /// 6. `sleep`: timers advance, resting bodies fall asleep;
-    /// 7. the tick counter advances.
+    /// 7. `clear_forces`;
+    /// 8. `sleep`: timers advance, resting bodies fall asleep;
+    /// 9. the tick counter advances.
     ///
     /// Never allocates once the world is built, never panics; arithmetic
     /// faults are reported in the returned [`StepReport`] and kept in
@@ -55,12 +60,40 @@ impl World {
         report.proxies_reinserted = reinserted;
         report.buffer_growths = contacts.growths;
 
-        let (hot, live) = self.bodies.hot_slots_mut();
+        let params = self.solver_params();
+        let prep = self.stage_prepare_contacts();
+        report.contact_constraints = prep.constraints;
+        report.buffer_growths += prep.growths;
+
+        let World { bodies, solver, .. } = self;
+        let (hot, live) = bodies.hot_slots_mut();
+        let solving = !solver.is_empty();
         for _ in 0..cfg.substeps {
             let c = integrate::integrate_velocities(hot, live, cfg.gravity, h);
             report.awake_bodies = c.integrated;
             report.gyroscopic_solves += c.gyroscopic;
+            if solving {
+                solver.gather(hot);
+                solver.warm_start();
+                for _ in 0..cfg.solver_iterations {
+                    solver.solve(&params, true);
+                }
+                solver.scatter(hot);
+            }
             integrate::integrate_positions(hot, live, h);
+            if solving {
+                solver.gather(hot);
+                for _ in 0..cfg.relax_iterations {
+                    solver.solve(&params, false);
+                }
+                solver.scatter(hot);
+            }
+        }
+        if solving {
+            solver.gather(hot);
+            solver.restitution(&params);
+            solver.scatter(hot);
+            solver.store_impulses(self.contacts.pairs_mut());
         }
         integrate::finish_angular_velocities(hot, live);
 
@@ -77,6 +110,45 @@ impl World {
         self.tick += 1;
         report.tick = self.tick;
         report
+    }
+
+    /// The solver's settings for this world's substep.
+    fn solver_params(&self) -> SolverParams {
+        let cfg = &self.config;
+        let h = cfg.substep_dt();
+        // A spring faster than a quarter of the substep rate is not resolved
+        // by the substeps: cap it there (as Box2D does).
+        let substep_rate = cfg.tick_rate as i64 * cfg.substeps as i64;
+        let hertz = cfg.contact_hertz.min(Scalar::from_ratio(substep_rate, 4));
+        SolverParams {
+            inv_h: Scalar::from_int(substep_rate as i32),
+            softness: Softness::new(hertz, cfg.contact_damping_ratio, h),
+            max_push_out: cfg.max_push_out,
+            restitution_threshold: cfg.restitution_threshold,
+        }
+    }
+
+    /// Builds this tick's contact constraints from the solid pairs.
+    fn stage_prepare_contacts(&mut self) -> SolverStats {
+        let World {
+            bodies,
+            colliders,
+            contacts,
+            solver,
+            ..
+        } = self;
+        let (hot, _) = bodies.hot_slots_mut();
+        solver.prepare(contacts.pairs(), hot, |p| {
+            let ca = colliders.get(p.a.0)?;
+            let cb = colliders.get(p.b.0)?;
+            let m = ca.material.combine(&cb.material);
+            Some(PairInfo {
+                slot_a: ca.body.0.index,
+                slot_b: cb.body.0.index,
+                friction: m.friction,
+                restitution: m.restitution,
+            })
+        })
     }
 
     /// Kinematic bodies with a target get the constant velocities that carry
