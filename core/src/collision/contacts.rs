@@ -26,6 +26,13 @@ use super::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
 /// point's impulses when its feature id changed, m.
 pub const MATCH_DISTANCE: Scalar = Scalar::from_bits(1 << 26); // 1/64 m
 
+/// How close counts as touching for solid pairs, m (2⁻¹⁰ ≈ 1 mm). The
+/// solver stops speculative contacts at zero gap, give or take rounding, so
+/// a strict `depth ≥ 0` could miss a collision entirely; a millimetre is far
+/// below anything a player sees and far above rounding. Trigger pairs use
+/// actual overlap (depth ≥ 0): nothing resolves them.
+pub const TOUCH_TOLERANCE: Scalar = Scalar::from_bits(1 << 22);
+
 /// What the solver accumulated on one contact point, carried to the same
 /// point (same feature id) next step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -56,8 +63,8 @@ pub struct ContactPair {
     pub b: ColliderHandle,
     /// Solid or trigger.
     pub kind: PairKind,
-    /// Whether the shapes touch (some point with depth ≥ 0; for triggers,
-    /// whether they overlap).
+    /// Whether the shapes touch: some point within [`TOUCH_TOLERANCE`] of
+    /// contact (depth ≥ −1 mm); for triggers, whether they overlap.
     pub touching: bool,
     /// The contact manifold, normal from A to B (always empty for triggers).
     pub manifold: Manifold,
@@ -124,7 +131,7 @@ impl ContactPair {
         }
         self.manifold = *new;
         self.impulses = impulses;
-        self.touching = new.points().iter().any(|p| !p.depth.is_negative());
+        self.touching = new.points().iter().any(|p| p.depth >= -TOUCH_TOLERANCE);
     }
 }
 
@@ -352,10 +359,14 @@ impl ContactSet {
     }
 
     /// Feeds every pair's persistent state into the world's state hash (the
-    /// word order is in `docs/determinism.md`).
+    /// word order is in `docs/determinism.md`). Pairs that carry nothing (no
+    /// points, not touching, so no impulses) are left out: whether the broad
+    /// phase lists such a pair depends on the history of its fat boxes, which
+    /// does not influence any later step.
     pub(crate) fn hash_into(&self, h: &mut crate::hash::StateHasher) {
-        h.word(self.pairs.len() as u64);
-        for p in &self.pairs {
+        let carries = |p: &&ContactPair| p.touching || p.manifold.count != 0;
+        h.word(self.pairs.iter().filter(carries).count() as u64);
+        for p in self.pairs.iter().filter(carries) {
             h.word(p.a.0.index as u64);
             h.word(p.a.0.generation as u64);
             h.word(p.b.0.index as u64);

@@ -60,24 +60,24 @@ impl World {
         }
     }
 
-    /// The collision stage: refresh the proxies of bodies that moved or
-    /// changed sleep state, find candidate pairs, run the narrow phase on
-    /// each and update the persistent contact set and its events.
+    /// Brings every proxy's kind in line with its body (static, kinematic,
+    /// awake or asleep) and, when `move_shapes`, moves the proxies of awake
+    /// moving bodies to their shapes' current boxes (fat boxes extended by
+    /// the coming step's motion `v·dt`).
     ///
-    /// Determinism: proxies are refreshed in handle order; candidates come
-    /// out of the broad phase sorted by collider handle, and everything after
-    /// follows that order.
-    pub(crate) fn stage_collide(&mut self) -> (ContactStats, u32) {
+    /// Called with `move_shapes` at the end of every step, so queries
+    /// between steps see where bodies are, and kinds-only at the start of the
+    /// collision stage, since the game may wake or put bodies to sleep
+    /// between steps.
+    ///
+    /// Determinism: bodies in handle order, colliders in the order added.
+    pub(crate) fn sync_proxies(&mut self, move_shapes: bool) {
         let margin = self.config.contact_margin;
         let dt = self.config.dt();
-        // 1. Proxies: awake moving bodies follow their shapes; every body's
-        //    proxies follow its sleep state.
         let World {
             bodies,
             colliders,
             broad,
-            contacts,
-            candidates,
             ..
         } = self;
         for (handle, hot, cold) in bodies.iter() {
@@ -85,7 +85,7 @@ impl World {
                 continue;
             }
             let kind = proxy_kind_of(bodies, handle);
-            let moving = matches!(kind, ProxyKind::Dynamic | ProxyKind::Kinematic);
+            let moving = move_shapes && matches!(kind, ProxyKind::Dynamic | ProxyKind::Kinematic);
             let origin = hot.origin_pose(cold.local_center);
             let displacement = hot.linear_velocity * dt;
             for ch in &cold.colliders {
@@ -101,6 +101,26 @@ impl World {
                 }
             }
         }
+    }
+
+    /// The collision stage: find candidate pairs (the proxies were moved at
+    /// the end of the previous step), run the narrow phase on each and update
+    /// the persistent contact set and its events.
+    ///
+    /// Determinism: candidates come out of the broad phase sorted by collider
+    /// handle, and everything after follows that order.
+    pub(crate) fn stage_collide(&mut self) -> (ContactStats, u32) {
+        let margin = self.config.contact_margin;
+        let dt = self.config.dt();
+        self.sync_proxies(false);
+        let World {
+            bodies,
+            colliders,
+            broad,
+            contacts,
+            candidates,
+            ..
+        } = self;
         // 2. Candidate pairs, filtered by body, category/mask/group and
         //    trigger rules.
         let filter = |ka: ProxyKey, kb: ProxyKey| {

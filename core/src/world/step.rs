@@ -13,9 +13,9 @@ impl World {
     /// Stages, in order:
     /// 1. `kinematic_targets`: kinematic bodies with a target pose get the
     ///    velocities that reach it over the tick;
-    ///    then `collide`: broad-phase update from the poses at the start of
-    ///    the tick, candidate pairs, narrow phase, persistent manifolds and
-    ///    contact/trigger events (read them with
+    ///    then `collide`: candidate pairs from the broad phase (whose proxies
+    ///    follow the poses at the start of the tick), narrow phase,
+    ///    persistent manifolds and contact/trigger events (read them with
     ///    [`World::contact_events`]);
     /// 2. `prepare_contacts`: solver bodies and contact constraints from the
     ///    touching and speculative points (effective masses, anchors);
@@ -28,7 +28,9 @@ impl World {
     ///    targets and stop;
     /// 7. `clear_forces`;
     /// 8. `sleep`: timers advance, resting bodies fall asleep;
-    /// 9. the tick counter advances.
+    /// 9. `sync_proxies`: broad-phase proxies follow the step's motion (so
+    ///    queries between steps see the new poses);
+    /// 10. the tick counter advances.
     ///
     /// Never allocates once the world is built, never panics; arithmetic
     /// faults are reported in the returned [`StepReport`] and kept in
@@ -106,6 +108,10 @@ impl World {
             .zip(live)
             .filter(|(b, l)| **l && b.kind == BodyKind::Dynamic && b.sleeping)
             .count() as u32;
+
+        // Broad phase: proxies follow this step's motion, so queries between
+        // steps see where the bodies are now.
+        self.sync_proxies(true);
 
         self.tick += 1;
         report.tick = self.tick;
