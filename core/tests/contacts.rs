@@ -332,3 +332,70 @@ fn the_state_hash_does_not_depend_on_broad_phase_history() {
     );
     assert!(touched, "and real contacts");
 }
+
+#[test]
+fn a_sleeping_pile_stays_asleep_until_a_moving_ball_hits_it() {
+    let mut w = World::new(WorldConfig::default()).unwrap();
+    let ground = w
+        .create_body(&BodyDesc::fixed().name("ground").position(v(0.0, -0.5, 0.0)))
+        .unwrap();
+    w.add_collider(
+        ground,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(20.0, 0.5, 20.0),
+        })),
+    )
+    .unwrap();
+    let mut pile = Vec::new();
+    for i in 0..3 {
+        let b = w
+            .create_body(&BodyDesc::dynamic().name(format!("box{i}")).position(v(
+                0.0,
+                0.5 + i as f64,
+                0.0,
+            )))
+            .unwrap();
+        w.add_collider(
+            b,
+            ColliderDesc::new(Shape::Cuboid(Cuboid {
+                half_extents: v(0.5, 0.5, 0.5),
+            })),
+        )
+        .unwrap();
+        pile.push(b);
+    }
+    // Let the pile settle and fall asleep; it then stays asleep.
+    for _ in 0..120 {
+        w.step();
+    }
+    assert!(
+        pile.iter().all(|&b| w.body(b).unwrap().is_sleeping()),
+        "the pile sleeps"
+    );
+    let rest: Vec<Vec3> = pile
+        .iter()
+        .map(|&b| w.body(b).unwrap().position())
+        .collect();
+    for _ in 0..60 {
+        let r = w.step();
+        assert_eq!(r.woken_by_contact, 0);
+        assert_eq!(r.awake_bodies, 0);
+    }
+    // A ball thrown at the top box wakes the whole pile.
+    let ball = ball(&mut w, "ball", v(-2.0, 2.5, 0.0), v(8.0, 0.0, 0.0));
+    let mut woke = 0;
+    for _ in 0..60 {
+        let r = w.step();
+        assert!(r.faults.is_empty());
+        woke += r.woken_by_contact;
+    }
+    assert!(woke >= 3, "the hit woke the pile ({woke})");
+    let top_moved = w
+        .body(pile[2])
+        .unwrap()
+        .position()
+        .distance(rest[2])
+        .to_f64();
+    assert!(top_moved > 0.05, "the top box was knocked ({top_moved} m)");
+    let _ = ball;
+}

@@ -184,4 +184,72 @@ impl World {
         stats.growths += pair_stats.buffer_growths;
         (stats, pair_stats.reinsertions)
     }
+
+    /// Wakes sleeping dynamic bodies that a moving body touches or is about
+    /// to touch (any contact point, speculative ones included): an awake
+    /// dynamic body that was not resting at the last sleep update, or a
+    /// kinematic body with a velocity. A woken body counts as moving, so a
+    /// whole resting pile wakes when something hits it (as an island would);
+    /// a body that merely rests against a sleeper does not wake it, so two
+    /// resting bodies cannot keep waking each other. Returns how many woke.
+    /// Each pass wakes at least one body or ends the loop, so it runs at
+    /// most (sleeping bodies + 1) passes.
+    ///
+    /// Determinism: pairs in handle order; each decision reads the state as
+    /// left by the pairs before it.
+    pub(crate) fn stage_wake_touched(&mut self) -> u32 {
+        // Repeat until a pass wakes nothing, so a woken body passes the wake
+        // on through pairs that come before it in handle order: the whole
+        // touching set wakes this step, whatever the handle order.
+        let mut total = 0;
+        loop {
+            let woken = self.wake_pass();
+            total += woken;
+            if woken == 0 {
+                return total;
+            }
+        }
+    }
+
+    /// One pass of [`World::stage_wake_touched`] over the pairs.
+    fn wake_pass(&mut self) -> u32 {
+        let mut woken = 0;
+        for i in 0..self.contacts.pairs().len() {
+            let p = self.contacts.pairs()[i];
+            // Any point counts, speculative ones included: the solver would
+            // otherwise stop the mover against a sleeper as against a wall
+            // in this very step.
+            if p.manifold.is_empty() || p.kind != PairKind::Solid {
+                continue;
+            }
+            let (Some(ca), Some(cb)) = (self.colliders.get(p.a.0), self.colliders.get(p.b.0))
+            else {
+                continue;
+            };
+            for (sleeper, other) in [(ca.body, cb.body), (cb.body, ca.body)] {
+                let moving = match self.bodies.hot(other) {
+                    Some(o) => match o.kind {
+                        BodyKind::Dynamic => !o.sleeping && o.rest_ticks == 0,
+                        BodyKind::Kinematic => {
+                            !o.linear_velocity.is_zero() || !o.angular_velocity.is_zero()
+                        }
+                        BodyKind::Static => false,
+                    },
+                    None => false,
+                };
+                if !moving {
+                    continue;
+                }
+                if let Some(s) = self.bodies.hot_mut(sleeper)
+                    && s.kind == BodyKind::Dynamic
+                    && s.sleeping
+                {
+                    s.sleeping = false;
+                    s.rest_ticks = 0;
+                    woken += 1;
+                }
+            }
+        }
+        woken
+    }
 }

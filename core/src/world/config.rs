@@ -158,6 +158,8 @@ pub struct StepReport {
     pub kinematic_bodies: u32,
     /// Body-substeps that needed the gyroscopic midpoint solve.
     pub gyroscopic_solves: u32,
+    /// Sleeping bodies woken because a moving body touched them.
+    pub woken_by_contact: u32,
     /// Bodies that fell asleep during this step.
     pub fell_asleep: u32,
     /// Candidate pairs from the broad phase (fat boxes overlap).

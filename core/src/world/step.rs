@@ -16,7 +16,8 @@ impl World {
     ///    then `collide`: candidate pairs from the broad phase (whose proxies
     ///    follow the poses at the start of the tick), narrow phase,
     ///    persistent manifolds and contact/trigger events (read them with
-    ///    [`World::contact_events`]);
+    ///    [`World::contact_events`]); then `wake_touched`: sleeping bodies
+    ///    touched by a moving body wake;
     /// 2. `prepare_contacts`: solver bodies and contact constraints from the
     ///    touching and speculative points (effective masses, anchors);
     /// 3. per substep: `integrate_velocities` (gravity, forces, torques,
@@ -53,6 +54,7 @@ impl World {
         report.kinematic_bodies = self.stage_kinematic_targets();
 
         let (contacts, reinserted) = self.stage_collide();
+        report.woken_by_contact = self.stage_wake_touched();
         report.candidate_pairs = contacts.candidates;
         report.narrow_tests = contacts.narrow_tests;
         report.touching_pairs = contacts.touching;
