@@ -7,43 +7,27 @@
 //!    counts as no input (stand still, no jump). A slot without an entry
 //!    whose body sleeps is left alone: players who never joined stay asleep
 //!    and untouched. A slot without an entry whose body is awake (a player
-//!    who left) is driven as if it gave no input, and put back to sleep once
-//!    it stands still on the floor.
-//! 2. **Floor and walls (a stand-in for contacts).** lockstep-core has no
-//!    collision detection or contact solver yet, so gravity alone would pull
-//!    every player through the floor. Until it has, the rules keep players
-//!    in, in two halves:
-//!    * *corrective*, before the inputs are applied: a player whose centre
-//!      is below its resting height (floor top + radius), or within
-//!      [`GROUND_EPSILON`] above it and not rising faster than
-//!      [`SNAP_SPEED`], is put on the floor (`set_pose` at the resting
-//!      height, keeping x, z and the rotation) with its downward velocity
-//!      zeroed, and then *stands on the floor*; a player whose centre is past
-//!      a wall (the wall's inner face minus its radius) is put back at the
-//!      wall with its outward velocity zeroed;
-//!    * *speculative*, once its forces are planned: if the coming step would
-//!      end with the centre past the floor or a wall, the acceleration toward
-//!      it is cancelled (for the floor that includes gravity: the floor's
-//!      normal force, which is what holds a standing player up), and if
-//!      coasting would still carry it past, the velocity toward it is cut so
-//!      that the centre arrives exactly there at the end of the step.
-//!
-//!    So a player's centre never ends a step below the floor or past a wall
-//!    (up to a few ulps of rounding). All of this goes away once the contact
-//!    solver exists.
+//!    who left) is driven as if it gave no input until it is slower than
+//!    [`REST_SPEED`]; then it gets no force, comes to rest and falls asleep
+//!    like any resting body.
+//! 2. **Floor and walls** are the world's own contacts: the arena's boxes
+//!    stop the balls, and the crates are knocked over (sleeping crates wake
+//!    when a moving player touches them).
 //! 3. **Movement.** The wished horizontal velocity is `move · MAX_SPEED /
 //!    100`; a horizontal force `F = m · (v_wished − v) · GAIN` drives the
 //!    body toward it, with the acceleration capped at [`MAX_ACCEL`] (in the
 //!    air too: the demo has full air control).
-//! 4. **Jump.** A player standing on the floor who presses jump gets an
-//!    upward impulse `m · JUMP_SPEED` (and no support force that tick).
+//! 4. **Jump.** A player standing on something (a contact whose normal,
+//!    seen from the player, points up by more than [`STANDING_COS`]) and
+//!    not already rising (vertical speed under 1 m/s) who presses jump gets
+//!    the impulse that sets its vertical speed to `JUMP_SPEED`.
 //!
 //! Every number is a [`Scalar`]; nothing here can panic, whatever the bytes.
 
 use lockstep_core::math::{FaultScope, Faults};
 use lockstep_core::scene::{SceneError, load_world};
 use lockstep_core::shape::Shape;
-use lockstep_core::{BodyHandle, BodyKind, Quat, Scalar, Transform, Vec3, World};
+use lockstep_core::{BodyHandle, BodyKind, Quat, Scalar, Vec3, World};
 
 use super::input::DemoInput;
 use super::{GameError, GameRules};
@@ -67,16 +51,19 @@ pub const MAX_ACCEL: Scalar = Scalar::from_int(20);
 /// Vertical speed given by a jump, m/s (about 1.27 m high with g = 9.81).
 pub const JUMP_SPEED: Scalar = Scalar::from_int(5);
 
-/// How far above its resting height a player still counts as standing on
-/// the floor: 2⁻¹⁰ m ≈ 0.98 mm.
-pub const GROUND_EPSILON: Scalar = Scalar::from_bits(1 << 22);
+/// Below this horizontal speed a player who left gets no more drive force,
+/// so it can come to rest and fall asleep: 2⁻⁷ ≈ 0.0078 m/s (a rolling
+/// ball of radius 0.5 m then spins at v/r = 0.016 rad/s: both are under
+/// the world's 0.05 sleep thresholds).
+pub const REST_SPEED: Scalar = Scalar::from_bits(1 << 25);
 
-/// The vertical speed under which a player near the floor is snapped onto
-/// it, and the horizontal speed under which a player who left is put to
-/// sleep: 2⁻⁴ = 0.0625 m/s.
-pub const SNAP_SPEED: Scalar = Scalar::from_bits(1 << 28);
+/// A contact supports a player when its normal, pointing from the support
+/// to the player, has an up component above this (cos 45°, rounded down):
+/// floors and crate tops, not walls.
+pub const STANDING_COS: Scalar = Scalar::from_bits(3_037_000_499);
 
-/// Where one player's body origin is allowed to be.
+/// Where one player's centre can be: inside the arena, on or above the
+/// floor (the world's contacts keep it there).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PlayerLimits {
     /// The body.
@@ -188,7 +175,6 @@ impl DemoGame {
                 *e = Some(bytes);
             }
         }
-        let step = StepShape::of(world);
         for (limits, entry) in self.players.iter().zip(entries) {
             let Ok(body) = world.body(limits.body) else {
                 continue;
@@ -196,56 +182,30 @@ impl DemoGame {
             if entry.is_none() && body.is_sleeping() {
                 continue;
             }
-            let mass = body.mass();
-            let input = entry.and_then(DemoInput::decode).unwrap_or_default();
-            let grounded = settle(world, limits);
+            if entry.is_some() && body.is_sleeping() {
+                // A player in the match is awake, so it has its floor
+                // contact (and can jump) even when it stands still.
+                let _ = world.wake_body(limits.body);
+            }
             let Ok(body) = world.body(limits.body) else {
                 continue;
             };
-            let (p, v0) = (body.position(), body.linear_velocity());
-            if entry.is_none() && grounded && horizontal_speed_below(v0, SNAP_SPEED) {
-                // A player who left, now standing still: back to sleep.
-                let _ = world.sleep_body(limits.body);
-                continue;
-            }
-            let jump = grounded && input.jump;
-            let mut accel = drive_acceleration(v0, input);
-            let mut v = v0;
-            // The velocity the step starts with: the jump impulse is applied
-            // below, but the floor-and-walls limit must already see it.
-            let mut v_start = v0;
-            if jump {
-                v_start.y += JUMP_SPEED;
-            }
-            let axes = [
-                (0, Some(limits.x_min), Some(limits.x_max)),
-                (1, Some(limits.rest_y), None),
-                (2, Some(limits.z_min), Some(limits.z_max)),
-            ];
-            for (i, lo, hi) in axes {
-                let (a, vs) = step.keep_within(
-                    p.get(i),
-                    v_start.get(i),
-                    step.gravity.get(i),
-                    accel.get(i),
-                    lo,
-                    hi,
-                );
-                accel.set(i, a);
-                if vs != v_start.get(i) {
-                    // The impulse below still adds the jump's share.
-                    v.set(i, vs - (v_start.get(i) - v0.get(i)));
-                }
-            }
-            if v != v0 {
-                let _ = world.set_linear_velocity(limits.body, v);
-            }
-            let force = accel * mass;
-            if !force.is_zero() {
+            let mass = body.mass();
+            let v = body.linear_velocity();
+            let input = entry.and_then(DemoInput::decode).unwrap_or_default();
+            // A player who left and has (almost) stopped gets no force: any
+            // force would wake it, and it must be able to rest and sleep.
+            let idle = entry.is_none() && horizontal_speed_below(v, REST_SPEED);
+            let force = drive_acceleration(v, input) * mass;
+            if !idle && !force.is_zero() {
                 let _ = world.apply_force(limits.body, force);
             }
-            if jump {
-                let impulse = Vec3::new(Scalar::ZERO, JUMP_SPEED * mass, Scalar::ZERO);
+            // Not while already rising: the contact that launched the jump
+            // is still listed until the next step's collision stage.
+            if input.jump && v.y < Scalar::ONE && standing(world, limits.body) {
+                // Sets the vertical speed to JUMP_SPEED, whatever it was (a
+                // jump on the landing tick must not just cancel the fall).
+                let impulse = Vec3::new(Scalar::ZERO, (JUMP_SPEED - v.y) * mass, Scalar::ZERO);
                 let _ = world.apply_impulse(limits.body, impulse);
             }
         }
@@ -261,117 +221,31 @@ impl GameRules for DemoGame {
     }
 }
 
-/// What the rules need to know about the coming step to predict where a
-/// body ends it.
-#[derive(Clone, Copy, Debug)]
-struct StepShape {
-    gravity: Vec3,
-    /// The tick length, s.
-    dt: Scalar,
-    /// `dt² · (n + 1) / (2n)` for `n` substeps: under a constant
-    /// acceleration `a`, semi-implicit Euler moves a body by
-    /// `v·dt + a·dt²·(n + 1)/(2n)` over one tick (exactly, up to rounding).
-    accel_factor: Scalar,
-}
-
-impl StepShape {
-    fn of(world: &World) -> StepShape {
-        let cfg = world.config();
-        let n = i64::from(cfg.substeps);
-        let dt = cfg.dt();
-        StepShape {
-            gravity: cfg.gravity,
-            dt,
-            accel_factor: (dt * dt).mul_int(n + 1).div_int(2 * n),
-        }
-    }
-
-    /// The speculative half of the floor-and-walls stand-in, for one axis:
-    /// given the position `p`, the starting velocity `v`, gravity `g` and
-    /// the planned acceleration `a` along the axis, returns the acceleration
-    /// and starting velocity that keep the body's end-of-step position
-    /// within `[lo, hi]` (either may be open). When the body would end past
-    /// a limit, the acceleration toward it is cancelled (including gravity's
-    /// part: the floor's normal force), and if coasting would still carry it
-    /// past, the velocity toward the limit is cut so that the body arrives
-    /// exactly at it at the end of the step.
-    fn keep_within(
-        &self,
-        p: Scalar,
-        v: Scalar,
-        g: Scalar,
-        a: Scalar,
-        lo: Option<Scalar>,
-        hi: Option<Scalar>,
-    ) -> (Scalar, Scalar) {
-        let end = |v: Scalar, net: Scalar| p + v * self.dt + net * self.accel_factor;
-        let (mut a, mut v) = (a, v);
-        if let Some(lo) = lo
-            && end(v, g + a) < lo
-        {
-            if (g + a).is_negative() {
-                a = -g;
-            }
-            if end(v, g + a) < lo {
-                v = (lo - p) / self.dt;
-            }
-        }
-        if let Some(hi) = hi
-            && end(v, g + a) > hi
-        {
-            if (g + a).is_positive() {
-                a = -g;
-            }
-            if end(v, g + a) > hi {
-                v = (hi - p) / self.dt;
-            }
-        }
-        (a, v)
-    }
-}
-
-/// The corrective half of the floor-and-walls stand-in for contacts
-/// (module docs, rule 2): puts the player back on the floor and inside the
-/// walls, zeroing the velocity into them. Returns whether the player stands
-/// on the floor (centre at the resting height, vertical velocity zero).
-fn settle(world: &mut World, limits: &PlayerLimits) -> bool {
-    let Ok(body) = world.body(limits.body) else {
+/// Whether a contact supports the player's body from below (rule 4): a
+/// touching solid pair whose normal, turned to point from the other shape
+/// to the player, has an up component above [`STANDING_COS`]. Scans the
+/// world's contact pairs (a few hundred in the demo).
+fn standing(world: &World, player: BodyHandle) -> bool {
+    let Ok(body) = world.body(player) else {
         return false;
     };
-    let pose = body.pose();
-    let v0 = body.linear_velocity();
-    let (mut p, mut v) = (pose.translation, v0);
-    let mut grounded = false;
-
-    let below = p.y < limits.rest_y;
-    let near = p.y <= limits.rest_y + GROUND_EPSILON && v.y <= SNAP_SPEED;
-    if below || near {
-        p.y = limits.rest_y;
-        if v.y <= SNAP_SPEED {
-            v.y = Scalar::ZERO;
-            grounded = true;
+    let [own] = body.colliders() else {
+        return false;
+    };
+    world.contact_pairs().iter().any(|p| {
+        if !p.touching || p.manifold.is_empty() {
+            return false;
         }
-    }
-    let walls = [
-        (&mut p.x, &mut v.x, limits.x_min, limits.x_max),
-        (&mut p.z, &mut v.z, limits.z_min, limits.z_max),
-    ];
-    for (pos, vel, lo, hi) in walls {
-        if *pos <= lo {
-            *pos = lo;
-            *vel = (*vel).max(Scalar::ZERO);
-        } else if *pos >= hi {
-            *pos = hi;
-            *vel = (*vel).min(Scalar::ZERO);
-        }
-    }
-    if p != pose.translation {
-        let _ = world.set_pose(limits.body, Transform::new(p, pose.rotation));
-    }
-    if v != v0 {
-        let _ = world.set_linear_velocity(limits.body, v);
-    }
-    grounded
+        // The normal points from A to B.
+        let up = if p.b == *own {
+            p.manifold.normal.y
+        } else if p.a == *own {
+            -p.manifold.normal.y
+        } else {
+            return false;
+        };
+        up > STANDING_COS
+    })
 }
 
 /// Whether the horizontal part of `v` is slower than `limit` (compared

@@ -20,8 +20,8 @@ mod input;
 mod tests;
 
 pub use demo::{
-    DemoGame, GAIN, GROUND_EPSILON, JUMP_SPEED, MAX_ACCEL, MAX_PLAYERS, MAX_SPEED, PlayerLimits,
-    SNAP_SPEED,
+    DemoGame, GAIN, JUMP_SPEED, MAX_ACCEL, MAX_PLAYERS, MAX_SPEED, PlayerLimits, REST_SPEED,
+    STANDING_COS,
 };
 pub use input::{DemoInput, INPUT_LEN, bot_input};
 

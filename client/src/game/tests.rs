@@ -1,5 +1,6 @@
 //! Tests of the demo game: the input format, the movement rules against
-//! closed forms, the floor-and-walls stand-in, bots, and determinism.
+//! closed forms, players in the world's contacts (floor, walls, crates),
+//! bots, and determinism.
 
 use lockstep_core::{BodyKind, Scalar, StepReport, Vec3, World};
 
@@ -55,18 +56,24 @@ fn player_vel(world: &World, game: &DemoGame, slot: u8) -> (f64, f64, f64) {
     (v.x.to_f64(), v.y.to_f64(), v.z.to_f64())
 }
 
-/// The rounding slack of the floor-and-walls limit: a centre may end a step
-/// a few ulps past a limit (2⁻³² m each), never more.
-const SLACK: Scalar = Scalar::from_bits(16);
+/// How far a ball may sink into the floor or a wall: contacts are soft
+/// springs (the solver's contact_hertz), so a resting ball sits about 3 mm
+/// deep and a driven one up to about 5 mm; 1 cm is the bound.
+const SLACK: Scalar = Scalar::from_bits(42_949_673);
 
-/// Whether a player's centre is within its limits (up to [`SLACK`]).
-fn within(l: &PlayerLimits, p: Vec3) -> bool {
-    l.x_min - SLACK <= p.x
-        && p.x <= l.x_max + SLACK
-        && l.z_min - SLACK <= p.z
-        && p.z <= l.z_max + SLACK
-        && l.rest_y - SLACK <= p.y
+/// Whether a player's centre is within its limits up to `slack`.
+fn within_by(l: &PlayerLimits, p: Vec3, slack: Scalar) -> bool {
+    l.x_min - slack <= p.x
+        && p.x <= l.x_max + slack
+        && l.z_min - slack <= p.z
+        && p.z <= l.z_max + slack
+        && l.rest_y - slack <= p.y
 }
+
+/// The escape bound when players shove crate piles into the walls: 2 cm.
+/// In the one-minute brawl below the worst excursion past a limit is 6.5 mm
+/// (a ball squeezed between a pile and a wall sinks into the soft contact).
+const SQUEEZE_SLACK: Scalar = Scalar::from_bits(85_899_346);
 
 /// A small xorshift64* generator for fuzzing byte strings.
 struct Rng(u64);
@@ -218,34 +225,36 @@ fn rules_refuse_a_world_without_the_demo_bodies() {
 // ---- movement -----------------------------------------------------------------
 
 #[test]
-fn full_stick_reaches_max_speed_in_two_seconds_and_stays_on_the_floor() {
+fn full_stick_reaches_max_speed_and_stays_on_the_floor() {
     let (mut world, mut game) = demo();
-    let rest = game.limits(0).unwrap().rest_y.to_f64();
+    // Player 2 starts at (4.24, 4.24) and runs diagonally outwards: nothing
+    // is in its way for 1.5 s.
+    let rest = game.limits(2).unwrap().rest_y.to_f64();
     let mut max_dy: f64 = 0.0;
     let mut t_90 = None;
-    for t in 1..=120 {
-        tick(&mut world, &mut game, &[(0, input(100, 0, false))]);
-        let (_, y, _) = player_pos(&world, &game, 0);
+    for t in 1..=90 {
+        tick(&mut world, &mut game, &[(2, input(100, 100, false))]);
+        let (_, y, _) = player_pos(&world, &game, 2);
         max_dy = max_dy.max((y - rest).abs());
-        let (vx, _, _) = player_vel(&world, &game, 0);
+        let (vx, _, _) = player_vel(&world, &game, 2);
         if t_90.is_none() && vx >= 0.9 * 6.0 {
             t_90 = Some(t);
         }
     }
-    let (vx, vy, vz) = player_vel(&world, &game, 0);
+    let (vx, _, vz) = player_vel(&world, &game, 2);
     let speed = MAX_SPEED.to_f64();
     assert!((vx - speed).abs() / speed < 0.02, "vx {vx}");
-    assert!(vz.abs() < 1e-9 && vy.abs() < 1e-6, "vy {vy} vz {vz}");
-    assert!(max_dy < 1e-6, "left the floor by {max_dy} m");
-    // At the 20 m/s² cap up to 4 m/s (0.2 s, 12 ticks), then the gain closes
-    // the last 2 m/s by 1/6 per tick: 90 % after ≈ 12 + 6.6 ticks.
+    assert!((vz - speed).abs() / speed < 0.02, "vz {vz}");
+    assert!(max_dy < SLACK.to_f64(), "left the floor by {max_dy} m");
+    // A rolling ball turns 5/7 of the drive into speed (the rest spins it):
+    // 90 % of top speed after about 0.75 s.
     let t_90 = t_90.unwrap();
     assert!(
-        (15..=20).contains(&t_90),
+        (20..=60).contains(&t_90),
         "90 % of max speed at tick {t_90}"
     );
     println!(
-        "after 2 s: vx = {vx:.9} (max {speed}), |y − rest| ≤ {max_dy:.2e}, 90 % at tick {t_90}"
+        "after 1.5 s: vx = {vx:.6}, vz = {vz:.6} (max {speed}), |y − rest| ≤ {max_dy:.2e}, 90 % at tick {t_90}"
     );
 }
 
@@ -266,29 +275,33 @@ fn diagonal_stick_speed_is_capped_per_axis_percentages() {
 fn releasing_the_stick_brings_the_player_to_rest() {
     let (mut world, mut game) = demo();
     for _ in 0..60 {
-        tick(&mut world, &mut game, &[(0, input(0, 100, false))]);
+        tick(&mut world, &mut game, &[(2, input(100, 100, false))]);
     }
     for _ in 0..120 {
-        tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+        tick(&mut world, &mut game, &[(2, input(0, 0, false))]);
     }
-    let (vx, _, vz) = player_vel(&world, &game, 0);
-    assert!(vx.abs() < 1e-6 && vz.abs() < 1e-6, "{vx} {vz}");
+    let (vx, _, vz) = player_vel(&world, &game, 2);
+    assert!(vx.abs() < 1e-3 && vz.abs() < 1e-3, "{vx} {vz}");
 }
 
 #[test]
 fn jump_reaches_the_closed_form_height_and_lands_on_time() {
     let (mut world, mut game) = demo();
-    let rest = game.limits(0).unwrap().rest_y.to_f64();
-    // Stand for a tick first so the player is awake and settled.
-    tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+    // Stand for a few ticks first so the player is awake, settled on the
+    // floor (a few mm deep in the soft contact) and has its floor contact.
+    for _ in 0..10 {
+        tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+    }
+    let rest = player_pos(&world, &game, 0).1;
     tick(&mut world, &mut game, &[(0, input(0, 0, true))]);
     let mut top: f64 = 0.0;
     let mut landed_after = None;
     for n in 1..=120u32 {
         let (_, y, _) = player_pos(&world, &game, 0);
-        let (_, vy, _) = player_vel(&world, &game, 0);
         top = top.max(y - rest);
-        if vy < 0.0 && y - rest < 1e-6 {
+        // Back at the floor after having risen (the landing may rebound a
+        // little, so the sign of vy is not the test).
+        if top > 0.5 && y - rest < SLACK.to_f64() {
             // Came down onto the floor during the last step.
             landed_after = Some(n);
             break;
@@ -305,10 +318,12 @@ fn jump_reaches_the_closed_form_height_and_lands_on_time() {
         (landed - flight_ticks).abs() <= 1.5,
         "landed after {landed} ticks, closed form {flight_ticks:.2}"
     );
-    // Back on the floor: the stand-in puts it at the resting height.
-    tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+    // Back on the floor, within the soft contact's depth.
+    for _ in 0..30 {
+        tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+    }
     let (_, y, _) = player_pos(&world, &game, 0);
-    assert!((y - rest).abs() < 1e-6, "{y}");
+    assert!((y - rest).abs() < SLACK.to_f64(), "{y}");
     println!(
         "jump: apex {top:.5} m (closed form {h:.5}, {:+.2} %), landed after {landed} ticks (closed form {flight_ticks:.2})",
         (top - h) / h * 100.0
@@ -318,24 +333,37 @@ fn jump_reaches_the_closed_form_height_and_lands_on_time() {
 #[test]
 fn held_jump_does_not_fire_in_the_air_but_again_on_landing() {
     let (mut world, mut game) = demo();
-    let mut takeoffs = 0;
-    let mut was_rising = false;
-    for _ in 0..180 {
+    let rest = game.limits(5).unwrap().rest_y.to_f64();
+    let mut takeoffs = Vec::new();
+    let mut prev_vy = 0.0;
+    for t in 0..200 {
+        let (_, y_before, _) = player_pos(&world, &game, 5);
         tick(&mut world, &mut game, &[(5, input(0, 0, true))]);
         let (_, vy, _) = player_vel(&world, &game, 5);
-        let rising = vy > 4.0;
-        if rising && !was_rising {
-            takeoffs += 1;
+        if vy > 4.0 && prev_vy <= 4.0 {
+            // A jump fired this tick: only from the floor.
+            assert!(
+                y_before - rest < 0.1,
+                "tick {t}: jumped at height {}",
+                y_before - rest
+            );
+            takeoffs.push(t);
         }
-        was_rising = vy > 0.0;
+        prev_vy = vy;
     }
-    // Each hop lasts about 62 ticks: 3 take-offs in 180 ticks.
-    assert_eq!(takeoffs, 3);
+    // Each hop lasts about 62 ticks: four take-offs in 200 ticks (the
+    // first as soon as the floor contact exists), each a full flight apart.
+    assert_eq!(takeoffs.len(), 4, "{takeoffs:?}");
+    assert!(
+        takeoffs.windows(2).all(|w| w[1] - w[0] >= 60),
+        "{takeoffs:?}"
+    );
 }
 
 #[test]
 fn players_cannot_leave_the_arena() {
     let (mut world, mut game) = demo();
+    // Six players run into the walls (through whatever is in the way).
     let pushes: [(u8, i8, i8); 6] = [
         (0, 100, 0),
         (4, 0, 100),
@@ -353,28 +381,23 @@ fn players_cannot_leave_the_arena() {
         for &(s, _, _) in &pushes {
             let l = game.limits(s).unwrap();
             let p = world.body(l.body).unwrap().position();
-            assert!(within(&l, p), "tick {t}: player{s} at {p:?}");
+            // Some of them shove crate piles into the walls.
+            assert!(
+                within_by(&l, p, SQUEEZE_SLACK),
+                "tick {t}: player{s} at {p:?}"
+            );
         }
     }
+    // The two corner runners end pressed into their corners.
     let at = |s: u8| player_pos(&world, &game, s);
-    let close = |a: f64, b: f64| (a - b).abs() < 1e-8;
-    assert!(close(at(0).0, 19.0), "{:?}", at(0));
-    assert!(close(at(4).2, 19.0), "{:?}", at(4));
-    assert!(close(at(8).0, -19.0), "{:?}", at(8));
-    assert!(close(at(12).2, -19.0), "{:?}", at(12));
-    assert!(close(at(2).0, 19.0) && close(at(2).2, 19.0), "{:?}", at(2));
+    let near = |a: f64, b: f64| (a - b).abs() < 0.01;
+    assert!(near(at(2).0, 19.0) && near(at(2).2, 19.0), "{:?}", at(2));
     assert!(
-        close(at(10).0, -19.0) && close(at(10).2, -19.0),
+        near(at(10).0, -19.0) && near(at(10).2, -19.0),
         "{:?}",
         at(10)
     );
-    // Pressed against the wall, the velocity into it is zero (up to the
-    // few ulps per tick that close a rounding gap).
-    let (vx, _, _) = player_vel(&world, &game, 0);
-    assert!(vx.abs() < 1e-6, "{vx}");
 }
-
-// ---- presence, bad input ---------------------------------------------------------
 
 #[test]
 fn malformed_input_is_treated_as_no_input() {
@@ -398,7 +421,7 @@ fn malformed_input_is_treated_as_no_input() {
 #[test]
 fn absent_players_stay_asleep_and_untouched() {
     let (mut world, mut game) = demo();
-    let before: Vec<_> = (8..16u8)
+    let before: Vec<_> = (0..16u8)
         .map(|s| {
             world
                 .body(game.limits(s).unwrap().body)
@@ -407,23 +430,20 @@ fn absent_players_stay_asleep_and_untouched() {
                 .clone()
         })
         .collect();
-    for t in 0..600 {
-        let inputs: Vec<(u8, Vec<u8>)> =
-            (0..8u8).map(|s| (s, bot_input(7, s, t).encode())).collect();
-        tick(&mut world, &mut game, &inputs);
+    // Only player 2 plays, running away from everyone.
+    for _ in 0..120 {
+        tick(&mut world, &mut game, &[(2, input(100, 100, false))]);
     }
-    for (i, s) in (8..16u8).enumerate() {
+    for s in (0..16u8).filter(|&s| s != 2) {
         let hot = world.body(game.limits(s).unwrap().body).unwrap().hot();
-        assert_eq!(hot, &before[i], "player{s}");
+        assert_eq!(hot, &before[usize::from(s)], "player{s}");
     }
-    for s in 0..8u8 {
-        assert!(
-            !world
-                .body(game.limits(s).unwrap().body)
-                .unwrap()
-                .is_sleeping()
-        );
-    }
+    assert!(
+        !world
+            .body(game.limits(2).unwrap().body)
+            .unwrap()
+            .is_sleeping()
+    );
 }
 
 #[test]
@@ -442,17 +462,17 @@ fn a_player_who_leaves_stops_on_the_floor_and_falls_asleep() {
         }
     }
     let asleep_at = asleep_at.expect("fell asleep");
-    // Landing from the jump (≈ 52 ticks left) then slowing from 6 m/s to
-    // 1/16 m/s at 1/6 of the gap per tick (≈ 25 ticks).
-    assert!((50..=110).contains(&asleep_at), "{asleep_at}");
+    // Landing from the jump (≈ 52 ticks left), slowing down, then resting
+    // for the 0.5 s the world needs before a body sleeps.
+    assert!((50..=200).contains(&asleep_at), "{asleep_at}");
     let (_, y, _) = player_pos(&world, &game, 6);
-    assert_eq!(y, 0.5);
+    assert!((y - 0.5).abs() < SLACK.to_f64(), "{y}");
     let hash = world.state_hash();
     for _ in 0..60 {
         tick(&mut world, &mut game, &[]);
     }
     let (_, y2, _) = player_pos(&world, &game, 6);
-    assert_eq!(y2, 0.5);
+    assert_eq!(y2, y, "asleep: it does not move");
     assert!(
         world
             .body(game.limits(6).unwrap().body)
@@ -570,13 +590,18 @@ fn sixteen_bots_for_a_minute_never_fault_and_two_runs_agree_every_tick() {
         for s in 0..16u8 {
             let l = ga.limits(s).unwrap();
             let p = a.body(l.body).unwrap().position();
-            assert!(within(&l, p), "tick {t}: player{s} at {p:?}");
+            // Nobody escapes (see SQUEEZE_SLACK for how deep a squeezed
+            // ball sinks into a wall).
+            assert!(
+                within_by(&l, p, SQUEEZE_SLACK),
+                "tick {t}: player{s} at {p:?}"
+            );
         }
     }
     assert_eq!(a.tick(), 3600);
     assert!(a.faults().is_empty() && ga.faults().is_empty());
-    // The 16 players move; the 45 crates sleep throughout.
-    assert_eq!(awake_max, 16);
+    // The 16 players move, and the crates they run into wake up.
+    assert!(awake_max > 16, "{awake_max}");
 }
 
 #[test]
