@@ -6,7 +6,12 @@
 //! allocation, paid equally by both engines.
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Held for the length of one high-water measurement, so two measurements
+/// (e.g. tests running in parallel) do not reset each other's peak.
+pub static MEASUREMENT: Mutex<()> = Mutex::new(());
 
 /// The system allocator, counting live bytes and their peak.
 pub struct Counting;
@@ -81,6 +86,7 @@ mod tests {
 
     #[test]
     fn peak_tracks_a_large_allocation_after_it_is_freed() {
+        let _one_at_a_time = MEASUREMENT.lock().unwrap_or_else(|e| e.into_inner());
         let base = reset_peak();
         let v = vec![0u8; 1 << 20];
         std::hint::black_box(&v);

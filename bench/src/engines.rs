@@ -277,10 +277,12 @@ struct Run {
     contact_points: usize,
     peak_bytes: usize,
     max_displacement: f64,
+    max_horizontal: f64,
     top_dy: f64,
 }
 
 fn measure<S: Sim>(scene: &Scene, build: impl FnOnce(&Scene) -> S) -> (Run, S) {
+    let _one_at_a_time = alloc::MEASUREMENT.lock().unwrap_or_else(|e| e.into_inner());
     let base = alloc::reset_peak();
     let mut sim = build(scene);
     let mut total = 0.0;
@@ -303,6 +305,12 @@ fn measure<S: Sim>(scene: &Scene, build: impl FnOnce(&Scene) -> S) -> (Run, S) {
         .zip(&end)
         .map(|(&a, &b)| dist(a, b))
         .fold(0.0, f64::max);
+    let max_horizontal = scene
+        .positions
+        .iter()
+        .zip(&end)
+        .map(|(&a, &b)| dist([a[0], 0.0, a[2]], [b[0], 0.0, b[2]]))
+        .fold(0.0, f64::max);
     let top_dy = scene
         .tops
         .iter()
@@ -313,6 +321,7 @@ fn measure<S: Sim>(scene: &Scene, build: impl FnOnce(&Scene) -> S) -> (Run, S) {
         contact_points: sim.contact_points(),
         peak_bytes,
         max_displacement,
+        max_horizontal,
         top_dy,
     };
     (run, sim)
@@ -345,6 +354,10 @@ pub struct EngineResult {
     pub peak_bytes: usize,
     /// Largest distance of any body from its start at the end, m.
     pub max_displacement: f64,
+    /// Largest horizontal (x–z) distance of any body from its start, m: a
+    /// pyramid that sags under soft contacts keeps this small; one that
+    /// topples or slides does not.
+    pub max_horizontal: f64,
     /// Largest vertical movement of a pyramid's top box, m (NaN if the
     /// scene has no pyramid).
     pub top_dy: f64,
@@ -362,6 +375,7 @@ impl EngineResult {
             contact_points: last.contact_points,
             peak_bytes: runs.iter().map(|r| r.peak_bytes).min().unwrap_or(0),
             max_displacement: last.max_displacement,
+            max_horizontal: last.max_horizontal,
             top_dy: if has_tops { last.top_dy } else { f64::NAN },
             faulted,
         }
@@ -498,13 +512,15 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
     );
     let _ = writeln!(
         out,
-        "{:<14} {:>9} {:>9}  {:>8} {:>8}  {:>10} {:>10}  {:>9} {:>9}  {:>6} {:>6}",
+        "{:<14} {:>9} {:>9}  {:>8} {:>8}  {:>10} {:>10}  {:>9} {:>9}  {:>9} {:>9}  {:>6} {:>6}",
         "scene",
         "contacts",
         "(rapier)",
         "KiB/body",
         "(rapier)",
         "max disp m",
+        "(rapier)",
+        "max xz m",
         "(rapier)",
         "top dy m",
         "(rapier)",
@@ -514,7 +530,7 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
     for r in results {
         let _ = writeln!(
             out,
-            "{:<14} {:>9} {:>9}  {:>8.2} {:>8.2}  {:>10.4} {:>10.4}  {:>9.4} {:>9.4}  {:>6} {:>6}{}",
+            "{:<14} {:>9} {:>9}  {:>8.2} {:>8.2}  {:>10.4} {:>10.4}  {:>9.4} {:>9.4}  {:>9.4} {:>9.4}  {:>6} {:>6}{}",
             r.name,
             r.ours.contact_points,
             r.rapier.contact_points,
@@ -522,6 +538,8 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
             kib_per_body(r.rapier.peak_bytes, r.bodies),
             r.ours.max_displacement,
             r.rapier.max_displacement,
+            r.ours.max_horizontal,
+            r.rapier.max_horizontal,
             r.ours.top_dy,
             r.rapier.top_dy,
             r.ours.standing(),
@@ -537,6 +555,7 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
         out,
         "(contacts after the last step: ours StepReport.contact_points, Rapier's solver contacts; \
          KiB/body = heap high-water mark while building and stepping / bodies; \
+         max disp / max xz = largest total / horizontal distance of any body from its start; \
          stands = every pyramid's top box within 1 cm of its start height)"
     );
     out
@@ -545,14 +564,14 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
 /// The results as CSV, one line per scene and engine.
 pub fn csv(results: &[SceneResult]) -> String {
     let mut out = String::from(
-        "suite,scene,engine,bodies,steps,runs,ms_median,ms_min,ratio_ours_to_rapier,contact_points,peak_bytes,bytes_per_body,max_displacement_m,top_dy_m,standing\n",
+        "suite,scene,engine,bodies,steps,runs,ms_median,ms_min,ratio_ours_to_rapier,contact_points,peak_bytes,bytes_per_body,max_displacement_m,max_horizontal_m,top_dy_m,standing\n",
     );
     for r in results {
         let ratio = r.ours.median_ms / r.rapier.median_ms;
         for (engine, e) in [("lockstep", &r.ours), ("rapier3d", &r.rapier)] {
             let _ = writeln!(
                 out,
-                "engines,{},{engine},{},{},{},{:.4},{:.4},{:.4},{},{},{:.1},{:.6},{:.6},{}",
+                "engines,{},{engine},{},{},{},{:.4},{:.4},{:.4},{},{},{:.1},{:.6},{:.6},{:.6},{}",
                 r.name,
                 r.bodies,
                 r.steps,
@@ -564,6 +583,7 @@ pub fn csv(results: &[SceneResult]) -> String {
                 e.peak_bytes,
                 e.peak_bytes as f64 / r.bodies.max(1) as f64,
                 e.max_displacement,
+                e.max_horizontal,
                 e.top_dy,
                 e.standing()
             );
@@ -632,6 +652,7 @@ mod tests {
             assert!(e.median_ms > 0.0 && e.min_ms <= e.median_ms);
             assert!(e.peak_bytes > 0);
             assert!(e.max_displacement.is_finite() && e.top_dy.is_finite());
+            assert!(e.max_horizontal <= e.max_displacement);
         }
         // Rapier resolves the resting contacts: the 6 boxes touch.
         assert!(r.rapier.contact_points >= 4, "{}", r.rapier.contact_points);
@@ -652,6 +673,7 @@ mod tests {
             contact_points: 0,
             peak_bytes: 0,
             max_displacement: 0.0,
+            max_horizontal: 0.0,
             top_dy: 0.0,
         };
         assert_eq!(median_min(&[run(3.0), run(1.0), run(2.0)]), (2.0, 1.0));
