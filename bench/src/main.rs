@@ -3,36 +3,104 @@
 //!
 //! ```text
 //! cargo run --release -p lockstep-bench -- math [--csv FILE] [--quick]
+//! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N]
+//! cargo run --release -p lockstep-bench -- sleep [--quick] [--csv FILE]
 //! ```
 //!
-//! Each suite is a module with a `run(Budget) -> Vec<Row>` function and one
-//! entry in [`SUITES`]; adding a suite (engines, sleep, ...) touches nothing
-//! else. `--quick` runs a tiny number of iterations: CI uses it as a smoke
-//! test that every benchmark still executes, not as a measurement.
+//! Each suite is a module with a `run(&Options) -> SuiteOutput` function and
+//! one entry in [`SUITES`]; adding a suite touches nothing else. `--quick`
+//! runs a tiny size: CI uses it as a smoke test that every benchmark still
+//! executes, not as a measurement.
 
+mod alloc;
+mod engines;
 mod harness;
 mod math;
+mod scenes;
+mod sleep;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
 
-use harness::{Budget, Row};
+use harness::Budget;
+
+/// The heap high-water mark is measured in this binary (see [`alloc`]).
+#[global_allocator]
+static ALLOCATOR: alloc::Counting = alloc::Counting;
+
+/// What a suite is asked to do, from the command line.
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    /// A smoke-run size instead of a measurement.
+    pub quick: bool,
+    /// Only these scenes (the `engines` suite), if given.
+    pub scenes: Option<Vec<String>>,
+    /// Runs per measurement, if not the suite's default.
+    pub runs: Option<usize>,
+}
+
+/// What a suite produced: the printed table and the CSV text.
+pub struct SuiteOutput {
+    /// The table(s) for the terminal.
+    pub text: String,
+    /// The same figures as CSV with a header line.
+    pub csv: String,
+}
 
 /// A benchmark suite that can be selected by name.
 struct Suite {
     name: &'static str,
     about: &'static str,
-    run: fn(Budget) -> Vec<Row>,
+    run: fn(&Options) -> SuiteOutput,
+}
+
+/// The `math` suite behind the common interface.
+fn run_math(opts: &Options) -> SuiteOutput {
+    let mut budget = if opts.quick {
+        Budget::QUICK
+    } else {
+        Budget::FULL
+    };
+    if let Some(runs) = opts.runs {
+        budget.runs = runs;
+    }
+    let rows = math::run(budget);
+    let text = format!(
+        "{} ops per measurement, best of {} runs; ratio = ours / reference\n{}",
+        budget.ops,
+        budget.runs,
+        harness::table(&rows)
+    );
+    SuiteOutput {
+        text,
+        csv: harness::csv("math", &rows),
+    }
 }
 
 /// Every suite, in the order `--help` lists them.
-const SUITES: &[Suite] = &[Suite {
-    name: "math",
-    about: "Q32.32 arithmetic and elementary functions vs f64, fixed and cordic",
-    run: math::run,
-}];
+const SUITES: &[Suite] = &[
+    Suite {
+        name: "math",
+        about: "Q32.32 arithmetic and elementary functions vs f64, fixed and cordic",
+        run: run_math,
+    },
+    Suite {
+        name: "engines",
+        about: "SCENES.md performance scenes, ours vs rapier3d, alternating in one process",
+        run: engines::run,
+    },
+    Suite {
+        name: "sleep",
+        about: "9,600 sleeping boxes + 1 awake vs the same scene awake",
+        run: sleep::run,
+    },
+];
+
+/// Printed with every suite's output.
+const MACHINE_CAVEAT: &str = "caveat: this machine has 2 vCPUs shared with other work; absolute \
+times drift between runs, so compare only ratios measured in the same run";
 
 fn suite_list() -> String {
     SUITES
@@ -54,10 +122,16 @@ struct Cli {
     /// Also write the results as CSV to this file.
     #[arg(long, value_name = "FILE")]
     csv: Option<PathBuf>,
-    /// A tiny iteration count: a smoke run that every benchmark executes,
-    /// not a measurement.
+    /// A tiny size: a smoke run that every benchmark executes, not a
+    /// measurement.
     #[arg(long)]
     quick: bool,
+    /// Only these scenes, comma-separated (`engines` suite).
+    #[arg(long, value_delimiter = ',', value_name = "A,B")]
+    scenes: Option<Vec<String>>,
+    /// Runs per measurement (default: the suite's own).
+    #[arg(long, value_name = "N")]
+    runs: Option<usize>,
 }
 
 fn main() -> ExitCode {
@@ -70,19 +144,36 @@ fn main() -> ExitCode {
         );
         return ExitCode::from(2);
     };
-    let budget = if cli.quick {
-        Budget::QUICK
-    } else {
-        Budget::FULL
+    if let Some(bad) = cli
+        .scenes
+        .iter()
+        .flatten()
+        .find(|s| !engines::SCENE_NAMES.contains(&s.as_str()))
+    {
+        eprintln!(
+            "error: unknown scene `{bad}`; scenes: {}",
+            engines::SCENE_NAMES.join(", ")
+        );
+        return ExitCode::from(2);
+    }
+    let opts = Options {
+        quick: cli.quick,
+        scenes: cli.scenes.clone(),
+        runs: cli.runs,
     };
-    let rows = (suite.run)(budget);
+    let out = (suite.run)(&opts);
     println!(
-        "suite {} ({} ops per measurement, best of {} runs; ratio = ours / reference)",
-        suite.name, budget.ops, budget.runs
+        "suite {}{}\n{MACHINE_CAVEAT}",
+        suite.name,
+        if cli.quick {
+            " (--quick: smoke-run size, not a measurement)"
+        } else {
+            ""
+        }
     );
-    print!("{}", harness::table(&rows));
+    print!("{}", out.text);
     if let Some(path) = &cli.csv {
-        if let Err(e) = std::fs::write(path, harness::csv(suite.name, &rows)) {
+        if let Err(e) = std::fs::write(path, &out.csv) {
             eprintln!("error: cannot write {}: {e}", path.display());
             return ExitCode::FAILURE;
         }
@@ -105,5 +196,19 @@ mod tests {
         }
         let cli = Cli::try_parse_from(["lockstep-bench", "math", "--csv", "out.csv"]).unwrap();
         assert_eq!(cli.csv, Some(PathBuf::from("out.csv")));
+        let cli = Cli::try_parse_from([
+            "lockstep-bench",
+            "engines",
+            "--scenes",
+            "large_pyramid,many_pyramids",
+            "--runs",
+            "2",
+        ])
+        .unwrap();
+        assert_eq!(
+            cli.scenes,
+            Some(vec!["large_pyramid".to_owned(), "many_pyramids".to_owned()])
+        );
+        assert_eq!(cli.runs, Some(2));
     }
 }

@@ -1,0 +1,682 @@
+//! The `engines` suite: the SCENES.md performance scenes built from one
+//! recipe ([`crate::scenes`]) in lockstep-core and in Rapier, stepped
+//! alternately (ours, Rapier, ours, Rapier, ...) in one process.
+//!
+//! Per scene it reports ms/step for both (median and minimum over the runs,
+//! the first step of each run excluded: it builds the trees and the first
+//! contacts), their ratio, the bodies, the contact points after the last
+//! step, the heap high-water mark per body, and whether the pyramids still
+//! stand (the largest displacement of any body from its start, and how far
+//! each pyramid's top box moved vertically: standing = every top within
+//! 1 cm).
+
+use std::fmt::Write as _;
+use std::sync::Arc;
+use std::time::Instant;
+
+use lockstep_core::shape::{ConvexHull, Cuboid, Shape};
+use lockstep_core::solver::sleep::SleepConfig;
+use lockstep_core::{
+    BodyDesc, BodyHandle, ColliderDesc, Material, Scalar, Vec3, World, WorldConfig,
+};
+use rapier3d::prelude::{
+    ColliderBuilder, IntegrationParameters, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
+    SharedShape, Vector,
+};
+
+use crate::alloc;
+use crate::scenes::{self, BodyShape, Scene};
+use crate::{Options, SuiteOutput};
+
+/// Steps per second in both engines.
+const TICK_RATE: u32 = 60;
+/// Our substeps per step.
+const SUBSTEPS: u32 = 4;
+
+/// Rapier's settings, chosen to match our 4 substeps: in Rapier 0.36 each
+/// "solver iteration" is a substep of its TGS-soft solver (integrate, one
+/// PGS pass with bias, one relax pass without), like Box2D v3's soft step.
+fn rapier_parameters() -> IntegrationParameters {
+    IntegrationParameters {
+        dt: 1.0 / TICK_RATE as f32,
+        num_solver_iterations: SUBSTEPS as usize,
+        num_internal_pgs_iterations: 1,
+        num_internal_stabilization_iterations: 1,
+        ..IntegrationParameters::default()
+    }
+}
+
+/// The settings line printed with the table.
+fn settings_text() -> String {
+    let p = rapier_parameters();
+    format!(
+        "ours: lockstep-core, tick_rate {TICK_RATE}, substeps {SUBSTEPS}, sleep off, contact margin 2 cm\n\
+         rapier3d 0.36.1 (dim3, f32, enhanced-determinism; no `parallel`: one thread): dt 1/{TICK_RATE}, \
+         num_solver_iterations {} (= substeps), num_internal_pgs_iterations {}, \
+         num_internal_stabilization_iterations {}, warmstart_coefficient {}, contact_clustering {}, \
+         contact_recycling {}, prediction distance {} m, CCD off, can_sleep(false)\n\
+         both: gravity (0, -10, 0), friction 0.6, restitution 0; bodies = dynamic bodies (plus one static ground)",
+        p.num_solver_iterations,
+        p.num_internal_pgs_iterations,
+        p.num_internal_stabilization_iterations,
+        p.warmstart_coefficient,
+        p.contact_clustering,
+        p.contact_recycling,
+        p.normalized_prediction_distance * p.length_unit,
+    )
+}
+
+/// The two engines behind one small interface.
+trait Sim {
+    fn step(&mut self);
+    /// Contact points after the last step.
+    fn contact_points(&self) -> usize;
+    /// Positions of the dynamic bodies, in scene order.
+    fn positions(&self) -> Vec<[f64; 3]>;
+}
+
+struct Ours {
+    world: World,
+    bodies: Vec<BodyHandle>,
+    contact_points: usize,
+    faulted: bool,
+}
+
+fn s(v: f64) -> Scalar {
+    Scalar::from_f64_lossy(v)
+}
+
+fn v3(p: [f64; 3]) -> Vec3 {
+    Vec3::new(s(p[0]), s(p[1]), s(p[2]))
+}
+
+/// Our world for a scene (sleep as given: off for `engines`).
+pub fn build_ours(scene: &Scene, sleep: SleepConfig) -> (World, Vec<BodyHandle>) {
+    let mut world = World::new(WorldConfig {
+        gravity: Vec3::new(Scalar::ZERO, Scalar::from_int(-10), Scalar::ZERO),
+        tick_rate: TICK_RATE,
+        substeps: SUBSTEPS,
+        sleep,
+        ..WorldConfig::default()
+    })
+    .expect("valid world config");
+    let material = Material::new(s(scene.friction), Scalar::ZERO);
+    let ground = world
+        .create_body(&BodyDesc::fixed().position(v3([0.0, scene.ground_y, 0.0])))
+        .expect("ground body");
+    world
+        .add_collider(
+            ground,
+            ColliderDesc::new(Shape::Cuboid(Cuboid {
+                half_extents: v3(scene.ground_half),
+            }))
+            .material(material),
+        )
+        .expect("ground collider");
+    let shape = match &scene.shape {
+        BodyShape::Cube(h) => Shape::Cuboid(Cuboid {
+            half_extents: v3([*h; 3]),
+        }),
+        BodyShape::Hull(points) => {
+            let pts: Vec<Vec3> = points.iter().map(|&p| v3(p)).collect();
+            Shape::ConvexHull(Arc::new(
+                ConvexHull::from_points(&pts).expect("hull of points on a sphere"),
+            ))
+        }
+    };
+    let bodies = scene
+        .positions
+        .iter()
+        .map(|&p| {
+            let b = world
+                .create_body(&BodyDesc::dynamic().position(v3(p)))
+                .expect("body");
+            world
+                .add_collider(
+                    b,
+                    ColliderDesc::new(shape.clone())
+                        .density(s(scene.density))
+                        .material(material),
+                )
+                .expect("collider");
+            b
+        })
+        .collect();
+    (world, bodies)
+}
+
+impl Ours {
+    fn new(scene: &Scene) -> Ours {
+        let sleep = SleepConfig {
+            enabled: false,
+            ..SleepConfig::default()
+        };
+        let (world, bodies) = build_ours(scene, sleep);
+        Ours {
+            world,
+            bodies,
+            contact_points: 0,
+            faulted: false,
+        }
+    }
+}
+
+impl Sim for Ours {
+    fn step(&mut self) {
+        let r = self.world.step();
+        self.contact_points = r.contact_points as usize;
+        self.faulted |= !r.faults.is_empty();
+    }
+
+    fn contact_points(&self) -> usize {
+        self.contact_points
+    }
+
+    fn positions(&self) -> Vec<[f64; 3]> {
+        self.bodies
+            .iter()
+            .map(|&h| {
+                let p = self.world.body(h).expect("live body").position();
+                [p.x.to_f64(), p.y.to_f64(), p.z.to_f64()]
+            })
+            .collect()
+    }
+}
+
+struct Rapier {
+    world: PhysicsWorld,
+    bodies: Vec<RigidBodyHandle>,
+}
+
+/// The `f32` Rapier gets for a scene value: the value rounded to Q32.32
+/// first, so both engines start from the same numbers.
+fn r(v: f64) -> f32 {
+    s(v).to_f64() as f32
+}
+
+fn rv(p: [f64; 3]) -> Vector {
+    Vector::new(r(p[0]), r(p[1]), r(p[2]))
+}
+
+impl Rapier {
+    fn new(scene: &Scene) -> Rapier {
+        let mut world = PhysicsWorld {
+            gravity: Vector::new(0.0, -10.0, 0.0),
+            integration_parameters: rapier_parameters(),
+            ..PhysicsWorld::default()
+        };
+        let [gx, gy, gz] = scene.ground_half;
+        world.insert(
+            RigidBodyBuilder::fixed().translation(rv([0.0, scene.ground_y, 0.0])),
+            ColliderBuilder::cuboid(r(gx), r(gy), r(gz))
+                .friction(r(scene.friction))
+                .restitution(0.0),
+        );
+        let shape = match &scene.shape {
+            BodyShape::Cube(h) => SharedShape::cuboid(r(*h), r(*h), r(*h)),
+            BodyShape::Hull(points) => {
+                let pts: Vec<Vector> = points.iter().map(|&p| rv(p)).collect();
+                SharedShape::convex_hull(&pts).expect("hull of points on a sphere")
+            }
+        };
+        let bodies = scene
+            .positions
+            .iter()
+            .map(|&p| {
+                world
+                    .insert(
+                        RigidBodyBuilder::dynamic()
+                            .translation(rv(p))
+                            .can_sleep(false),
+                        ColliderBuilder::new(shape.clone())
+                            .density(r(scene.density))
+                            .friction(r(scene.friction))
+                            .restitution(0.0),
+                    )
+                    .0
+            })
+            .collect();
+        Rapier { world, bodies }
+    }
+}
+
+impl Sim for Rapier {
+    fn step(&mut self) {
+        self.world.step();
+    }
+
+    /// The contact points its solver sees (after contact clustering).
+    fn contact_points(&self) -> usize {
+        self.world
+            .narrow_phase
+            .contact_pairs()
+            .map(|pair| {
+                pair.solver_manifolds()
+                    .iter()
+                    .map(|m| m.data.solver_contacts.len())
+                    .sum::<usize>()
+            })
+            .sum()
+    }
+
+    fn positions(&self) -> Vec<[f64; 3]> {
+        self.bodies
+            .iter()
+            .map(|&h| {
+                let t = self.world.bodies[h].translation();
+                [t.x as f64, t.y as f64, t.z as f64]
+            })
+            .collect()
+    }
+}
+
+/// What one run of one engine measured.
+#[derive(Clone, Debug)]
+struct Run {
+    ms_per_step: f64,
+    contact_points: usize,
+    peak_bytes: usize,
+    max_displacement: f64,
+    max_horizontal: f64,
+    top_dy: f64,
+}
+
+fn measure<S: Sim>(scene: &Scene, build: impl FnOnce(&Scene) -> S) -> (Run, S) {
+    let _one_at_a_time = alloc::MEASUREMENT.lock().unwrap_or_else(|e| e.into_inner());
+    let base = alloc::reset_peak();
+    let mut sim = build(scene);
+    let mut total = 0.0;
+    for i in 0..scene.steps {
+        let t = Instant::now();
+        sim.step();
+        let dt = t.elapsed().as_secs_f64();
+        if i > 0 {
+            total += dt;
+        }
+    }
+    let peak_bytes = alloc::peak().saturating_sub(base);
+    let end = sim.positions();
+    let dist = |a: [f64; 3], b: [f64; 3]| {
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    };
+    let max_displacement = scene
+        .positions
+        .iter()
+        .zip(&end)
+        .map(|(&a, &b)| dist(a, b))
+        .fold(0.0, f64::max);
+    let max_horizontal = scene
+        .positions
+        .iter()
+        .zip(&end)
+        .map(|(&a, &b)| dist([a[0], 0.0, a[2]], [b[0], 0.0, b[2]]))
+        .fold(0.0, f64::max);
+    let top_dy = scene
+        .tops
+        .iter()
+        .map(|&i| (end[i][1] - scene.positions[i][1]).abs())
+        .fold(0.0, f64::max);
+    let run = Run {
+        ms_per_step: total * 1e3 / (scene.steps.max(2) - 1) as f64,
+        contact_points: sim.contact_points(),
+        peak_bytes,
+        max_displacement,
+        max_horizontal,
+        top_dy,
+    };
+    (run, sim)
+}
+
+/// Median and minimum of the runs' ms/step.
+fn median_min(runs: &[Run]) -> (f64, f64) {
+    let mut v: Vec<f64> = runs.iter().map(|r| r.ms_per_step).collect();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    let median = if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    };
+    (median, v[0])
+}
+
+/// One engine's summary for one scene.
+#[derive(Clone, Debug)]
+pub struct EngineResult {
+    /// ms/step, median over the runs.
+    pub median_ms: f64,
+    /// ms/step, fastest run.
+    pub min_ms: f64,
+    /// Contact points after the last step (last run).
+    pub contact_points: usize,
+    /// Heap high-water mark while building and stepping, bytes (smallest
+    /// over the runs).
+    pub peak_bytes: usize,
+    /// Largest distance of any body from its start at the end, m.
+    pub max_displacement: f64,
+    /// Largest horizontal (x–z) distance of any body from its start, m: a
+    /// pyramid that sags under soft contacts keeps this small; one that
+    /// topples or slides does not.
+    pub max_horizontal: f64,
+    /// Largest vertical movement of a pyramid's top box, m (NaN if the
+    /// scene has no pyramid).
+    pub top_dy: f64,
+    /// Whether our engine raised a fault flag (always false for Rapier).
+    pub faulted: bool,
+}
+
+impl EngineResult {
+    fn from_runs(runs: &[Run], has_tops: bool, faulted: bool) -> EngineResult {
+        let (median_ms, min_ms) = median_min(runs);
+        let last = runs.last().expect("at least one run");
+        EngineResult {
+            median_ms,
+            min_ms,
+            contact_points: last.contact_points,
+            peak_bytes: runs.iter().map(|r| r.peak_bytes).min().unwrap_or(0),
+            max_displacement: last.max_displacement,
+            max_horizontal: last.max_horizontal,
+            top_dy: if has_tops { last.top_dy } else { f64::NAN },
+            faulted,
+        }
+    }
+
+    /// "yes"/"NO" for the 1 cm top-box check, "n/a" for a pile.
+    pub fn standing(&self) -> &'static str {
+        if self.top_dy.is_nan() {
+            "n/a"
+        } else if self.top_dy <= 0.01 {
+            "yes"
+        } else {
+            "NO"
+        }
+    }
+}
+
+/// One scene's figures for both engines.
+#[derive(Clone, Debug)]
+pub struct SceneResult {
+    /// The scene's name.
+    pub name: &'static str,
+    /// Dynamic bodies.
+    pub bodies: usize,
+    /// Steps per run.
+    pub steps: usize,
+    /// Runs per engine.
+    pub runs: usize,
+    /// lockstep-core.
+    pub ours: EngineResult,
+    /// Rapier.
+    pub rapier: EngineResult,
+}
+
+/// Runs one scene `runs` times per engine, alternating.
+pub fn run_scene(scene: &Scene, runs: usize) -> SceneResult {
+    let mut ours = Vec::new();
+    let mut theirs = Vec::new();
+    let mut faulted = false;
+    for _ in 0..runs.max(1) {
+        let (run, sim) = measure(scene, Ours::new);
+        faulted |= sim.faulted;
+        drop(sim);
+        ours.push(run);
+        let (run, sim) = measure(scene, Rapier::new);
+        drop(sim);
+        theirs.push(run);
+    }
+    let has_tops = !scene.tops.is_empty();
+    SceneResult {
+        name: scene.name,
+        bodies: scene.positions.len(),
+        steps: scene.steps,
+        runs: runs.max(1),
+        ours: EngineResult::from_runs(&ours, has_tops, faulted),
+        rapier: EngineResult::from_runs(&theirs, has_tops, false),
+    }
+}
+
+/// The scenes by name, at full or quick size.
+fn scene_list(quick: bool) -> Vec<(&'static str, Option<Scene>)> {
+    if quick {
+        vec![
+            ("large_pyramid", Some(scenes::large_pyramid(10, 5))),
+            ("many_pyramids", Some(scenes::many_pyramids(2, 4, 10.0, 5))),
+            ("joint_grid", None),
+            ("convex_pile", Some(scenes::convex_pile(2, 2, 2, 5))),
+            ("jolt_pyramid", Some(scenes::jolt_pyramid(4, 5))),
+        ]
+    } else {
+        vec![
+            ("large_pyramid", Some(scenes::large_pyramid(100, 200))),
+            (
+                "many_pyramids",
+                Some(scenes::many_pyramids(14, 10, 77.0, 100)),
+            ),
+            ("joint_grid", None),
+            ("convex_pile", Some(scenes::convex_pile(8, 8, 80, 500))),
+            ("jolt_pyramid", Some(scenes::jolt_pyramid(15, 500))),
+        ]
+    }
+}
+
+/// The scene names the suite knows, for `--scenes` checking.
+pub const SCENE_NAMES: &[&str] = &[
+    "large_pyramid",
+    "many_pyramids",
+    "joint_grid",
+    "convex_pile",
+    "jolt_pyramid",
+];
+
+fn kib_per_body(bytes: usize, bodies: usize) -> f64 {
+    bytes as f64 / 1024.0 / bodies.max(1) as f64
+}
+
+/// The results as the two printed tables (timing; memory and state).
+pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:<14} {:>7} {:>6} {:>4}  {:>10} {:>10}  {:>10} {:>10}  {:>7}",
+        "scene",
+        "bodies",
+        "steps",
+        "runs",
+        "ours med",
+        "ours min",
+        "rapier med",
+        "rapier min",
+        "ratio"
+    );
+    for r in results {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>7} {:>6} {:>4}  {:>10.3} {:>10.3}  {:>10.3} {:>10.3}  {:>7.2}",
+            r.name,
+            r.bodies,
+            r.steps,
+            r.runs,
+            r.ours.median_ms,
+            r.ours.min_ms,
+            r.rapier.median_ms,
+            r.rapier.min_ms,
+            r.ours.median_ms / r.rapier.median_ms
+        );
+    }
+    for s in skipped {
+        let _ = writeln!(out, "{s:<14} skipped: needs joints");
+    }
+    let _ = writeln!(
+        out,
+        "(ms/step, first step excluded; ratio = ours median / Rapier median)\n"
+    );
+    let _ = writeln!(
+        out,
+        "{:<14} {:>9} {:>9}  {:>8} {:>8}  {:>10} {:>10}  {:>9} {:>9}  {:>9} {:>9}  {:>6} {:>6}",
+        "scene",
+        "contacts",
+        "(rapier)",
+        "KiB/body",
+        "(rapier)",
+        "max disp m",
+        "(rapier)",
+        "max xz m",
+        "(rapier)",
+        "top dy m",
+        "(rapier)",
+        "stands",
+        "(rap.)"
+    );
+    for r in results {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>9} {:>9}  {:>8.2} {:>8.2}  {:>10.4} {:>10.4}  {:>9.4} {:>9.4}  {:>9.4} {:>9.4}  {:>6} {:>6}{}",
+            r.name,
+            r.ours.contact_points,
+            r.rapier.contact_points,
+            kib_per_body(r.ours.peak_bytes, r.bodies),
+            kib_per_body(r.rapier.peak_bytes, r.bodies),
+            r.ours.max_displacement,
+            r.rapier.max_displacement,
+            r.ours.max_horizontal,
+            r.rapier.max_horizontal,
+            r.ours.top_dy,
+            r.rapier.top_dy,
+            r.ours.standing(),
+            r.rapier.standing(),
+            if r.ours.faulted {
+                "  (ours raised a fault flag)"
+            } else {
+                ""
+            }
+        );
+    }
+    let _ = writeln!(
+        out,
+        "(contacts after the last step: ours StepReport.contact_points, Rapier's solver contacts; \
+         KiB/body = heap high-water mark while building and stepping / bodies; \
+         max disp / max xz = largest total / horizontal distance of any body from its start; \
+         stands = every pyramid's top box within 1 cm of its start height)"
+    );
+    out
+}
+
+/// The results as CSV, one line per scene and engine.
+pub fn csv(results: &[SceneResult]) -> String {
+    let mut out = String::from(
+        "suite,scene,engine,bodies,steps,runs,ms_median,ms_min,ratio_ours_to_rapier,contact_points,peak_bytes,bytes_per_body,max_displacement_m,max_horizontal_m,top_dy_m,standing\n",
+    );
+    for r in results {
+        let ratio = r.ours.median_ms / r.rapier.median_ms;
+        for (engine, e) in [("lockstep", &r.ours), ("rapier3d", &r.rapier)] {
+            let _ = writeln!(
+                out,
+                "engines,{},{engine},{},{},{},{:.4},{:.4},{:.4},{},{},{:.1},{:.6},{:.6},{:.6},{}",
+                r.name,
+                r.bodies,
+                r.steps,
+                r.runs,
+                e.median_ms,
+                e.min_ms,
+                ratio,
+                e.contact_points,
+                e.peak_bytes,
+                e.peak_bytes as f64 / r.bodies.max(1) as f64,
+                e.max_displacement,
+                e.max_horizontal,
+                e.top_dy,
+                e.standing()
+            );
+        }
+    }
+    out
+}
+
+/// Runs the suite.
+pub fn run(opts: &Options) -> SuiteOutput {
+    let runs = opts.runs.unwrap_or(if opts.quick { 1 } else { 3 });
+    let mut results = Vec::new();
+    let mut skipped = Vec::new();
+    for (name, scene) in scene_list(opts.quick) {
+        if let Some(filter) = &opts.scenes
+            && !filter.iter().any(|f| f == name)
+        {
+            continue;
+        }
+        match scene {
+            None => skipped.push(name),
+            Some(scene) => {
+                eprintln!(
+                    "engines: {name} ({} bodies, {} steps, {runs} runs per engine)...",
+                    scene.positions.len(),
+                    scene.steps
+                );
+                results.push(run_scene(&scene, runs));
+            }
+        }
+    }
+    let mut text = format!("{}\n\n", settings_text());
+    text.push_str(&table(&results, &skipped));
+    SuiteOutput {
+        text,
+        csv: csv(&results),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_engines_build_the_same_bodies_at_the_same_places() {
+        let scene = scenes::jolt_pyramid(3, 1);
+        let ours = Ours::new(&scene);
+        let theirs = Rapier::new(&scene);
+        assert_eq!(ours.positions(), scene.positions);
+        assert_eq!(theirs.positions(), scene.positions);
+        // Same mass: density 1000 × 8 m³.
+        let m = ours.world.body(ours.bodies[0]).unwrap().mass().to_f64();
+        let rm = theirs.world.bodies[theirs.bodies[0]].mass() as f64;
+        assert!(
+            (m - 8000.0).abs() < 1e-6 && (rm - 8000.0).abs() < 1e-2,
+            "{m} {rm}"
+        );
+    }
+
+    #[test]
+    fn a_quick_scene_runs_in_both_engines_and_reports_every_column() {
+        let scene = scenes::large_pyramid(3, 3);
+        let r = run_scene(&scene, 1);
+        assert_eq!((r.bodies, r.steps, r.runs), (6, 3, 1));
+        for e in [&r.ours, &r.rapier] {
+            assert!(e.median_ms > 0.0 && e.min_ms <= e.median_ms);
+            assert!(e.peak_bytes > 0);
+            assert!(e.max_displacement.is_finite() && e.top_dy.is_finite());
+            assert!(e.max_horizontal <= e.max_displacement);
+        }
+        // Rapier resolves the resting contacts: the 6 boxes touch.
+        assert!(r.rapier.contact_points >= 4, "{}", r.rapier.contact_points);
+        let c = csv(&[r]);
+        assert_eq!(c.lines().count(), 3);
+        assert!(
+            c.lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("engines,large_pyramid,lockstep,6,3,1,")
+        );
+    }
+
+    #[test]
+    fn median_of_even_and_odd_counts() {
+        let run = |ms| Run {
+            ms_per_step: ms,
+            contact_points: 0,
+            peak_bytes: 0,
+            max_displacement: 0.0,
+            max_horizontal: 0.0,
+            top_dy: 0.0,
+        };
+        assert_eq!(median_min(&[run(3.0), run(1.0), run(2.0)]), (2.0, 1.0));
+        assert_eq!(median_min(&[run(4.0), run(1.0)]), (2.5, 1.0));
+    }
+}

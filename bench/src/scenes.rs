@@ -1,0 +1,240 @@
+//! The SCENES.md performance scenes as engine-neutral recipes: one list of
+//! bodies that both engines build from, so the geometry, masses and
+//! starting poses are the same.
+//!
+//! Every coordinate is a multiple of 1/2 (exact in Q32.32 and in `f32`),
+//! except the hull points, which are rounded to Q32.32 first and handed to
+//! Rapier as the `f32` nearest to that value.
+
+/// The one shape all dynamic bodies of a scene share.
+#[derive(Clone, Debug)]
+pub enum BodyShape {
+    /// A box with these half-extents, m.
+    Cube(f64),
+    /// The convex hull of these points, m.
+    Hull(Vec<[f64; 3]>),
+}
+
+/// A scene: a static ground box plus dynamic bodies of one shape.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The SCENES.md name.
+    pub name: &'static str,
+    /// Half-extents of the ground box, m.
+    pub ground_half: [f64; 3],
+    /// Height of the ground box's centre, m.
+    pub ground_y: f64,
+    /// The dynamic bodies' shape.
+    pub shape: BodyShape,
+    /// Density of the dynamic bodies, kg/m³.
+    pub density: f64,
+    /// Friction of every collider (both engines, restitution 0).
+    pub friction: f64,
+    /// Starting positions of the dynamic bodies (no rotation).
+    pub positions: Vec<[f64; 3]>,
+    /// Indices (into `positions`) of the top box of each pyramid: the
+    /// "still standing" check watches their height. Empty for a pile.
+    pub tops: Vec<usize>,
+    /// Steps per run.
+    pub steps: usize,
+}
+
+/// Friction used in every scene (Box2D/Box3D's default).
+const FRICTION: f64 = 0.6;
+
+/// Appends a pyramid in the x–y plane at `(cx, ·, cz)` with `base` cubes of
+/// half-extent 0.5 on its bottom row (resting on y = 0); returns the index
+/// of its top cube.
+fn pyramid(positions: &mut Vec<[f64; 3]>, base: usize, cx: f64, cz: f64) -> usize {
+    for row in 0..base {
+        for i in 0..base - row {
+            let x = cx + i as f64 + 0.5 * row as f64 - 0.5 * (base - 1) as f64;
+            positions.push([x, 0.5 + row as f64, cz]);
+        }
+    }
+    positions.len() - 1
+}
+
+/// large_pyramid: one pyramid with `base` cubes on the bottom row (100 →
+/// 5,050 cubes), ground half-extents (400, 1, 400) at y = −1.
+pub fn large_pyramid(base: usize, steps: usize) -> Scene {
+    let mut positions = Vec::new();
+    let top = pyramid(&mut positions, base, 0.0, 0.0);
+    Scene {
+        name: "large_pyramid",
+        ground_half: [400.0, 1.0, 400.0],
+        ground_y: -1.0,
+        shape: BodyShape::Cube(0.5),
+        density: 100.0,
+        friction: FRICTION,
+        positions,
+        tops: vec![top],
+        steps,
+    }
+}
+
+/// many_pyramids: a `grid` × `grid` array of pyramids of base `base` (14 ×
+/// 14 of base 10 → 10,780 cubes) in the x–z plane, `base + 1` m apart and
+/// centred, on a ground of half-extent 77 (14 pyramids of width 10 spaced
+/// 11 m span ±76.5 m).
+pub fn many_pyramids(grid: usize, base: usize, ground: f64, steps: usize) -> Scene {
+    let mut positions = Vec::new();
+    let mut tops = Vec::new();
+    let spacing = (base + 1) as f64;
+    let mid = 0.5 * (grid as f64 - 1.0);
+    for gx in 0..grid {
+        for gz in 0..grid {
+            let cx = (gx as f64 - mid) * spacing;
+            let cz = (gz as f64 - mid) * spacing;
+            tops.push(pyramid(&mut positions, base, cx, cz));
+        }
+    }
+    Scene {
+        name: "many_pyramids",
+        ground_half: [ground, 1.0, ground],
+        ground_y: -1.0,
+        shape: BodyShape::Cube(0.5),
+        density: 100.0,
+        friction: FRICTION,
+        positions,
+        tops,
+        steps,
+    }
+}
+
+/// A 64-bit linear congruential generator (Knuth's MMIX constants): the
+/// fixed point source for the convex pile's hull.
+#[derive(Clone, Debug)]
+pub struct Lcg(u64);
+
+impl Lcg {
+    /// A generator from its seed.
+    pub fn new(seed: u64) -> Lcg {
+        Lcg(seed)
+    }
+
+    /// A uniform value in `[0, 1)` from the top 53 bits of the next state.
+    pub fn next_unit(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// `n` points uniform on a sphere of radius `r` (z uniform in [−r, r], the
+/// azimuth uniform), from an LCG seeded `seed`.
+pub fn sphere_points(n: usize, r: f64, seed: u64) -> Vec<[f64; 3]> {
+    let mut lcg = Lcg::new(seed);
+    (0..n)
+        .map(|_| {
+            let z = 2.0 * lcg.next_unit() - 1.0;
+            let phi = std::f64::consts::TAU * lcg.next_unit();
+            let s = (1.0 - z * z).max(0.0).sqrt();
+            [r * s * phi.cos(), r * z, r * s * phi.sin()]
+        })
+        .collect()
+}
+
+/// convex_pile: `nx` × `nz` × `ny` hulls (8 × 8 × 80 → 5,120) of 32 points
+/// on a sphere of radius 2 (LCG seed 42), 4.5 m apart in a column grid
+/// starting 2.5 m above the ground; ground half-extents (250, 1, 250).
+pub fn convex_pile(nx: usize, nz: usize, ny: usize, steps: usize) -> Scene {
+    let spacing = 4.5;
+    let mut positions = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            for k in 0..nz {
+                let x = (i as f64 - 0.5 * (nx as f64 - 1.0)) * spacing;
+                let z = (k as f64 - 0.5 * (nz as f64 - 1.0)) * spacing;
+                positions.push([x, 2.5 + j as f64 * spacing, z]);
+            }
+        }
+    }
+    Scene {
+        name: "convex_pile",
+        ground_half: [250.0, 1.0, 250.0],
+        ground_y: -1.0,
+        shape: BodyShape::Hull(sphere_points(32, 2.0, 42)),
+        density: 100.0,
+        friction: FRICTION,
+        positions,
+        tops: Vec::new(),
+        steps,
+    }
+}
+
+/// jolt_pyramid: `layers` layers of 2 m boxes (15 → 1,240), layer `i` a
+/// square of `layers − i` boxes per side, odd layers offset by 1 m so each
+/// box rests on four; floor half-extents (50, 1, 50). Density 1000 (Jolt's
+/// default).
+pub fn jolt_pyramid(layers: usize, steps: usize) -> Scene {
+    let mut positions = Vec::new();
+    let n = layers as i64;
+    for i in 0..n {
+        let offset = if i % 2 == 1 { 1.0 } else { 0.0 };
+        for j in i / 2..n - (i + 1) / 2 {
+            for k in i / 2..n - (i + 1) / 2 {
+                positions.push([
+                    (-n + 2 * j) as f64 + offset,
+                    1.0 + 2.0 * i as f64,
+                    (-n + 2 * k) as f64 + offset,
+                ]);
+            }
+        }
+    }
+    let top = positions.len() - 1;
+    Scene {
+        name: "jolt_pyramid",
+        ground_half: [50.0, 1.0, 50.0],
+        ground_y: -1.0,
+        shape: BodyShape::Cube(1.0),
+        density: 1000.0,
+        friction: FRICTION,
+        positions,
+        tops: vec![top],
+        steps,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scene_sizes_match_scenes_md() {
+        assert_eq!(large_pyramid(100, 200).positions.len(), 5_050);
+        let many = many_pyramids(14, 10, 77.0, 100);
+        assert_eq!(many.positions.len(), 10_780);
+        assert_eq!(many.tops.len(), 196);
+        let max_x = many
+            .positions
+            .iter()
+            .map(|p| p[0].abs())
+            .fold(0.0, f64::max);
+        assert_eq!(max_x + 0.5, 76.5, "every pyramid is on the ground");
+        assert_eq!(convex_pile(8, 8, 80, 500).positions.len(), 5_120);
+        assert_eq!(jolt_pyramid(15, 500).positions.len(), 1_240);
+    }
+
+    #[test]
+    fn pyramid_rows_rest_on_each_other() {
+        let s = large_pyramid(3, 1);
+        let ys: Vec<f64> = s.positions.iter().map(|p| p[1]).collect();
+        assert_eq!(ys, [0.5, 0.5, 0.5, 1.5, 1.5, 2.5]);
+        assert_eq!(s.positions[s.tops[0]], [0.0, 2.5, 0.0]);
+    }
+
+    #[test]
+    fn hull_points_are_on_the_sphere_and_repeatable() {
+        let p = sphere_points(32, 2.0, 42);
+        assert_eq!(p.len(), 32);
+        for q in &p {
+            let r = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            assert!((r - 2.0).abs() < 1e-12, "{r}");
+        }
+        assert_eq!(p, sphere_points(32, 2.0, 42));
+        assert_ne!(p, sphere_points(32, 2.0, 43));
+    }
+}
