@@ -140,8 +140,14 @@ enum Phase {
     Lobby,
     /// The clock runs; `end` is the first tick not to close, if known.
     Running { epoch: Duration, end: Option<u64> },
-    /// No more ticks; collecting the last hash reports until `until`.
-    Finishing { until: Duration },
+    /// No more ticks; collecting the last hash reports until `until`,
+    /// repeating unacknowledged bundles at `resend_at` (then once per tick
+    /// period: a fixed schedule, which the players' datagrams arriving in
+    /// between do not postpone).
+    Finishing {
+        until: Duration,
+        resend_at: Duration,
+    },
     /// Everyone closed; the replay is flushed.
     Done,
 }
@@ -297,7 +303,7 @@ impl RoomTask {
                 .poll_timeout()
                 .unwrap_or(now + Duration::from_secs(1)),
             // Resend the last bundles once per tick while waiting.
-            Phase::Finishing { until } => (now + self.period()).min(until),
+            Phase::Finishing { until, resend_at } => resend_at.min(until),
             Phase::Done => now,
         }
     }
@@ -339,7 +345,21 @@ impl RoomTask {
                 });
                 self.room.handle_timeout(now.min(limit));
             }
-            Phase::Finishing { .. } => self.resend_final_bundles(),
+            Phase::Finishing { until, resend_at } => {
+                if now >= resend_at {
+                    self.resend_final_bundles();
+                    // Never schedule in the past, however late we woke.
+                    let period = self.period();
+                    let mut next = resend_at + period;
+                    if next <= now {
+                        next = now + period;
+                    }
+                    self.phase = Phase::Finishing {
+                        until,
+                        resend_at: next,
+                    };
+                }
+            }
             Phase::Done => {}
         }
     }
@@ -385,7 +405,7 @@ impl RoomTask {
                     self.begin_finishing(now);
                 }
             }
-            Phase::Finishing { until } => {
+            Phase::Finishing { until, .. } => {
                 let last = self.room.next_tick().checked_sub(1);
                 let all_reported = self
                     .seats
@@ -415,7 +435,10 @@ impl RoomTask {
             self.end_reason
         );
         let until = now + self.settings().final_reports_timeout;
-        self.phase = Phase::Finishing { until };
+        self.phase = Phase::Finishing {
+            until,
+            resend_at: now + self.period(),
+        };
         self.resend_final_bundles();
     }
 
