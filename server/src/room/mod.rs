@@ -7,8 +7,11 @@
 //! so a late wake-up delays one tick, not every tick after it. After every
 //! call into the room, its transmits and events are drained.
 
+mod report;
+
+use report::fill_traffic;
+
 use std::fs::File;
-use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -23,7 +26,7 @@ use lockstep_proto::{
 use tokio::sync::{mpsc, oneshot};
 
 use crate::conn::{Peer, WriterCmd, close_cmd, close_of, send_close};
-use crate::{PlayerReport, RoomReport, RoomStatus, ServerConfig, ServerError, ServerEvent, Shared};
+use crate::{PlayerReport, ServerConfig, ServerError, ServerEvent, Shared};
 
 /// Commands from connection tasks to their room.
 #[derive(Debug)]
@@ -477,24 +480,6 @@ impl RoomTask {
         }
     }
 
-    /// Copies the room's per-player counters into the reports (the room
-    /// forgets them when a player leaves).
-    fn snapshot_stats(&mut self) {
-        let ids: Vec<PlayerId> = self.room.players().map(|(id, _)| id).collect();
-        for id in ids {
-            let Some(stats) = self.room.player_stats(id).copied() else {
-                continue;
-            };
-            let Some(report) = self.seat(id).map(|s| s.report) else {
-                continue;
-            };
-            let p = &mut self.players[report];
-            p.rtt = stats.rtt;
-            p.inputs_substituted = stats.inputs_substituted;
-            p.hash_reports = stats.hash_reports;
-        }
-    }
-
     fn close_everyone(&mut self, detail: &str) {
         self.snapshot_stats();
         let now = self.now();
@@ -770,141 +755,4 @@ impl RoomTask {
             }
         }
     }
-
-    fn on_status(&mut self) {
-        self.flush_replay(false);
-        self.snapshot_stats();
-        if !matches!(self.phase, Phase::Running { .. }) {
-            return;
-        }
-        let mut down = 0u64;
-        let mut up = 0u64;
-        let mut rtts = Vec::new();
-        let mut n = 0u64;
-        let ids: Vec<PlayerId> = self.room.players().map(|(id, _)| id).collect();
-        for id in ids {
-            let rtt = self.room.player_stats(id).and_then(|s| s.rtt);
-            rtts.extend(rtt);
-            if let Some(seat) = self.seat(id) {
-                let s = seat.peer.connection.stats();
-                let (tx, rx) = (s.udp_tx.bytes, s.udp_rx.bytes);
-                down += tx.saturating_sub(seat.last_udp.0);
-                up += rx.saturating_sub(seat.last_udp.1);
-                seat.last_udp = (tx, rx);
-                n += 1;
-            }
-        }
-        let stats = self.room.stats();
-        let rtt = (!rtts.is_empty()).then(|| rtts.iter().sum::<Duration>() / rtts.len() as u32);
-        self.shared.emit(ServerEvent::Status(RoomStatus {
-            room: self.name.clone(),
-            tick: self.room.next_tick(),
-            players: self.room.player_count(),
-            rtt,
-            down_bytes_per_sec: down / n.max(1),
-            up_bytes_per_sec: up / n.max(1),
-            ticks_compared: stats.ticks_compared,
-            mismatched_ticks: stats.mismatched_ticks,
-        }));
-    }
-
-    /// Appends the recorder's new records to the file; `sync` also asks the
-    /// OS to put them on disk (at the end of the match).
-    fn flush_replay(&mut self, sync: bool) {
-        let Some(r) = self.replay.as_mut() else {
-            return;
-        };
-        let bytes = r.recorder.take_bytes();
-        if let Some(f) = r.file.as_mut() {
-            let ok = f.write_all(&bytes).and_then(|()| f.flush());
-            let ok = if sync {
-                ok.and_then(|()| f.sync_data())
-            } else {
-                ok
-            };
-            if let Err(e) = ok {
-                crate::log!(
-                    "room {}: replay {}: {e}; recording stops",
-                    self.name,
-                    r.path.display()
-                );
-                r.file = None;
-            }
-        }
-    }
-
-    fn finish(&mut self) {
-        // Players still seated (the task was told to stop abruptly).
-        for index in 0..self.seats.len() {
-            if let Some(seat) = self.seats[index].take() {
-                let p = &mut self.players[seat.report];
-                fill_traffic(p, &seat);
-                if !seat.closing {
-                    let close = close_of(CloseReason::RoomClosed, self.end_reason.clone());
-                    send_close(&seat.peer.writer, &close);
-                }
-            }
-        }
-        if self.end_reason.is_empty() {
-            self.end_reason = "room closed".into();
-        }
-        let reason = self.end_reason.clone();
-        if let Some(r) = self.replay.as_mut() {
-            r.recorder.finish(&reason);
-        }
-        self.flush_replay(true);
-        let stats = *self.room.stats();
-        let duration = match self.phase {
-            Phase::Running { epoch, .. } => self.now().saturating_sub(epoch),
-            _ => self
-                .room
-                .config()
-                .deadline_offset(self.room.next_tick().saturating_sub(1)),
-        };
-        let report = RoomReport {
-            room: self.name.clone(),
-            ticks: self.room.next_tick(),
-            ticks_compared: stats.ticks_compared,
-            mismatched_ticks: stats.mismatched_ticks,
-            desyncs: self.desyncs.clone(),
-            players: self.players.clone(),
-            replay: self.replay.as_ref().map(|r| r.path.clone()),
-            replay_hashed_ticks: self
-                .replay
-                .as_ref()
-                .map_or(0, |r| r.recorder.hashed_ticks()),
-            duration,
-            end_reason: reason,
-        };
-        crate::log!(
-            "room {}: closed: {} ticks, {} compared, {} mismatched, {} desync notices{}",
-            self.name,
-            report.ticks,
-            report.ticks_compared,
-            report.mismatched_ticks,
-            report.desyncs.len(),
-            report
-                .replay
-                .as_ref()
-                .map(|p| format!(", replay {}", p.display()))
-                .unwrap_or_default()
-        );
-        {
-            let mut rooms = self.shared.rooms.lock().unwrap_or_else(|e| e.into_inner());
-            if rooms.get(&self.name).is_some_and(|h| h.seq == self.seq) {
-                rooms.remove(&self.name);
-            }
-        }
-        if let Ok(mut r) = self.shared.report.lock() {
-            r.matches.push(report.clone());
-        }
-        self.shared.emit(ServerEvent::MatchEnded(report));
-    }
-}
-
-fn fill_traffic(p: &mut PlayerReport, seat: &Seat) {
-    let s = seat.peer.connection.stats();
-    p.udp_bytes_down = s.udp_tx.bytes;
-    p.udp_bytes_up = s.udp_rx.bytes;
-    p.connected_for = seat.joined_at.elapsed();
 }
