@@ -69,6 +69,7 @@ impl World {
         report.contact_constraints = prep.constraints;
         report.buffer_growths += prep.growths;
 
+        report.buffer_growths += self.stage_ccd_begin();
         let World { bodies, solver, .. } = self;
         let (hot, live) = bodies.hot_slots_mut();
         let solving = !solver.is_empty();
@@ -100,6 +101,11 @@ impl World {
             solver.store_impulses(self.contacts.pairs_mut());
         }
         integrate::finish_angular_velocities(hot, live);
+
+        let ccd = self.stage_ccd();
+        report.ccd_bodies = ccd.bodies;
+        report.ccd_hits = ccd.hits;
+        report.buffer_growths += ccd.growths;
 
         self.stage_snap_kinematic();
         self.stage_clear_forces();
