@@ -628,3 +628,71 @@ fn the_bullet_flag_is_hashed_and_set_only_on_dynamic_bodies() {
     let back = World::restore(&w.snapshot()).unwrap();
     assert!(back.is_bullet(d).unwrap());
 }
+
+/// 400 bodies (spheres and spinning boxes) flying at `height` over a
+/// static floor (top at 0.5), without gravity, at `speed`; returns the mean
+/// step time over 60 ticks (after 5 warm-up ticks) and the CCD bodies and
+/// growths reported.
+fn skimmers(speed: f64, height: f64) -> (f64, u32, u32) {
+    let cfg = WorldConfig {
+        gravity: Vec3::ZERO,
+        ..WorldConfig::default()
+    };
+    let mut w = World::new(cfg).unwrap();
+    let floor = w.create_body(&BodyDesc::fixed()).unwrap();
+    w.add_collider(
+        floor,
+        ColliderDesc::new(Shape::Cuboid(Cuboid::new(v3(500.0, 0.5, 500.0)).unwrap())),
+    )
+    .unwrap();
+    for i in 0..400 {
+        let (x, z) = ((i % 20) as f64 * 2.0, (i / 20) as f64 * 2.0);
+        let b = w
+            .create_body(
+                &BodyDesc::dynamic()
+                    .position(v3(x, height, z))
+                    .linear_velocity(v3(speed, 0.0, 0.0))
+                    .angular_velocity(v3(0.0, speed / 50.0, 0.0)),
+            )
+            .unwrap();
+        let shape = if i % 2 == 0 {
+            Shape::Sphere(Sphere::new(s(0.25)).unwrap())
+        } else {
+            Shape::Cuboid(Cuboid::new(v3(0.25, 0.25, 0.25)).unwrap())
+        };
+        w.add_collider(b, ColliderDesc::new(shape)).unwrap();
+    }
+    for _ in 0..5 {
+        w.step();
+    }
+    let (mut bodies, mut growths) = (0, 0);
+    let t0 = Instant::now();
+    for _ in 0..60 {
+        let r = w.step();
+        assert!(!r.overflowed());
+        assert_eq!(r.ccd_hits, 0);
+        bodies += r.ccd_bodies;
+        growths += r.buffer_growths;
+    }
+    (t0.elapsed().as_secs_f64() / 60.0, bodies, growths)
+}
+
+#[test]
+fn fast_bodies_pay_for_a_sweep_slow_ones_do_not_and_nothing_grows_once_warm() {
+    // 5 cm over the floor (every sweep runs GJK against it), and 20 m up
+    // (the swept box finds nothing).
+    for height in [0.8, 20.0] {
+        let (slow_t, slow_n, slow_g) = skimmers(1.0, height);
+        let (fast_t, fast_n, fast_g) = skimmers(100.0, height);
+        assert_eq!(slow_n, 0);
+        assert_eq!(fast_n, 400 * 60);
+        assert_eq!((slow_g, fast_g), (0, 0));
+        eprintln!(
+            "400 bodies at y = {height}: slow step {:.1} µs, fast step {:.1} µs, \
+             {:.2} µs more per fast body",
+            slow_t * 1e6,
+            fast_t * 1e6,
+            (fast_t - slow_t) * 1e6 / 400.0
+        );
+    }
+}

@@ -25,6 +25,10 @@ impl World {
     ///    with push-out), `integrate_positions`, `relax` (no push-out);
     /// 4. `restitution`, then `store_impulses` for warm starting next tick;
     /// 5. `finish_velocities`: end-of-tick angular velocities from momenta;
+    ///    then `ccd`: fast dynamic bodies and bullets are swept from their
+    ///    start-of-tick poses (recorded before the substeps) to where the
+    ///    substeps left them, and stopped just short of what they would
+    ///    have passed through (see `world/ccd.rs`);
     /// 6. `snap_kinematic`: targeted kinematic bodies land exactly on their
     ///    targets and stop;
     /// 7. `clear_forces`;
