@@ -696,3 +696,54 @@ fn fast_bodies_pay_for_a_sweep_slow_ones_do_not_and_nothing_grows_once_warm() {
         );
     }
 }
+
+#[test]
+fn two_thousand_shots_at_a_triangle_mesh_wall_never_cross_it() {
+    use lockstep_core::shape::TriMesh;
+    use std::sync::Arc;
+    let mut rng = Rng(0xcc_d005);
+    let wall = Target {
+        center: [0.0; 3],
+        normal: [-1.0, 0.0, 0.0],
+        t1: [0.0, 1.0, 0.0],
+        t2: [0.0, 0.0, 1.0],
+        half_thickness: 0.0,
+        half_size: 100.0,
+    };
+    let (mut through, mut hits) = (0, 0);
+    for _ in 0..20 {
+        let mut w = World::new(WorldConfig::default()).unwrap();
+        let wb = w.create_body(&BodyDesc::fixed()).unwrap();
+        // A zero-thickness quad of 8 × 8 triangles facing −x.
+        let mut verts = Vec::new();
+        for r in 0..9 {
+            for c in 0..9 {
+                verts.push(v3(0.0, -100.0 + 25.0 * r as f64, -100.0 + 25.0 * c as f64));
+            }
+        }
+        let mut idx = Vec::new();
+        for r in 0..8u32 {
+            for c in 0..8u32 {
+                let a = r * 9 + c;
+                idx.push([a, a + 1, a + 9]);
+                idx.push([a + 1, a + 10, a + 9]);
+            }
+        }
+        let mesh = TriMesh::new(verts, idx).unwrap();
+        w.add_collider(wb, ColliderDesc::new(Shape::TriMesh(Arc::new(mesh))))
+            .unwrap();
+        let mut shots = Vec::new();
+        for _ in 0..100 {
+            let mut lane = wall;
+            lane.center = [0.0, rng.range(-30.0, 30.0), rng.range(-30.0, 30.0)];
+            lane.half_size = 1.0;
+            shots.push((shoot(&mut w, &mut rng, &lane, SHOTS), wall));
+        }
+        let (t, h, _) = run_batch(&mut w, &shots, BATCH_TICKS);
+        through += t;
+        hits += h;
+    }
+    eprintln!("mesh wall: 2000 shots, {through} through, {hits} CCD hits");
+    assert_eq!(through, 0);
+    assert!(hits > 1_000, "{hits}");
+}
