@@ -30,6 +30,9 @@ pub struct BodyDesc {
     pub gravity_scale: Scalar,
     /// Whether the body starts asleep.
     pub asleep: bool,
+    /// Whether the body is a bullet: continuous collision checks its every
+    /// move, against dynamic bodies too (see [`BodyDesc::bullet`]).
+    pub bullet: bool,
     /// An opaque value for the game.
     pub user_data: u64,
 }
@@ -47,6 +50,7 @@ impl BodyDesc {
             angular_damping: Scalar::ZERO,
             gravity_scale: Scalar::ONE,
             asleep: false,
+            bullet: false,
             user_data: 0,
         }
     }
@@ -112,6 +116,18 @@ impl BodyDesc {
     /// Starts the body asleep.
     pub fn asleep(mut self, asleep: bool) -> BodyDesc {
         self.asleep = asleep;
+        self
+    }
+
+    /// Marks the body as a bullet (dynamic bodies only; ignored otherwise).
+    ///
+    /// Why: any fast dynamic body is already swept against static shapes
+    /// when it moves more than a quarter of its smallest extent in a tick;
+    /// a bullet is swept every tick, also against dynamic and kinematic
+    /// bodies (at their end-of-tick poses), so a small fast projectile
+    /// cannot pass through a thin moving target. It costs a sweep per tick.
+    pub fn bullet(mut self, bullet: bool) -> BodyDesc {
+        self.bullet = bullet;
         self
     }
 

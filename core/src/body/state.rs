@@ -50,6 +50,9 @@ pub struct BodyHot {
     /// Whether the inertia is a multiple of the identity, so the gyroscopic
     /// term vanishes and is skipped (spheres, cubes).
     pub isotropic: bool,
+    /// Whether the body is a bullet: continuous collision sweeps it every
+    /// tick, against dynamic and kinematic bodies too (dynamic bodies only).
+    pub bullet: bool,
     /// World position of the centre of mass.
     pub center: Vec3,
     /// Orientation (unit quaternion), body axes to world axes.
@@ -83,6 +86,17 @@ pub struct BodyHot {
     /// Consecutive ticks spent below the sleep thresholds (counted in whole
     /// ticks, so the time to sleep is exact).
     pub rest_ticks: u32,
+    /// The smallest extent of the body's solid colliders, m (a sphere's or
+    /// capsule's radius, a box's smallest half-extent, a hull's smallest
+    /// distance from its vertex centroid to a face); zero for a body with
+    /// no solid collider. Derived from the colliders whenever they or the
+    /// mass change: continuous collision sweeps a body that moves more than
+    /// a quarter of it in one tick.
+    pub ccd_extent: Scalar,
+    /// The largest distance from the centre of mass to any point of the
+    /// body's solid colliders, m (derived like `ccd_extent`): bounds how far
+    /// a rotation moves the surface.
+    pub ccd_radius: Scalar,
 }
 
 /// Body data the step does not touch every substep.

@@ -317,10 +317,42 @@ pub(crate) fn triangle_outside(tri: &[Vec3; 3], lo: &[i128; 3], hi: &[i128; 3]) 
     })
 }
 
-/// Triangle mesh: every triangle in index order, the nearest hit kept (the
-/// lowest triangle index on ties). Linear in the triangle count for now; it
-/// becomes a walk of the mesh's BVH once meshes carry one.
+/// Triangle mesh: a walk of the mesh's AABB tree (see
+/// [`TriMesh::walk_ray`]), the nearest hit kept, the lowest triangle index
+/// on ties. The walk clips the segment to one ulp past the best fraction so
+/// far: a triangle whose exact hit rounds to the same fraction lies in a box
+/// entered within that ulp, so every tie is still seen and the answer is
+/// the one a linear scan of every triangle gives.
 fn ray_trimesh(mesh: &TriMesh, o: Vec3, d: Vec3, max: Scalar) -> Option<LocalHit> {
+    let (lo, hi) = segment_bounds(o, d);
+    let mut best: Option<(Scalar, usize, bool)> = None;
+    mesh.walk_ray(o, d, max, |i, _| {
+        if let Some(tri) = mesh.triangle(i)
+            && !triangle_outside(&tri, &lo, &hi)
+            && let Some((t, flip)) = ray_triangle(tri, o, d)
+            && t <= max
+            && best.is_none_or(|(b, j, _)| (t, i) < (b, j))
+        {
+            best = Some((t, i, flip));
+            return Some(t + Scalar::DELTA);
+        }
+        Some(max)
+    });
+    let (t, i, flip) = best?;
+    let n = mesh.normals()[i];
+    Some((t, Some(if flip { -n } else { n })))
+}
+
+/// The linear scan [`ray_trimesh`] replaced: every triangle in index order,
+/// the nearest hit kept (the lowest index on ties). Kept to check that the
+/// tree walk gives the same answers.
+#[cfg(test)]
+pub(crate) fn ray_trimesh_linear(
+    mesh: &TriMesh,
+    o: Vec3,
+    d: Vec3,
+    max: Scalar,
+) -> Option<(Scalar, Option<Vec3>)> {
     let (lo, hi) = segment_bounds(o, d);
     let mut best: Option<(Scalar, usize, bool)> = None;
     for i in 0..mesh.indices().len() {
@@ -416,4 +448,122 @@ fn ray_heightfield(f: &HeightField, o: Vec3, d: Vec3, max: Scalar) -> Option<Loc
     }
     let (t, n) = best?;
     Some((t, Some(n)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// splitmix64: a seeded integer generator for the test's rays.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            z ^ (z >> 31)
+        }
+
+        /// A Scalar in `[lo, hi)` with 2⁻¹⁶ m resolution.
+        fn scalar(&mut self, lo: i64, hi: i64) -> Scalar {
+            let span = ((hi - lo) as u64) << 16;
+            Scalar::from_bits((lo << 32) + (((self.next() % span) as i64) << 16))
+        }
+    }
+
+    /// A bumpy 24 × 24 grid (1,152 triangles) plus 64 loose triangles, a
+    /// quarter of them exact copies of grid triangles (ties by index).
+    fn test_mesh(rng: &mut Rng) -> TriMesh {
+        let n = 25u32;
+        let mut v = Vec::new();
+        for r in 0..n {
+            for c in 0..n {
+                let h = rng.scalar(-1, 1);
+                v.push(Vec3::new(
+                    Scalar::from_int(c as i32 - 12),
+                    h,
+                    Scalar::from_int(r as i32 - 12),
+                ));
+            }
+        }
+        let mut idx = Vec::new();
+        for r in 0..n - 1 {
+            for c in 0..n - 1 {
+                let a = r * n + c;
+                idx.push([a, a + n, a + 1]);
+                idx.push([a + 1, a + n, a + n + 1]);
+            }
+        }
+        for k in 0..64 {
+            if k % 4 == 0 {
+                let copy = idx[(rng.next() % idx.len() as u64) as usize];
+                idx.push(copy);
+                continue;
+            }
+            let base = v.len() as u32;
+            let p = Vec3::new(rng.scalar(-12, 12), rng.scalar(-2, 3), rng.scalar(-12, 12));
+            v.push(p);
+            v.push(p + Vec3::new(rng.scalar(1, 3), rng.scalar(-1, 1), rng.scalar(-1, 1)));
+            v.push(p + Vec3::new(rng.scalar(-1, 1), rng.scalar(-1, 1), rng.scalar(1, 3)));
+            idx.push([base, base + 1, base + 2]);
+        }
+        TriMesh::new(v, idx).unwrap()
+    }
+
+    #[test]
+    fn mesh_ray_tree_walk_matches_the_linear_scan_on_4000_seeded_rays() {
+        let mut rng = Rng(0x5eed_0005);
+        let mesh = test_mesh(&mut rng);
+        let (mut hits, mut ties) = (0, 0);
+        for k in 0..4000 {
+            let o = Vec3::new(rng.scalar(-14, 14), rng.scalar(-4, 6), rng.scalar(-14, 14));
+            // Mostly downward rays onto the terrain, some in any direction,
+            // some aimed exactly through a grid vertex (shared edges).
+            let d = if k % 8 == 0 {
+                let target = Vec3::from_ints(
+                    (rng.next() % 25) as i32 - 12,
+                    0,
+                    (rng.next() % 25) as i32 - 12,
+                );
+                (target - o).mul_int(2)
+            } else if k % 3 == 0 {
+                Vec3::new(
+                    rng.scalar(-20, 20),
+                    rng.scalar(-20, 20),
+                    rng.scalar(-20, 20),
+                )
+            } else {
+                Vec3::new(rng.scalar(-3, 3), rng.scalar(-12, -2), rng.scalar(-3, 3))
+            };
+            let max = if k % 5 == 0 {
+                rng.scalar(0, 1)
+            } else {
+                Scalar::ONE
+            };
+            let tree = ray_trimesh(&mesh, o, d, max);
+            let linear = ray_trimesh_linear(&mesh, o, d, max);
+            assert_eq!(tree, linear, "ray {k}: origin {o:?} translation {d:?}");
+            if tree.is_some() {
+                hits += 1;
+            }
+            // Count the rays whose hit fraction two triangles share.
+            if let Some((t, _)) = tree {
+                let same = (0..mesh.indices().len())
+                    .filter(|&i| {
+                        mesh.triangle(i)
+                            .and_then(|tri| ray_triangle(tri, o, d))
+                            .is_some_and(|(u, _)| u == t)
+                    })
+                    .count();
+                if same > 1 {
+                    ties += 1;
+                }
+            }
+        }
+        eprintln!("mesh rays: {hits} hits, {ties} ties");
+        assert!(hits > 1500, "only {hits} of 4000 rays hit");
+        assert!(ties > 20, "only {ties} rays had tied triangles");
+    }
 }

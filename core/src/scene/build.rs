@@ -59,6 +59,7 @@ pub fn build_world(desc: &SceneDesc, file_name: &str) -> Result<World, SceneErro
             angular_damping: body.angular_damping,
             gravity_scale: Scalar::ONE,
             asleep: body.asleep,
+            bullet: body.bullet,
             user_data: 0,
         };
         let handle = world.create_body(&world_desc).map_err(|e| {

@@ -136,6 +136,9 @@ pub struct BodyDesc {
     pub angular_damping: Scalar,
     /// Whether the body starts asleep. Default false.
     pub asleep: bool,
+    /// Whether the body is a bullet (continuous collision every tick, also
+    /// against dynamic bodies). Dynamic bodies only. Default false.
+    pub bullet: bool,
     /// The body's shapes, at least one, in file order.
     pub shapes: Vec<ShapeDesc>,
     /// 1-based source line of the body's `[[bodies]]` header (or inline

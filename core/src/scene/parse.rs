@@ -32,6 +32,7 @@ const BODY_KEYS: &[&str] = &[
     "linear_damping",
     "angular_damping",
     "asleep",
+    "bullet",
     "shapes",
 ];
 /// Body kinds, as written.
@@ -232,6 +233,7 @@ fn read_body(
         linear_damping: Scalar::ZERO,
         angular_damping: Scalar::ZERO,
         asleep: false,
+        bullet: false,
         shapes: Vec::new(),
         line,
     };
@@ -269,6 +271,19 @@ fn read_body(
     }
     if let Some(f) = t.get("asleep") {
         body.asleep = t.boolean(&f)?;
+    }
+    if let Some(f) = t.get("bullet") {
+        body.bullet = t.boolean(&f)?;
+        if body.bullet && kind != BodyKindDesc::Dynamic {
+            return Err(t.error(
+                f.at,
+                SceneErrorKind::OutOfRange,
+                format!(
+                    "only dynamic bodies can be bullets; this body is {}",
+                    kind.name()
+                ),
+            ));
+        }
     }
 
     let shapes_field = t.require("shapes", "at least one [[bodies.shapes]] table")?;

@@ -5,7 +5,8 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use super::ShapeError;
 use super::wide::{BigInt, raw, unit_of_wide};
 
-use crate::math::{Aabb, Vec3};
+use crate::collision::dynamic_tree::{Frac, segment_box};
+use crate::math::{Aabb, Scalar, Vec3};
 
 /// A triangle mesh for static geometry: terrain pieces, walls, ramps.
 ///
@@ -378,6 +379,80 @@ impl TriMesh {
         TriangleQuery { count, truncated }
     }
 
+    /// Visits the triangles whose leaf box the segment
+    /// `origin + t · translation`, `t ∈ [0, max]`, touches (local frame),
+    /// calling `f(triangle, max)` with the current `max`; `f` returns
+    /// `Some(m)` to go on with `max = min(max, m)` or `None` to stop.
+    ///
+    /// Why: a ray cast against a level mesh should cost the depth of the
+    /// tree plus the triangles near the ray, not every triangle. A nearest-hit
+    /// search clips `max` to its best hit, so subtrees entered beyond it are
+    /// skipped; boxes entered exactly at `max` are still visited (touching
+    /// counts), so a caller breaking ties by triangle index sees every tie.
+    ///
+    /// Determinism: nodes are visited near child first (by the exact
+    /// entering fraction, the left child on ties); a caller whose answer is
+    /// a minimum over a total order gets a result that does not depend on
+    /// the visit order. Never allocates (fixed traversal stack).
+    pub fn walk_ray(
+        &self,
+        origin: Vec3,
+        translation: Vec3,
+        max: Scalar,
+        mut f: impl FnMut(usize, Scalar) -> Option<Scalar>,
+    ) {
+        let mut max = max;
+        let enters = |node: &BvhNode, max: Scalar| {
+            segment_box(
+                origin,
+                translation,
+                node.aabb.min,
+                node.aabb.max,
+                Frac::from_scalar(max),
+            )
+            .map(|h| h.enter)
+        };
+        if self.nodes.is_empty() || enters(&self.nodes[0], max).is_none() {
+            return;
+        }
+        let mut stack = [0u32; QUERY_STACK];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let i = stack[top];
+            let node = &self.nodes[i as usize];
+            // Re-test with the clipped max: a hit found since this node was
+            // pushed may put it out of reach.
+            if enters(node, max).is_none() {
+                continue;
+            }
+            if node.count == 0 {
+                let (left, right) = (i + 1, node.start);
+                let el = enters(&self.nodes[left as usize], max);
+                let er = enters(&self.nodes[right as usize], max);
+                // Push the farther child first so the nearer is popped next.
+                let order = match (el, er) {
+                    (Some(a), Some(b)) if b.lt(a) => [Some(left), Some(right)],
+                    (a, b) => [b.map(|_| right), a.map(|_| left)],
+                };
+                for c in order.into_iter().flatten() {
+                    if top < QUERY_STACK {
+                        stack[top] = c;
+                        top += 1;
+                    }
+                }
+                continue;
+            }
+            let s = node.start as usize;
+            for &t in &self.order[s..s + node.count as usize] {
+                match f(t as usize, max) {
+                    Some(m) => max = max.min(m),
+                    None => return,
+                }
+            }
+        }
+    }
+
     /// The vertex positions.
     pub fn vertices(&self) -> &[Vec3] {
         &self.vertices
@@ -450,7 +525,6 @@ impl<'de> Deserialize<'de> for TriMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Scalar;
 
     fn quad() -> (Vec<Vec3>, Vec<[u32; 3]>) {
         let v = vec![

@@ -179,6 +179,13 @@ pub struct StepReport {
     /// Contact constraints solved (solid pairs with points and at least
     /// one awake dynamic body).
     pub contact_constraints: u32,
+    /// Bodies whose motion continuous collision swept this step: fast ones
+    /// (moved more than a quarter of their smallest extent) and bullets.
+    /// Zero while everything is slow.
+    pub ccd_bodies: u32,
+    /// Of those, the bodies stopped at a time of impact (moved back to just
+    /// before a surface they would have passed through).
+    pub ccd_hits: u32,
     /// Times an internal buffer had to grow during the step (an allocation:
     /// zero once the world is warm).
     pub buffer_growths: u32,

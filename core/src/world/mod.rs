@@ -1,6 +1,7 @@
 //! The `World`: bodies, colliders, settings, and the step that advances them.
 
 mod body_ref;
+mod ccd;
 mod collide;
 mod config;
 mod query;
@@ -8,6 +9,7 @@ mod state_hash;
 mod step;
 
 pub use body_ref::BodyRef;
+pub use ccd::{CCD_MAX_ITERATIONS, CCD_TARGET_GAP, CCD_TOLERANCE};
 pub use config::{
     MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig, WorldError,
 };
@@ -45,6 +47,10 @@ pub struct World {
     /// step).
     #[serde(skip)]
     solver: ContactSolver,
+    /// Scratch: continuous collision's start poses and candidate lists
+    /// (reused every step).
+    #[serde(skip)]
+    ccd: ccd::CcdScratch,
 }
 
 impl PartialEq for World {
@@ -74,6 +80,7 @@ impl World {
             faults: Faults::NONE,
             candidates: Vec::new(),
             solver: ContactSolver::default(),
+            ccd: ccd::CcdScratch::default(),
         })
     }
 
@@ -168,6 +175,7 @@ impl World {
             kind: desc.kind,
             sleeping: desc.asleep && desc.kind == BodyKind::Dynamic,
             isotropic: true,
+            bullet: desc.bullet && desc.kind == BodyKind::Dynamic,
             center: desc.position,
             rotation,
             linear_velocity: if moving {
@@ -190,6 +198,8 @@ impl World {
             angular_damping: desc.angular_damping,
             gravity_scale: desc.gravity_scale,
             rest_ticks: 0,
+            ccd_extent: Scalar::ZERO,
+            ccd_radius: Scalar::ZERO,
         };
         let cold = BodyCold {
             name: desc.name.clone(),
@@ -394,6 +404,7 @@ impl World {
             hot.isotropic = true;
             hot.angular_momentum = Vec3::ZERO;
         }
+        self.refresh_ccd_extents(h);
     }
 
     /// The pose of a body's origin (identity for a stale handle).
@@ -501,6 +512,25 @@ impl World {
         }
         cold.kinematic_target = Some(Transform::new(pose.translation, pose.rotation.normalize()));
         Ok(())
+    }
+
+    /// Marks a dynamic body as a bullet or not (see
+    /// [`BodyDesc::bullet`]); ignored for static and kinematic bodies.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn set_bullet(&mut self, h: BodyHandle, bullet: bool) -> Result<(), WorldError> {
+        let hot = self.hot_mut(h)?;
+        hot.bullet = bullet && hot.kind == BodyKind::Dynamic;
+        Ok(())
+    }
+
+    /// Whether the body is a bullet.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`].
+    pub fn is_bullet(&self, h: BodyHandle) -> Result<bool, WorldError> {
+        Ok(self.bodies.hot(h).ok_or(WorldError::InvalidBody(h))?.bullet)
     }
 
     /// Adds a force at the centre of mass, applied over the next step

@@ -10,7 +10,7 @@ use super::World;
 /// Version of the hashed layout; bumped whenever the list of hashed words
 /// changes, so hashes from different layouts never compare equal by
 /// accident.
-pub const STATE_HASH_VERSION: u64 = 4;
+pub const STATE_HASH_VERSION: u64 = 5;
 
 impl World {
     /// The canonical hash of everything that influences later steps: the
@@ -59,7 +59,7 @@ impl World {
     fn body_hash_of(&self, b: &BodyHot, cold: &BodyCold) -> u64 {
         let mut h = StateHasher::new();
         h.word(b.kind.code());
-        h.word(b.sleeping as u64 | (b.isotropic as u64) << 1);
+        h.word(b.sleeping as u64 | (b.isotropic as u64) << 1 | (b.bullet as u64) << 2);
         h.vec3(b.center);
         h.quat(b.rotation);
         h.vec3(b.linear_velocity);

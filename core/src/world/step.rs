@@ -25,6 +25,10 @@ impl World {
     ///    with push-out), `integrate_positions`, `relax` (no push-out);
     /// 4. `restitution`, then `store_impulses` for warm starting next tick;
     /// 5. `finish_velocities`: end-of-tick angular velocities from momenta;
+    ///    then `ccd`: fast dynamic bodies and bullets are swept from their
+    ///    start-of-tick poses (recorded before the substeps) to where the
+    ///    substeps left them, and stopped just short of what they would
+    ///    have passed through (see `world/ccd.rs`);
     /// 6. `snap_kinematic`: targeted kinematic bodies land exactly on their
     ///    targets and stop;
     /// 7. `clear_forces`;
@@ -69,6 +73,7 @@ impl World {
         report.contact_constraints = prep.constraints;
         report.buffer_growths += prep.growths;
 
+        report.buffer_growths += self.stage_ccd_begin();
         let World { bodies, solver, .. } = self;
         let (hot, live) = bodies.hot_slots_mut();
         let solving = !solver.is_empty();
@@ -100,6 +105,11 @@ impl World {
             solver.store_impulses(self.contacts.pairs_mut());
         }
         integrate::finish_angular_velocities(hot, live);
+
+        let ccd = self.stage_ccd();
+        report.ccd_bodies = ccd.bodies;
+        report.ccd_hits = ccd.hits;
+        report.buffer_growths += ccd.growths;
 
         self.stage_snap_kinematic();
         self.stage_clear_forces();

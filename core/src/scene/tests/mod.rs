@@ -372,3 +372,20 @@ fn quaternions_are_normalised_on_load_in_w_x_y_z_order() {
         (Scalar::HALF, Scalar::HALF, Scalar::HALF, Scalar::HALF)
     );
 }
+
+#[test]
+fn bullet_marks_a_dynamic_body_for_continuous_collision_and_is_refused_elsewhere() {
+    let scene = parse(&BALL.replace("\"dynamic\"", "\"dynamic\"\nbullet = true"));
+    assert!(scene.bodies[0].bullet);
+    assert!(!parse(BALL).bodies[0].bullet);
+    let world = build_world(&scene, "test.toml").unwrap();
+    let h = world.find_body("ball").unwrap();
+    assert_eq!(world.is_bullet(h), Ok(true));
+    let e = error(&BALL.replace("\"dynamic\"", "\"kinematic\"\nbullet = true"));
+    assert_eq!(
+        e,
+        "test.toml:4:10: body \"ball\": only dynamic bodies can be bullets; this body is kinematic"
+    );
+    let e = error(&BALL.replace("\"dynamic\"", "\"dynamic\"\nbullet = 1"));
+    assert!(e.starts_with("test.toml:4:10:"), "{e}");
+}

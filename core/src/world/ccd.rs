@@ -1,0 +1,613 @@
+//! Continuous collision (CCD): the stage of `World::step` that stops fast
+//! bodies before they pass through thin shapes.
+//!
+//! **Who is swept.** After the substeps have moved the bodies, every awake
+//! dynamic body with a solid collider is checked with a few integer
+//! comparisons: it is a *candidate* when its centre moved more than
+//! [`CCD_MOTION_FRACTION`] (¼) of its smallest extent this tick, when its
+//! rotation (bounded by `|ω|₁·dt·r_max`) could move its surface that far, or
+//! when it is a bullet. Slow bodies pay those comparisons and nothing else
+//! (plus the copy of their start pose before the substeps).
+//!
+//! **Against what.** Candidates are swept against static shapes and
+//! sleeping bodies (the broad phase's static tree, queried with the box of
+//! the body's bounding sphere at the start and end of the tick). Bullets are
+//! swept afterwards, also against awake dynamic and kinematic bodies, which
+//! are taken at their end-of-tick poses (after their own CCD); bullets are
+//! not swept against each other. Triggers, filtered pairs and the body's own
+//! colliders are skipped; compound bodies sweep every solid collider with
+//! the one body motion and take the earliest hit.
+//!
+//! **The motion** is the body's pose interpolated between the start and the
+//! end of the tick: the centre linearly, the rotation at a constant rate
+//! about the fixed axis taking the start orientation to the end one.
+//!
+//! **Time of impact** by conservative advancement (Mirtich; Erin Catto's
+//! GDC 2013 "Continuous Collision"): at the fraction `t`, GJK gives the gap
+//! `d` and the normal `n`. No point of the moving collider approaches the
+//! plane through the target's closest point faster than
+//! `Δc·n + θ·ρ` per unit of `t` (`Δc` the centre's motion, `θ` the tick's
+//! rotation angle, `ρ` the collider's largest distance from the centre of
+//! mass), so advancing by `(d − CCD_TARGET_GAP) / (Δc·n + θ·ρ)` keeps the
+//! gap at least [`CCD_TARGET_GAP`]. The loop stops with a hit when
+//! `d ≤ CCD_TARGET_GAP + CCD_TOLERANCE`, with a miss when the bound is not
+//! positive or `t` passes 1 (or the best hit so far), and after
+//! [`CCD_MAX_ITERATIONS`] with a hit at the last (safe) `t`.
+//!
+//! **Already touching.** A pair closer than `CCD_TARGET_GAP + CCD_TOLERANCE`
+//! at the start of the tick (a box sliding on the floor, a body resting on
+//! a wall) would report a hit at once and freeze the body; instead the pair
+//! is swept again with a *core* sphere: the collider's centre with a quarter
+//! of its smallest extent as radius (as Box2D v3 does). The core hits only
+//! when the body is really going through; a core that already touches is
+//! left to the contact solver.
+//!
+//! **The response.** On a hit at fraction `t`, the body is moved to its
+//! pose at `t` (a gap of about [`CCD_TARGET_GAP`] from the surface) and
+//! keeps its velocities (the angular velocity is recomputed from the kept
+//! angular momentum at the new orientation). The next tick's speculative
+//! contact, whose reach covers the gap plus the closing distance, then stops
+//! or bounces it with the material's restitution: the response is the
+//! solver's, not CCD's. The time after the hit is lost for that body (one
+//! tick of "pause" in front of the obstacle).
+//!
+//! Determinism: candidates in handle order (non-bullets first, then
+//! bullets); target colliders sorted by handle; fixed iteration caps; the
+//! earliest hit wins, ties keep the first in that order. Never allocates
+//! once its buffers are warm (growths are counted); never panics.
+
+use crate::body::{BodyHandle, BodyHot, BodyKind};
+use crate::collider::Collider;
+use crate::collision::narrow::gjk::{DistanceResult, SupportShape, distance};
+use crate::collision::{ProxyId, ProxyKey};
+use crate::math::elem::isqrt_u128;
+use crate::math::{Aabb, Quat, Scalar, Transform, Vec3};
+use crate::query::overlap::{box_in_frame, for_each_triangle, raw_box};
+use crate::query::{Triangle, convex_support};
+use crate::shape::{Capsule, Cuboid, Shape, Sphere};
+use crate::solver::integrate::omega_from_momentum;
+
+use super::{World, rotation_delta};
+
+/// The gap continuous collision leaves between a stopped body and the
+/// obstacle: 2⁻⁸ m ≈ 3.9 mm. Well inside the default 2 cm contact margin
+/// (so the next tick's speculative contact sees it), well above the GJK's
+/// resolution and the rounding of the interpolated pose (nanometres).
+pub const CCD_TARGET_GAP: Scalar = Scalar::from_bits(1 << 24);
+
+/// How close to [`CCD_TARGET_GAP`] an advance must land to count as a hit:
+/// 2⁻¹⁰ m ≈ 1 mm. A face-on approach lands within it after one advance.
+pub const CCD_TOLERANCE: Scalar = Scalar::from_bits(1 << 22);
+
+/// The most GJK distance evaluations per collider pair. Translation-only
+/// approaches need two or three; a spinning body closes a fixed share of the
+/// remaining gap per iteration. When the cap is reached the body is stopped
+/// at the last fraction reached (which was verified apart): early, never
+/// through.
+pub const CCD_MAX_ITERATIONS: usize = 32;
+
+/// Bodies moving more than this fraction of their smallest extent in one
+/// tick are swept: ¼ (the speculative contacts handle slower ones).
+pub const CCD_MOTION_FRACTION: Scalar = Scalar::from_bits(1 << 30);
+
+/// Continuous collision's reusable buffers.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct CcdScratch {
+    /// Centre of mass and rotation of every body slot at the start of the
+    /// tick.
+    start: Vec<(Vec3, Quat)>,
+    /// This tick's candidate bodies.
+    movers: Vec<BodyHandle>,
+    /// The target colliders of one candidate, sorted.
+    keys: Vec<ProxyKey>,
+}
+
+/// What the CCD stage did.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct CcdStats {
+    /// Bodies whose motion was swept.
+    pub bodies: u32,
+    /// Bodies moved back to a time of impact.
+    pub hits: u32,
+    /// Buffer growths (allocations).
+    pub growths: u32,
+}
+
+/// A collider's extents about its own origin, for CCD.
+#[derive(Clone, Copy, Debug)]
+struct Extent {
+    /// A point well inside the shape (local frame): the core sphere's centre.
+    center: Vec3,
+    /// The smallest distance from `center` to the surface (a lower bound).
+    min: Scalar,
+    /// The largest distance from the shape's origin to a point of it (an
+    /// upper bound).
+    radius: Scalar,
+}
+
+/// The extents of a convex shape; `None` for meshes and height fields
+/// (static only, never swept).
+fn extent_of(shape: &Shape) -> Option<Extent> {
+    match shape {
+        Shape::Sphere(s) => Some(Extent {
+            center: Vec3::ZERO,
+            min: s.radius,
+            radius: s.radius,
+        }),
+        Shape::Capsule(c) => Some(Extent {
+            center: Vec3::ZERO,
+            min: c.radius,
+            radius: c.half_height + c.radius,
+        }),
+        Shape::Cuboid(b) => Some(Extent {
+            center: Vec3::ZERO,
+            min: b.half_extents.min_element(),
+            radius: b.half_extents.length(),
+        }),
+        Shape::ConvexHull(h) => {
+            let vs = h.vertices();
+            let n = vs.len().max(1) as i128;
+            let mut sum = [0i128; 3];
+            let mut far = 0u128;
+            for v in vs {
+                for (k, s) in sum.iter_mut().enumerate() {
+                    *s += v.get(k).to_bits() as i128;
+                }
+                far = far.max(v.length_squared_wide());
+            }
+            let c = Vec3::new(
+                Scalar::from_bits((sum[0] / n) as i64),
+                Scalar::from_bits((sum[1] / n) as i64),
+                Scalar::from_bits((sum[2] / n) as i64),
+            );
+            let min = h
+                .faces()
+                .iter()
+                .map(|f| f.offset() - f.normal().dot(c))
+                .min()
+                .unwrap_or(Scalar::ZERO)
+                .max(Scalar::ZERO);
+            Some(Extent {
+                center: c,
+                min,
+                // Round the square root up so the bound stays an upper one.
+                radius: Scalar::from_bits(isqrt_u128(far) as i64 + 1),
+            })
+        }
+        Shape::TriMesh(_) | Shape::HeightField(_) => None,
+    }
+}
+
+/// The interpolated motion of a body over the tick.
+#[derive(Clone, Copy, Debug)]
+struct Motion {
+    c0: Vec3,
+    q0: Quat,
+    delta: Vec3,
+    axis: Vec3,
+    angle: Scalar,
+    local_center: Vec3,
+}
+
+impl Motion {
+    /// Centre of mass and rotation at fraction `t`.
+    fn at(&self, t: Scalar) -> (Vec3, Quat) {
+        let c = self.c0 + self.delta * t;
+        if self.angle.is_zero() {
+            return (c, self.q0);
+        }
+        let q = (Quat::from_axis_angle(self.axis, self.angle * t) * self.q0).normalize();
+        (c, q)
+    }
+
+    /// The body origin's pose at fraction `t`.
+    fn origin_at(&self, t: Scalar) -> Transform {
+        let (c, q) = self.at(t);
+        Transform::new(c - q.rotate(self.local_center), q)
+    }
+}
+
+/// How one collider pair's sweep ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Toi {
+    /// First reached the target gap at this fraction.
+    Hit(Scalar),
+    /// No contact up to the limit.
+    Miss,
+    /// Already within the touching distance at the start, and approaching.
+    Touching,
+}
+
+/// Conservative advancement of `a` (at `local` in the body-origin frame,
+/// all its points within `rho` of the centre of mass) along `m` towards the
+/// fixed `b` at `pose_b`, up to fraction `limit`. A pair that starts closer
+/// than `touch` while approaching is [`Toi::Touching`]; otherwise the first
+/// fraction at which the gap is within `CCD_TOLERANCE` of `CCD_TARGET_GAP`
+/// is a hit (0 included).
+#[allow(clippy::too_many_arguments)]
+fn sweep<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
+    a: &A,
+    local: &Transform,
+    rho: Scalar,
+    m: &Motion,
+    b: &B,
+    pose_b: &Transform,
+    limit: Scalar,
+    touch: Scalar,
+) -> Toi {
+    let spin = m.angle * rho;
+    let mut t = Scalar::ZERO;
+    let mut last = None;
+    for _ in 0..CCD_MAX_ITERATIONS {
+        let pose_a = m.origin_at(t).mul_transform(local);
+        match distance(a, &pose_a, b, pose_b) {
+            DistanceResult::Overlapping => {
+                // Only rounding can land an advance in contact: fall back to
+                // the last fraction verified apart.
+                return match last {
+                    Some(prev) => Toi::Hit(prev),
+                    None => Toi::Touching,
+                };
+            }
+            DistanceResult::Separated {
+                distance: gap,
+                normal,
+                ..
+            } => {
+                let bound = m.delta.dot(normal) + spin;
+                if !bound.is_positive() {
+                    return Toi::Miss;
+                }
+                if gap <= CCD_TARGET_GAP + CCD_TOLERANCE {
+                    return if last.is_none() && gap <= touch {
+                        Toi::Touching
+                    } else {
+                        Toi::Hit(t)
+                    };
+                }
+                let Some(step) = (gap - CCD_TARGET_GAP).checked_div(bound) else {
+                    return Toi::Miss;
+                };
+                let next = t + step;
+                if next > limit || next > Scalar::ONE {
+                    return Toi::Miss;
+                }
+                last = Some(t);
+                t = next;
+            }
+        }
+    }
+    Toi::Hit(t)
+}
+
+/// One solid collider of a swept body, with its CCD extents.
+#[derive(Clone, Copy)]
+struct Part<'a> {
+    collider: &'a Collider,
+    ext: Extent,
+    /// Largest distance of its points from the body's centre of mass.
+    rho: Scalar,
+}
+
+/// The sweep of one moving collider against one convex target. A pair that
+/// already touches at the start is swept again with the collider's *core*
+/// (the shape shrunk by three quarters of its smallest extent: a sphere or
+/// capsule of a quarter of the radius, a box with every face moved in by
+/// that much, a sphere at a hull's vertex centroid), which may come as
+/// close as the target gap before it is stopped.
+fn sweep_pair<B: SupportShape + ?Sized>(
+    part: &Part<'_>,
+    m: &Motion,
+    b: &B,
+    pose_b: &Transform,
+    limit: Scalar,
+) -> Option<Scalar> {
+    let mover = part.collider;
+    let a = convex_support(&mover.shape)?;
+    let local = &mover.local_pose;
+    let first = CCD_TARGET_GAP + CCD_TOLERANCE;
+    let toi = match sweep(a, local, part.rho, m, b, pose_b, limit, first) {
+        Toi::Touching => {
+            let quarter = part.ext.min.half().half();
+            let inset = part.ext.min - quarter;
+            // A core that itself touches is deep in: the solver's job.
+            let touch = CCD_TOLERANCE.half();
+            match &mover.shape {
+                Shape::Sphere(_) => {
+                    let core = Sphere { radius: quarter };
+                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
+                }
+                Shape::Capsule(c) => {
+                    let core = Capsule {
+                        half_height: c.half_height,
+                        radius: quarter,
+                    };
+                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
+                }
+                Shape::Cuboid(c) => {
+                    let core = Cuboid {
+                        half_extents: c.half_extents - Vec3::splat(inset),
+                    };
+                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
+                }
+                _ => {
+                    let core = Sphere { radius: quarter };
+                    let at = Transform::new(local.transform_point(part.ext.center), Quat::IDENTITY);
+                    sweep(&core, &at, part.rho, m, b, pose_b, limit, touch)
+                }
+            }
+        }
+        other => other,
+    };
+    match toi {
+        Toi::Hit(t) => Some(t),
+        Toi::Miss | Toi::Touching => None,
+    }
+}
+
+/// The collider handle behind a broad-phase key.
+fn collider_of(key: ProxyKey) -> crate::collider::ColliderHandle {
+    crate::collider::ColliderHandle(crate::arena::RawHandle {
+        index: (key.0 >> 32) as u32,
+        generation: key.0 as u32,
+    })
+}
+
+impl World {
+    /// Recomputes a body's CCD extents from its solid colliders (after a
+    /// collider or the mass changed).
+    pub(crate) fn refresh_ccd_extents(&mut self, h: BodyHandle) {
+        let Some(cold) = self.bodies.cold(h) else {
+            return;
+        };
+        let mut min: Option<Scalar> = None;
+        let mut radius = Scalar::ZERO;
+        for ch in &cold.colliders {
+            let Some(c) = self.colliders.get(ch.0) else {
+                continue;
+            };
+            if c.is_trigger {
+                continue;
+            }
+            let Some(e) = extent_of(&c.shape) else {
+                continue;
+            };
+            min = Some(min.map_or(e.min, |m| m.min(e.min)));
+            let off = (c.local_pose.translation - cold.local_center).length();
+            radius = radius.max(off + e.radius);
+        }
+        if let Some(hot) = self.bodies.hot_mut(h) {
+            hot.ccd_extent = min.unwrap_or(Scalar::ZERO);
+            hot.ccd_radius = radius;
+        }
+    }
+
+    /// Records every body's pose at the start of the tick (before the
+    /// substeps move them): the start of the motion CCD sweeps. Returns the
+    /// buffer growths.
+    pub(crate) fn stage_ccd_begin(&mut self) -> u32 {
+        let (hot, _) = self.bodies.hot_slots_mut();
+        let start = &mut self.ccd.start;
+        let growths = u32::from(start.capacity() < hot.len());
+        start.clear();
+        start.extend(hot.iter().map(|b| (b.center, b.rotation)));
+        growths
+    }
+
+    /// Whether a body must be swept this tick (see the module docs): one
+    /// squared-length comparison for the translation, one product for the
+    /// rotation bound.
+    fn is_ccd_candidate(b: &BodyHot, start: (Vec3, Quat), dt: Scalar) -> bool {
+        if b.kind != BodyKind::Dynamic || b.sleeping || !b.ccd_extent.is_positive() {
+            return false;
+        }
+        if b.bullet {
+            return true;
+        }
+        let limit = b.ccd_extent * CCD_MOTION_FRACTION;
+        let limit_sq = limit.wide_mul(limit) as u128;
+        if (b.center - start.0).length_squared_wide() > limit_sq {
+            return true;
+        }
+        // |ω|·dt·r ≤ |ω|₁·dt·r, compared exactly in i128.
+        let w = b.angular_velocity;
+        let l1 = (w.x.abs() + w.y.abs() + w.z.abs()) * dt;
+        l1.wide_mul(b.ccd_radius) > (limit.to_bits() as i128) << 32
+    }
+
+    /// The CCD stage (see the module docs). Called after the substeps and
+    /// before kinematic targets are snapped.
+    ///
+    /// Determinism: must run in the same place of every step; candidates in
+    /// handle order, non-bullets before bullets.
+    pub(crate) fn stage_ccd(&mut self) -> CcdStats {
+        let mut stats = CcdStats::default();
+        let dt = self.config.dt();
+        // Pass 1: fast non-bullets against the static tree.
+        let mut growths = 0;
+        let mut has_bullets = false;
+        {
+            let World { bodies, ccd, .. } = &mut *self;
+            ccd.movers.clear();
+            for (h, hot, _) in bodies.iter() {
+                let Some(&start) = ccd.start.get(h.index() as usize) else {
+                    continue;
+                };
+                if !World::is_ccd_candidate(hot, start, dt) {
+                    continue;
+                }
+                if hot.bullet {
+                    has_bullets = true;
+                    continue;
+                }
+                growths += u32::from(ccd.movers.len() == ccd.movers.capacity());
+                ccd.movers.push(h);
+            }
+        }
+        for i in 0..self.ccd.movers.len() {
+            let h = self.ccd.movers[i];
+            stats.bodies += 1;
+            if self.sweep_body(h, false, &mut growths) {
+                stats.hits += 1;
+            }
+        }
+        // Pass 2: bullets, against everything at its end-of-tick pose. The
+        // moving tree's boxes are brought up to date first, so bodies that
+        // moved this tick are found where they are now.
+        if has_bullets {
+            self.sync_proxies(true);
+            let World { bodies, ccd, .. } = &mut *self;
+            ccd.movers.clear();
+            for (h, hot, _) in bodies.iter() {
+                let Some(&start) = ccd.start.get(h.index() as usize) else {
+                    continue;
+                };
+                if hot.bullet && World::is_ccd_candidate(hot, start, dt) {
+                    growths += u32::from(ccd.movers.len() == ccd.movers.capacity());
+                    ccd.movers.push(h);
+                }
+            }
+            for i in 0..self.ccd.movers.len() {
+                let h = self.ccd.movers[i];
+                stats.bodies += 1;
+                if self.sweep_body(h, true, &mut growths) {
+                    stats.hits += 1;
+                }
+            }
+        }
+        stats.growths = growths;
+        stats
+    }
+
+    /// Sweeps one body; on a hit moves it to its pose at the time of impact.
+    /// Returns whether it was moved.
+    fn sweep_body(&mut self, h: BodyHandle, bullet: bool, growths: &mut u32) -> bool {
+        let World {
+            bodies,
+            colliders,
+            broad,
+            ccd,
+            ..
+        } = &mut *self;
+        let (Some(hot), Some(cold)) = (bodies.hot(h), bodies.cold(h)) else {
+            return false;
+        };
+        let Some(&(c0, q0)) = ccd.start.get(h.index() as usize) else {
+            return false;
+        };
+        let (axis, angle) = rotation_delta(q0, hot.rotation)
+            .normalize_and_length()
+            .unwrap_or((Vec3::X, Scalar::ZERO));
+        let m = Motion {
+            c0,
+            q0,
+            delta: hot.center - c0,
+            axis,
+            angle,
+            local_center: cold.local_center,
+        };
+        // The box of the body's bounding sphere at both ends of the motion.
+        let reach = hot.ccd_radius + CCD_TARGET_GAP + CCD_TOLERANCE;
+        let half = Vec3::splat(reach);
+        let swept = Aabb::from_center_half_extents(c0, half)
+            .union(&Aabb::from_center_half_extents(hot.center, half));
+
+        // Candidate target colliders, sorted by handle.
+        ccd.keys.clear();
+        let keys = &mut ccd.keys;
+        let mut collect = |data: u64| {
+            if let Ok(key) = broad.key(ProxyId::from_index(data as u32)) {
+                *growths += u32::from(keys.len() == keys.capacity());
+                keys.push(key);
+            }
+            true
+        };
+        broad.static_tree().query(&swept, |_, d| collect(d));
+        if bullet {
+            broad.moving_tree().query(&swept, |_, d| collect(d));
+        }
+        keys.sort_unstable();
+        keys.dedup();
+
+        let mut best: Option<Scalar> = None;
+        for &key in keys.iter() {
+            let Some(target) = colliders.get(collider_of(key).0) else {
+                continue;
+            };
+            if target.is_trigger || target.body == h {
+                continue;
+            }
+            let (Some(thot), Some(tcold)) = (bodies.hot(target.body), bodies.cold(target.body))
+            else {
+                continue;
+            };
+            if thot.bullet && thot.kind == BodyKind::Dynamic && !thot.sleeping {
+                continue;
+            }
+            let tpose = target.world_pose(&thot.origin_pose(tcold.local_center));
+            for ch in &cold.colliders {
+                let Some(mover) = colliders.get(ch.0) else {
+                    continue;
+                };
+                if mover.is_trigger || !mover.filter.allows(&target.filter) {
+                    continue;
+                }
+                let Some(ext) = extent_of(&mover.shape) else {
+                    continue;
+                };
+                let center_off = (mover.local_pose.translation - cold.local_center).length();
+                let part = Part {
+                    collider: mover,
+                    ext,
+                    rho: center_off + ext.radius,
+                };
+                let limit = best.unwrap_or(Scalar::ONE);
+                let hit = if let Some(b) = convex_support(&target.shape) {
+                    sweep_pair(&part, &m, b, &tpose, limit)
+                } else {
+                    // Mesh or height field: the triangles under the swept box.
+                    let Ok(cube) = Cuboid::new(swept.half_extents()) else {
+                        continue;
+                    };
+                    let query = Shape::Cuboid(cube);
+                    let local = box_in_frame(
+                        &query,
+                        &Transform::new(swept.center(), Quat::IDENTITY),
+                        &tpose,
+                    );
+                    let mut tri_best: Option<Scalar> = None;
+                    for_each_triangle(&target.shape, &raw_box(&local), |_, tri| {
+                        let lim = tri_best.unwrap_or(limit);
+                        if let Some(t) = sweep_pair(&part, &m, &Triangle(tri), &tpose, lim)
+                            && tri_best.is_none_or(|b| t < b)
+                        {
+                            tri_best = Some(t);
+                        }
+                        true
+                    });
+                    tri_best
+                };
+                if let Some(t) = hit
+                    && best.is_none_or(|b| t < b)
+                {
+                    best = Some(t);
+                }
+            }
+        }
+
+        let Some(t) = best else {
+            return false;
+        };
+        let (center, rotation) = m.at(t);
+        let Some(hot) = bodies.hot_mut(h) else {
+            return false;
+        };
+        hot.center = center;
+        hot.rotation = rotation;
+        if !hot.isotropic {
+            hot.angular_velocity =
+                omega_from_momentum(rotation, &hot.inv_inertia, hot.angular_momentum);
+        }
+        true
+    }
+}
