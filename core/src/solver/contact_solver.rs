@@ -40,27 +40,37 @@
 
 use crate::body::{BodyHot, BodyKind};
 use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind, PointImpulse};
+use crate::math::scalar::wide_sum;
 use crate::math::{Mat3, Quat, Scalar, SymMat3, Vec3};
 
 /// Marks "no solver body": a static or sleeping body.
 const NONE: u32 = u32::MAX;
 
-/// The solver's per-body state for one tick (about 200 bytes).
+/// The solver's per-body velocity state, the only body data the iteration
+/// loops read and write (72 bytes).
 #[derive(Clone, Copy, Debug, Default)]
-struct SolverBody {
-    /// The body's slot in the body set.
-    slot: u32,
-    /// Whether impulses move it (dynamic) or it only pushes (kinematic).
-    dynamic: bool,
+struct BodyVel {
     /// Linear velocity.
     v: Vec3,
     /// Angular velocity, world axes.
     w: Vec3,
     /// Angular impulse applied since the last write-back.
     dl: Vec3,
+}
+
+/// The solver's per-body constants for the tick and its pose change since
+/// the start of the tick (read once per constraint and pass, never written
+/// by the iterations).
+#[derive(Clone, Copy, Debug, Default)]
+struct SolverBody {
+    /// The body's slot in the body set.
+    slot: u32,
+    /// Whether impulses move it (dynamic) or it only pushes (kinematic).
+    dynamic: bool,
     /// 1/mass (0 for kinematic).
     inv_mass: Scalar,
-    /// World inverse inertia `R I⁻¹ Rᵀ` at the start of the tick.
+    /// World inverse inertia `R I⁻¹ Rᵀ` at the start of the tick (zero for
+    /// kinematic).
     inv_inertia: SymMat3,
     /// Centre at the start of the tick.
     center0: Vec3,
@@ -68,17 +78,33 @@ struct SolverBody {
     rotation0_inv: Quat,
     /// Displacement of the centre since the start of the tick.
     dp: Vec3,
-    /// Rotation since the start of the tick.
-    dq: Quat,
+    /// Rotation since the start of the tick, as a matrix.
+    dr: Mat3,
 }
 
 /// One contact point's constant terms and accumulated impulses.
+///
+/// The relative velocity of the anchors along a direction `d` is
+/// `d·(vB − vA) + (rB×d)·ωB − (rA×d)·ωA`, and an impulse `λ` along `d`
+/// changes `ω` by `λ·I⁻¹(r×d)`: both products are stored here, so an
+/// iteration neither forms a cross product nor multiplies by an inertia.
 #[derive(Clone, Copy, Debug, Default)]
 struct ConstraintPoint {
     /// Anchor on A, relative to A's centre at the start of the tick.
     ra: Vec3,
     /// Anchor on B.
     rb: Vec3,
+    /// `ra × n`, `rb × n`.
+    ra_n: Vec3,
+    rb_n: Vec3,
+    /// `I⁻¹A (ra × n)`, `I⁻¹B (rb × n)`.
+    ia_n: Vec3,
+    ib_n: Vec3,
+    /// The same for the two tangents.
+    ra_t: [Vec3; 2],
+    rb_t: [Vec3; 2],
+    ia_t: [Vec3; 2],
+    ib_t: [Vec3; 2],
     /// Separation at the start of the tick minus `n·(rb − ra)`: adding the
     /// current anchor offset along `n` gives the current separation.
     adjusted_separation: Scalar,
@@ -90,11 +116,6 @@ struct ConstraintPoint {
     normal_mass: Scalar,
     /// `1/k` along each tangent.
     tangent_mass: [Scalar; 2],
-    /// `ra × n`, `rb × n`, and the same for the two tangents.
-    ra_n: Vec3,
-    rb_n: Vec3,
-    ra_t: [Vec3; 2],
-    rb_t: [Vec3; 2],
     /// Accumulated normal impulse (per substep).
     normal_impulse: Scalar,
     /// Accumulated friction impulses.
@@ -114,6 +135,9 @@ struct Constraint {
     b: u32,
     normal: Vec3,
     tangent: [Vec3; 2],
+    /// `1/mass` of each body (0 for none, static or kinematic).
+    inv_mass_a: Scalar,
+    inv_mass_b: Scalar,
     friction: Scalar,
     restitution: Scalar,
     count: usize,
@@ -181,6 +205,8 @@ pub(crate) struct SolverStats {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct ContactSolver {
     bodies: Vec<SolverBody>,
+    /// The velocity state of each solver body (same index as `bodies`).
+    vels: Vec<BodyVel>,
     /// Slot → solver body index, or `NONE`.
     body_of_slot: Vec<u32>,
     constraints: Vec<Constraint>,
@@ -199,11 +225,6 @@ pub(crate) struct PairInfo {
     pub restitution: Scalar,
 }
 
-#[inline]
-fn ang_delta(i: &SymMat3, r_x_p: Vec3) -> Vec3 {
-    i.mul_vec(r_x_p)
-}
-
 impl ContactSolver {
     /// Builds the solver bodies and constraints for this tick from the
     /// contact pairs (at the poses and velocities of the start of the tick).
@@ -217,10 +238,12 @@ impl ContactSolver {
     ) -> SolverStats {
         let caps = (
             self.bodies.capacity(),
+            self.vels.capacity(),
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
         );
         self.bodies.clear();
+        self.vels.clear();
         self.constraints.clear();
         self.body_of_slot.clear();
         self.body_of_slot.resize(hot.len(), NONE);
@@ -275,18 +298,21 @@ impl ContactSolver {
             self.bodies.push(SolverBody {
                 slot: slot as u32,
                 dynamic,
-                v: b.linear_velocity,
-                w: b.angular_velocity,
-                dl: Vec3::ZERO,
                 inv_mass: if dynamic { b.inv_mass } else { Scalar::ZERO },
                 inv_inertia,
                 center0: b.center,
                 rotation0_inv: b.rotation.conjugate(),
                 dp: Vec3::ZERO,
-                dq: Quat::IDENTITY,
+                dr: Mat3::IDENTITY,
+            });
+            self.vels.push(BodyVel {
+                v: b.linear_velocity,
+                w: b.angular_velocity,
+                dl: Vec3::ZERO,
             });
         }
         // 3. Constant terms of each point.
+        let zero = SolverBody::default();
         for c in &mut self.constraints {
             let p = &pairs[c.pair as usize];
             c.a = if c.a == NONE {
@@ -299,29 +325,25 @@ impl ContactSolver {
             } else {
                 self.body_of_slot[c.b as usize]
             };
-            let zero = SolverBody {
-                dq: Quat::IDENTITY,
-                rotation0_inv: Quat::IDENTITY,
-                ..SolverBody::default()
-            };
             let ba = if c.a == NONE {
-                zero
+                &zero
             } else {
-                self.bodies[c.a as usize]
+                &self.bodies[c.a as usize]
             };
             let bb = if c.b == NONE {
-                zero
+                &zero
             } else {
-                self.bodies[c.b as usize]
+                &self.bodies[c.b as usize]
             };
+            let (va, vb) = (vel_or_zero(&self.vels, c.a), vel_or_zero(&self.vels, c.b));
+            c.inv_mass_a = ba.inv_mass;
+            c.inv_mass_b = bb.inv_mass;
             let n = p.manifold.normal;
             let t0 = tangent_of(n);
             let t1 = n.cross(t0);
             c.normal = n;
             c.tangent = [t0, t1];
             c.count = p.manifold.points().len();
-            let ca = if c.a == NONE { Vec3::ZERO } else { ba.center0 };
-            let cb = if c.b == NONE { Vec3::ZERO } else { bb.center0 };
             for (k, (mp, imp)) in p.manifold.points().iter().zip(&p.impulses).enumerate() {
                 let cp = &mut c.points[k];
                 // Static bodies contribute nothing through their anchor, so
@@ -330,28 +352,29 @@ impl ContactSolver {
                 let ra = if c.a == NONE {
                     Vec3::ZERO
                 } else {
-                    mp.point - ca
+                    mp.point - ba.center0
                 };
                 let rb = if c.b == NONE {
                     Vec3::ZERO
                 } else {
-                    mp.point - cb
+                    mp.point - bb.center0
                 };
                 cp.ra = ra;
                 cp.rb = rb;
                 cp.adjusted_separation = -mp.depth - n.dot(rb - ra);
                 cp.ra_n = ra.cross(n);
                 cp.rb_n = rb.cross(n);
-                let k_n = effective(&ba, &bb, cp.ra_n, cp.rb_n);
-                cp.normal_mass = inverse_or_zero(k_n);
+                cp.ia_n = ba.inv_inertia.mul_vec(cp.ra_n);
+                cp.ib_n = bb.inv_inertia.mul_vec(cp.rb_n);
+                cp.normal_mass = inverse_or_zero(effective(ba, bb, cp.ra_n, cp.rb_n));
                 for j in 0..2 {
                     cp.ra_t[j] = ra.cross(c.tangent[j]);
                     cp.rb_t[j] = rb.cross(c.tangent[j]);
-                    cp.tangent_mass[j] =
-                        inverse_or_zero(effective(&ba, &bb, cp.ra_t[j], cp.rb_t[j]));
+                    cp.ia_t[j] = ba.inv_inertia.mul_vec(cp.ra_t[j]);
+                    cp.ib_t[j] = bb.inv_inertia.mul_vec(cp.rb_t[j]);
+                    cp.tangent_mass[j] = inverse_or_zero(effective(ba, bb, cp.ra_t[j], cp.rb_t[j]));
                 }
-                let dv = (bb.v + bb.w.cross(rb)) - (ba.v + ba.w.cross(ra));
-                cp.relative_velocity = n.dot(dv);
+                cp.relative_velocity = along(&va, &vb, n, cp.ra_n, cp.rb_n);
                 cp.normal_impulse = imp.normal;
                 cp.tangent_impulse = imp.tangent;
                 cp.max_normal_impulse = Scalar::ZERO;
@@ -359,6 +382,7 @@ impl ContactSolver {
         }
         let grew = (
             self.bodies.capacity(),
+            self.vels.capacity(),
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
         ) != caps;
@@ -376,76 +400,112 @@ impl ContactSolver {
     /// Reads the bodies' current velocities and pose changes (after the
     /// integrator touched them).
     pub(crate) fn gather(&mut self, hot: &[BodyHot]) {
-        for sb in &mut self.bodies {
+        for (sb, vel) in self.bodies.iter_mut().zip(&mut self.vels) {
             let b = &hot[sb.slot as usize];
-            sb.v = b.linear_velocity;
-            sb.w = b.angular_velocity;
+            vel.v = b.linear_velocity;
+            vel.w = b.angular_velocity;
             sb.dp = b.center - sb.center0;
-            sb.dq = b.rotation * sb.rotation0_inv;
+            sb.dr = Mat3::from_quat(b.rotation * sb.rotation0_inv);
+        }
+    }
+
+    /// Reads only the velocities (the poses did not change since the last
+    /// [`gather`](Self::gather)).
+    pub(crate) fn gather_velocities(&mut self, hot: &[BodyHot]) {
+        for (sb, vel) in self.bodies.iter().zip(&mut self.vels) {
+            let b = &hot[sb.slot as usize];
+            vel.v = b.linear_velocity;
+            vel.w = b.angular_velocity;
         }
     }
 
     /// Writes the solved velocities back; the angular impulses go into the
     /// angular momentum exactly.
     pub(crate) fn scatter(&mut self, hot: &mut [BodyHot]) {
-        for sb in &mut self.bodies {
+        for (sb, vel) in self.bodies.iter().zip(&mut self.vels) {
             if !sb.dynamic {
                 continue;
             }
             let b = &mut hot[sb.slot as usize];
-            b.linear_velocity = sb.v;
-            b.angular_velocity = sb.w;
-            b.angular_momentum += sb.dl;
-            sb.dl = Vec3::ZERO;
+            b.linear_velocity = vel.v;
+            b.angular_velocity = vel.w;
+            b.angular_momentum += vel.dl;
+            vel.dl = Vec3::ZERO;
         }
     }
 
     /// Applies last substep's (or last tick's) accumulated impulses again.
     pub(crate) fn warm_start(&mut self) {
-        let bodies = &mut self.bodies;
+        let vels = &mut self.vels;
         for c in &self.constraints {
-            let (mut ba, mut bb) = load(bodies, c.a, c.b);
+            let (mut va, mut vb) = load(vels, c.a, c.b);
+            let [t0, t1] = c.tangent;
             for cp in &c.points[..c.count] {
-                let p = c.normal * cp.normal_impulse
-                    + c.tangent[0] * cp.tangent_impulse[0]
-                    + c.tangent[1] * cp.tangent_impulse[1];
-                let ang_a = cp.ra.cross(p);
-                let ang_b = cp.rb.cross(p);
-                apply(&mut ba, -p, -ang_a);
-                apply(&mut bb, p, ang_b);
+                let [i0, i1] = cp.tangent_impulse;
+                let ni = cp.normal_impulse;
+                let p = combine3(c.normal, ni, t0, i0, t1, i1);
+                if c.a != NONE {
+                    va.v -= p * c.inv_mass_a;
+                    va.w -= combine3(cp.ia_n, ni, cp.ia_t[0], i0, cp.ia_t[1], i1);
+                    va.dl -= cp.ra.cross(p);
+                }
+                if c.b != NONE {
+                    vb.v += p * c.inv_mass_b;
+                    vb.w += combine3(cp.ib_n, ni, cp.ib_t[0], i0, cp.ib_t[1], i1);
+                    vb.dl += cp.rb.cross(p);
+                }
             }
-            store(bodies, c.a, c.b, ba, bb);
+            store(vels, c.a, c.b, va, vb);
         }
     }
 
     /// One pass over every constraint: friction, then the normal impulses
     /// (soft with `use_bias`, rigid without).
     pub(crate) fn solve(&mut self, params: &SolverParams, use_bias: bool) {
-        let bodies = &mut self.bodies;
+        let vels = &mut self.vels;
+        let bodies = &self.bodies;
         for c in &mut self.constraints {
-            let (mut ba, mut bb) = load(bodies, c.a, c.b);
+            let (mut va, mut vb) = load(vels, c.a, c.b);
             let n = c.normal;
+            let (ma, mb) = (c.inv_mass_a, c.inv_mass_b);
             // Friction, bounded by μ times the current normal impulse.
             for cp in &mut c.points[..c.count] {
                 let limit = c.friction * cp.normal_impulse;
                 for j in 0..2 {
                     let t = c.tangent[j];
-                    let dv = relative_velocity(&ba, &bb, cp.ra, cp.rb);
-                    let vt = t.dot(dv);
+                    let vt = along(&va, &vb, t, cp.ra_t[j], cp.rb_t[j]);
                     let lambda = -(cp.tangent_mass[j] * vt);
                     let old = cp.tangent_impulse[j];
                     let new = (old + lambda).clamp(-limit, limit);
                     let d = new - old;
                     cp.tangent_impulse[j] = new;
-                    let p = t * d;
-                    apply(&mut ba, -p, -(cp.ra_t[j] * d));
-                    apply(&mut bb, p, cp.rb_t[j] * d);
+                    push(
+                        &mut va, &mut vb, c.a, c.b, t, d, ma, mb, cp.ia_t[j], cp.ib_t[j],
+                        cp.ra_t[j], cp.rb_t[j],
+                    );
                 }
             }
-            // Non-penetration.
+            // Non-penetration. The current separation of a point is its
+            // adjusted separation plus `n·(Δp_B − Δp_A) + n·(ΔR_B r_B) −
+            // n·(ΔR_A r_A)`, and `n·(ΔR r) = (ΔRᵀ n)·r`: two rotated normals
+            // per constraint instead of two rotated anchors per point.
+            let (na, dpa) = if c.a == NONE {
+                (Vec3::ZERO, Vec3::ZERO)
+            } else {
+                let b = &bodies[c.a as usize];
+                (b.dr.transpose_mul_vec(n), b.dp)
+            };
+            let (nb, dpb) = if c.b == NONE {
+                (Vec3::ZERO, Vec3::ZERO)
+            } else {
+                let b = &bodies[c.b as usize];
+                (b.dr.transpose_mul_vec(n), b.dp)
+            };
+            let base = n.dot_wide(dpb - dpa);
             for cp in &mut c.points[..c.count] {
-                let d = (bb.dp - ba.dp) + (bb.dq.rotate(cp.rb) - ba.dq.rotate(cp.ra));
-                let s = n.dot(d) + cp.adjusted_separation;
+                let s =
+                    Scalar::from_wide(wide_sum([base, nb.dot_wide(cp.rb), -na.dot_wide(cp.ra)]))
+                        + cp.adjusted_separation;
                 let (bias, mass_scale, impulse_scale) = if s.is_positive() {
                     (s * params.inv_h, Scalar::ONE, Scalar::ZERO)
                 } else if use_bias {
@@ -457,8 +517,7 @@ impl ContactSolver {
                 } else {
                     (Scalar::ZERO, Scalar::ONE, Scalar::ZERO)
                 };
-                let dv = relative_velocity(&ba, &bb, cp.ra, cp.rb);
-                let vn = n.dot(dv);
+                let vn = along(&va, &vb, n, cp.ra_n, cp.rb_n);
                 let lambda = -(cp.normal_mass * mass_scale * (vn + bias))
                     - impulse_scale * cp.normal_impulse;
                 let old = cp.normal_impulse;
@@ -473,42 +532,42 @@ impl ContactSolver {
                 }
                 cp.normal_impulse = new;
                 cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                let p = n * d;
-                apply(&mut ba, -p, -(cp.ra_n * d));
-                apply(&mut bb, p, cp.rb_n * d);
+                push(
+                    &mut va, &mut vb, c.a, c.b, n, d, ma, mb, cp.ia_n, cp.ib_n, cp.ra_n, cp.rb_n,
+                );
             }
-            store(bodies, c.a, c.b, ba, bb);
+            store(vels, c.a, c.b, va, vb);
         }
     }
 
     /// After the substeps: points that approached faster than the threshold
     /// and pushed get the normal velocity `−e·v_before`.
     pub(crate) fn restitution(&mut self, params: &SolverParams) {
-        let bodies = &mut self.bodies;
+        let vels = &mut self.vels;
         let threshold = -params.restitution_threshold;
         for c in &mut self.constraints {
             if c.restitution.is_zero() {
                 continue;
             }
-            let (mut ba, mut bb) = load(bodies, c.a, c.b);
+            let (mut va, mut vb) = load(vels, c.a, c.b);
             let n = c.normal;
+            let (ma, mb) = (c.inv_mass_a, c.inv_mass_b);
             for cp in &mut c.points[..c.count] {
                 if cp.relative_velocity > threshold || cp.max_normal_impulse.is_zero() {
                     continue;
                 }
-                let dv = relative_velocity(&ba, &bb, cp.ra, cp.rb);
-                let vn = n.dot(dv);
+                let vn = along(&va, &vb, n, cp.ra_n, cp.rb_n);
                 let lambda = -(cp.normal_mass * (vn + c.restitution * cp.relative_velocity));
                 let old = cp.normal_impulse;
                 let new = (old + lambda).max(Scalar::ZERO);
                 let d = new - old;
                 cp.normal_impulse = new;
                 cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                let p = n * d;
-                apply(&mut ba, -p, -(cp.ra_n * d));
-                apply(&mut bb, p, cp.rb_n * d);
+                push(
+                    &mut va, &mut vb, c.a, c.b, n, d, ma, mb, cp.ia_n, cp.ib_n, cp.ra_n, cp.rb_n,
+                );
             }
-            store(bodies, c.a, c.b, ba, bb);
+            store(vels, c.a, c.b, va, vb);
         }
     }
 
@@ -562,43 +621,85 @@ fn effective(a: &SolverBody, b: &SolverBody, ra_d: Vec3, rb_d: Vec3) -> Scalar {
     Scalar::from_wide(wide)
 }
 
-/// Velocity of B's anchor relative to A's.
-#[inline]
-fn relative_velocity(a: &SolverBody, b: &SolverBody, ra: Vec3, rb: Vec3) -> Vec3 {
-    (b.v + b.w.cross(rb)) - (a.v + a.w.cross(ra))
-}
-
-/// Applies a linear impulse `p` and angular impulse `r × p` to a body.
-#[inline]
-fn apply(b: &mut SolverBody, p: Vec3, ang: Vec3) {
-    if !b.dynamic {
-        return;
-    }
-    b.v += p * b.inv_mass;
-    b.w += ang_delta(&b.inv_inertia, ang);
-    b.dl += ang;
-}
-
-fn load(bodies: &[SolverBody], a: u32, b: u32) -> (SolverBody, SolverBody) {
-    let get = |i: u32| {
-        if i == NONE {
-            SolverBody {
-                dq: Quat::IDENTITY,
-                rotation0_inv: Quat::IDENTITY,
-                ..SolverBody::default()
-            }
-        } else {
-            bodies[i as usize]
-        }
+/// `a·x + b·y + c·z`, each component rounded once.
+#[inline(always)]
+fn combine3(a: Vec3, x: Scalar, b: Vec3, y: Scalar, c: Vec3, z: Scalar) -> Vec3 {
+    let e = |i: usize| {
+        Scalar::from_wide(wide_sum([
+            a.get(i).wide_mul(x),
+            b.get(i).wide_mul(y),
+            c.get(i).wide_mul(z),
+        ]))
     };
-    (get(a), get(b))
+    Vec3::new(e(0), e(1), e(2))
 }
 
-fn store(bodies: &mut [SolverBody], a: u32, b: u32, ba: SolverBody, bb: SolverBody) {
+/// Velocity of B's anchor relative to A's along the unit direction `d`,
+/// from `r×d` of each anchor: `d·(vB − vA) + (rB×d)·ωB − (rA×d)·ωA`,
+/// rounded once.
+#[inline(always)]
+fn along(a: &BodyVel, b: &BodyVel, d: Vec3, ra_d: Vec3, rb_d: Vec3) -> Scalar {
+    Scalar::from_wide(wide_sum([
+        d.dot_wide(b.v - a.v),
+        rb_d.dot_wide(b.w),
+        -ra_d.dot_wide(a.w),
+    ]))
+}
+
+/// Applies impulse `λ·d` to B and `−λ·d` to A at their anchors: `v` moves
+/// by `λ·d/m`, `ω` by `λ·I⁻¹(r×d)` (given as `ia_d`, `ib_d`) and the
+/// angular impulse `λ·(r×d)` is recorded for the momentum write-back.
+/// A missing body (`NONE`) is skipped; a kinematic one has zero inverse
+/// mass and inertia, and its angular impulse is never written back.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn push(
+    va: &mut BodyVel,
+    vb: &mut BodyVel,
+    a: u32,
+    b: u32,
+    d: Vec3,
+    lambda: Scalar,
+    ma: Scalar,
+    mb: Scalar,
+    ia_d: Vec3,
+    ib_d: Vec3,
+    ra_d: Vec3,
+    rb_d: Vec3,
+) {
     if a != NONE {
-        bodies[a as usize] = ba;
+        va.v -= d * (lambda * ma);
+        va.w -= ia_d * lambda;
+        va.dl -= ra_d * lambda;
     }
     if b != NONE {
-        bodies[b as usize] = bb;
+        vb.v += d * (lambda * mb);
+        vb.w += ib_d * lambda;
+        vb.dl += rb_d * lambda;
+    }
+}
+
+/// The velocity state of solver body `i`, or zero for `NONE`.
+#[inline(always)]
+fn vel_or_zero(vels: &[BodyVel], i: u32) -> BodyVel {
+    if i == NONE {
+        BodyVel::default()
+    } else {
+        vels[i as usize]
+    }
+}
+
+#[inline(always)]
+fn load(vels: &[BodyVel], a: u32, b: u32) -> (BodyVel, BodyVel) {
+    (vel_or_zero(vels, a), vel_or_zero(vels, b))
+}
+
+#[inline(always)]
+fn store(vels: &mut [BodyVel], a: u32, b: u32, va: BodyVel, vb: BodyVel) {
+    if a != NONE {
+        vels[a as usize] = va;
+    }
+    if b != NONE {
+        vels[b as usize] = vb;
     }
 }
