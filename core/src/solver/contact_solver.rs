@@ -41,7 +41,7 @@
 use crate::body::{BodyHot, BodyKind};
 use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind, PointImpulse};
 use crate::math::scalar::wide_sum;
-use crate::math::{Mat3, Quat, Scalar, SymMat3, Vec3};
+use crate::math::{Faults, Mat3, Quat, Scalar, SymMat3, Vec3, faults};
 
 /// Marks "no solver body": a static or sleeping body.
 const NONE: u32 = u32::MAX;
@@ -470,11 +470,11 @@ impl ContactSolver {
             let (ma, mb) = (c.inv_mass_a, c.inv_mass_b);
             // Friction, bounded by μ times the current normal impulse.
             for cp in &mut c.points[..c.count] {
-                let limit = c.friction * cp.normal_impulse;
+                let limit = mul(c.friction, cp.normal_impulse);
                 for j in 0..2 {
                     let t = c.tangent[j];
                     let vt = along(&va, &vb, t, cp.ra_t[j], cp.rb_t[j]);
-                    let lambda = -(cp.tangent_mass[j] * vt);
+                    let lambda = -mul(cp.tangent_mass[j], vt);
                     let old = cp.tangent_impulse[j];
                     let new = (old + lambda).clamp(-limit, limit);
                     let d = new - old;
@@ -518,8 +518,8 @@ impl ContactSolver {
                     (Scalar::ZERO, Scalar::ONE, Scalar::ZERO)
                 };
                 let vn = along(&va, &vb, n, cp.ra_n, cp.rb_n);
-                let lambda = -(cp.normal_mass * mass_scale * (vn + bias))
-                    - impulse_scale * cp.normal_impulse;
+                let lambda = -mul(mul(cp.normal_mass, mass_scale), vn + bias)
+                    - mul(impulse_scale, cp.normal_impulse);
                 let old = cp.normal_impulse;
                 let new = (old + lambda).max(Scalar::ZERO);
                 let d = new - old;
@@ -668,15 +668,38 @@ fn push(
     rb_d: Vec3,
 ) {
     if a != NONE {
-        va.v -= d * (lambda * ma);
-        va.w -= ia_d * lambda;
-        va.dl -= ra_d * lambda;
+        va.v -= scale(d, mul(lambda, ma));
+        va.w -= scale(ia_d, lambda);
+        va.dl -= scale(ra_d, lambda);
     }
     if b != NONE {
-        vb.v += d * (lambda * mb);
-        vb.w += ib_d * lambda;
-        vb.dl += rb_d * lambda;
+        vb.v += scale(d, mul(lambda, mb));
+        vb.w += scale(ib_d, lambda);
+        vb.dl += scale(rb_d, lambda);
     }
+}
+
+/// `a·b`, bit for bit what `a * b` gives (rounded to nearest, ties away
+/// from zero; saturated with the overflow fault), with a shorter rounding:
+/// a product of two `i64` is at most 2¹²⁶ in size, so adding the rounding
+/// bias cannot overflow and only the final narrowing needs a check.
+#[inline(always)]
+fn mul(a: Scalar, b: Scalar) -> Scalar {
+    let p = a.to_bits() as i128 * b.to_bits() as i128;
+    let r = (p + ((1i128 << 31) - (p < 0) as i128)) >> 32;
+    let lo = r as i64;
+    if lo as i128 == r {
+        Scalar::from_bits(lo)
+    } else {
+        faults::raise(Faults::OVERFLOW);
+        if r < 0 { Scalar::MIN } else { Scalar::MAX }
+    }
+}
+
+/// `v·s` per component with [`mul`].
+#[inline(always)]
+fn scale(v: Vec3, s: Scalar) -> Vec3 {
+    Vec3::new(mul(v.x, s), mul(v.y, s), mul(v.z, s))
 }
 
 /// The velocity state of solver body `i`, or zero for `NONE`.
