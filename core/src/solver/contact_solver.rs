@@ -210,6 +210,9 @@ pub(crate) struct ContactSolver {
     /// Slot → solver body index, or `NONE`.
     body_of_slot: Vec<u32>,
     constraints: Vec<Constraint>,
+    /// Warm starts (substeps) since `prepare`: their parity picks the
+    /// order the solve passes visit each manifold's points in.
+    substeps: u32,
 }
 
 /// What `prepare` needs to know about one pair: the body slots of its two
@@ -242,6 +245,7 @@ impl ContactSolver {
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
         );
+        self.substeps = 0;
         self.bodies.clear();
         self.vels.clear();
         self.constraints.clear();
@@ -436,6 +440,7 @@ impl ContactSolver {
 
     /// Applies last substep's (or last tick's) accumulated impulses again.
     pub(crate) fn warm_start(&mut self) {
+        self.substeps = self.substeps.wrapping_add(1);
         let vels = &mut self.vels;
         for c in &self.constraints {
             let (mut va, mut vb) = load(vels, c.a, c.b);
@@ -462,6 +467,12 @@ impl ContactSolver {
     /// One pass over every constraint: friction, then the normal impulses
     /// (soft with `use_bias`, rigid without).
     pub(crate) fn solve(&mut self, params: &SolverParams, use_bias: bool) {
+        // Every other substep visits each manifold's points in reverse:
+        // always the same order lets the first point of a manifold take
+        // more than its share of the load, and that keeps a tall stack
+        // rocking (the stack of 20's top box swung 8 cm without sleeping,
+        // 4 cm with this).
+        let reverse = self.substeps.is_multiple_of(2);
         let vels = &mut self.vels;
         let bodies = &self.bodies;
         for c in &mut self.constraints {
@@ -469,7 +480,8 @@ impl ContactSolver {
             let n = c.normal;
             let (ma, mb) = (c.inv_mass_a, c.inv_mass_b);
             // Friction, bounded by μ times the current normal impulse.
-            for cp in &mut c.points[..c.count] {
+            for kk in 0..c.count {
+                let cp = &mut c.points[if reverse { c.count - 1 - kk } else { kk }];
                 let limit = mul(c.friction, cp.normal_impulse);
                 for j in 0..2 {
                     let t = c.tangent[j];
@@ -502,7 +514,8 @@ impl ContactSolver {
                 (b.dr.transpose_mul_vec(n), b.dp)
             };
             let base = n.dot_wide(dpb - dpa);
-            for cp in &mut c.points[..c.count] {
+            for kk in 0..c.count {
+                let cp = &mut c.points[if reverse { c.count - 1 - kk } else { kk }];
                 let s =
                     Scalar::from_wide(wide_sum([base, nb.dot_wide(cp.rb), -na.dot_wide(cp.ra)]))
                         + cp.adjusted_separation;
