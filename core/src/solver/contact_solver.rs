@@ -370,13 +370,16 @@ impl ContactSolver {
                 cp.rb_n = rb.cross(n);
                 cp.ia_n = ba.inv_inertia.mul_vec(cp.ra_n);
                 cp.ib_n = bb.inv_inertia.mul_vec(cp.rb_n);
-                cp.normal_mass = inverse_or_zero(effective(ba, bb, cp.ra_n, cp.rb_n));
+                cp.normal_mass =
+                    inverse_or_zero(effective(ba, bb, cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n));
                 for j in 0..2 {
                     cp.ra_t[j] = ra.cross(c.tangent[j]);
                     cp.rb_t[j] = rb.cross(c.tangent[j]);
                     cp.ia_t[j] = ba.inv_inertia.mul_vec(cp.ra_t[j]);
                     cp.ib_t[j] = bb.inv_inertia.mul_vec(cp.rb_t[j]);
-                    cp.tangent_mass[j] = inverse_or_zero(effective(ba, bb, cp.ra_t[j], cp.rb_t[j]));
+                    cp.tangent_mass[j] = inverse_or_zero(effective(
+                        ba, bb, cp.ra_t[j], cp.rb_t[j], cp.ia_t[j], cp.ib_t[j],
+                    ));
                 }
                 cp.relative_velocity = along(&va, &vb, n, cp.ra_n, cp.rb_n);
                 cp.normal_impulse = imp.normal;
@@ -626,11 +629,19 @@ fn inverse_or_zero(k: Scalar) -> Scalar {
 }
 
 /// `k = 1/mA + 1/mB + (rA×d)·I⁻¹A(rA×d) + (rB×d)·I⁻¹B(rB×d)`.
-fn effective(a: &SolverBody, b: &SolverBody, ra_d: Vec3, rb_d: Vec3) -> Scalar {
+/// `ia_d`, `ib_d` are `I⁻¹A (rA×d)` and `I⁻¹B (rB×d)`, already computed.
+fn effective(
+    a: &SolverBody,
+    b: &SolverBody,
+    ra_d: Vec3,
+    rb_d: Vec3,
+    ia_d: Vec3,
+    ib_d: Vec3,
+) -> Scalar {
     let wide = a.inv_mass.to_bits() as i128 * (1i128 << 32)
         + b.inv_mass.to_bits() as i128 * (1i128 << 32)
-        + ra_d.dot_wide(a.inv_inertia.mul_vec(ra_d))
-        + rb_d.dot_wide(b.inv_inertia.mul_vec(rb_d));
+        + ra_d.dot_wide(ia_d)
+        + rb_d.dot_wide(ib_d);
     Scalar::from_wide(wide)
 }
 
