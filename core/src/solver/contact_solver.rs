@@ -30,10 +30,13 @@
 //! orientation since the start of the tick: no narrow phase per substep.
 //!
 //! Angular impulses are added to each dynamic body's angular momentum
-//! exactly (`ΔL = Σ r × P`), and the solver's angular velocity moves by
+//! (`ΔL = Σ r × P`), and the solver's angular velocity moves by
 //! `I⁻¹_world ΔL`: a body that no contact touches keeps `L` bit for bit, and
 //! the world's total angular momentum changes only by rounding of the
-//! contact impulses themselves.
+//! contact impulses themselves. The iterations only move velocities; `ΔL`
+//! is summed at each write-back from each point's net impulse since the
+//! last one (the accumulated impulses minus their values then), so the
+//! iterations never track it.
 //!
 //! Determinism: bodies in slot (handle) order, constraints in pair order
 //! (ascending collider handles), points in manifold order.
@@ -47,15 +50,13 @@ use crate::math::{Faults, Mat3, Quat, Scalar, SymMat3, Vec3, faults};
 const NONE: u32 = u32::MAX;
 
 /// The solver's per-body velocity state, the only body data the iteration
-/// loops read and write (72 bytes).
+/// loops read and write (48 bytes).
 #[derive(Clone, Copy, Debug, Default)]
 struct BodyVel {
     /// Linear velocity.
     v: Vec3,
     /// Angular velocity, world axes.
     w: Vec3,
-    /// Angular impulse applied since the last write-back.
-    dl: Vec3,
 }
 
 /// The solver's per-body constants for the tick and its pose change since
@@ -118,6 +119,10 @@ struct ConstraintPoint {
     tangent_mass: [Scalar; 2],
     /// Accumulated normal impulse (per substep).
     normal_impulse: Scalar,
+    /// The normal and the two friction impulses at the last write-back of
+    /// angular impulses (zero after a warm start, which applies them all
+    /// again).
+    mark: [Scalar; 3],
     /// Accumulated friction impulses.
     tangent_impulse: [Scalar; 2],
     /// The largest normal impulse seen this tick (restitution only applies
@@ -207,6 +212,8 @@ pub(crate) struct ContactSolver {
     bodies: Vec<SolverBody>,
     /// The velocity state of each solver body (same index as `bodies`).
     vels: Vec<BodyVel>,
+    /// Angular impulse of each solver body since the last write-back.
+    dls: Vec<Vec3>,
     /// Slot → solver body index, or `NONE`.
     body_of_slot: Vec<u32>,
     constraints: Vec<Constraint>,
@@ -242,12 +249,14 @@ impl ContactSolver {
         let caps = (
             self.bodies.capacity(),
             self.vels.capacity(),
+            self.dls.capacity(),
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
         );
         self.substeps = 0;
         self.bodies.clear();
         self.vels.clear();
+        self.dls.clear();
         self.constraints.clear();
         self.body_of_slot.clear();
         self.body_of_slot.resize(hot.len(), NONE);
@@ -312,8 +321,8 @@ impl ContactSolver {
             self.vels.push(BodyVel {
                 v: b.linear_velocity,
                 w: b.angular_velocity,
-                dl: Vec3::ZERO,
             });
+            self.dls.push(Vec3::ZERO);
         }
         // 3. Constant terms of each point.
         let zero = SolverBody::default();
@@ -384,12 +393,14 @@ impl ContactSolver {
                 cp.relative_velocity = along(&va, &vb, n, cp.ra_n, cp.rb_n);
                 cp.normal_impulse = imp.normal;
                 cp.tangent_impulse = imp.tangent;
+                cp.mark = [imp.normal, imp.tangent[0], imp.tangent[1]];
                 cp.max_normal_impulse = Scalar::ZERO;
             }
         }
         let grew = (
             self.bodies.capacity(),
             self.vels.capacity(),
+            self.dls.capacity(),
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
         ) != caps;
@@ -429,15 +440,38 @@ impl ContactSolver {
     /// Writes the solved velocities back; the angular impulses go into the
     /// angular momentum exactly.
     pub(crate) fn scatter(&mut self, hot: &mut [BodyHot]) {
-        for (sb, vel) in self.bodies.iter().zip(&mut self.vels) {
+        // Determinism: constraints in order, points in manifold order.
+        let dls = &mut self.dls;
+        for c in &mut self.constraints {
+            for cp in &mut c.points[..c.count] {
+                let now = [
+                    cp.normal_impulse,
+                    cp.tangent_impulse[0],
+                    cp.tangent_impulse[1],
+                ];
+                let [dn, d0, d1] = [
+                    now[0] - cp.mark[0],
+                    now[1] - cp.mark[1],
+                    now[2] - cp.mark[2],
+                ];
+                cp.mark = now;
+                if c.a != NONE {
+                    dls[c.a as usize] -= combine3(cp.ra_n, dn, cp.ra_t[0], d0, cp.ra_t[1], d1);
+                }
+                if c.b != NONE {
+                    dls[c.b as usize] += combine3(cp.rb_n, dn, cp.rb_t[0], d0, cp.rb_t[1], d1);
+                }
+            }
+        }
+        for ((sb, vel), dl) in self.bodies.iter().zip(&self.vels).zip(dls.iter_mut()) {
+            let dl = std::mem::take(dl);
             if !sb.dynamic {
                 continue;
             }
             let b = &mut hot[sb.slot as usize];
             b.linear_velocity = vel.v;
             b.angular_velocity = vel.w;
-            b.angular_momentum += vel.dl;
-            vel.dl = Vec3::ZERO;
+            b.angular_momentum += dl;
         }
     }
 
@@ -445,22 +479,21 @@ impl ContactSolver {
     pub(crate) fn warm_start(&mut self) {
         self.substeps = self.substeps.wrapping_add(1);
         let vels = &mut self.vels;
-        for c in &self.constraints {
+        for c in &mut self.constraints {
             let (mut va, mut vb) = load(vels, c.a, c.b);
             let [t0, t1] = c.tangent;
-            for cp in &c.points[..c.count] {
+            for cp in &mut c.points[..c.count] {
+                cp.mark = [Scalar::ZERO; 3];
                 let [i0, i1] = cp.tangent_impulse;
                 let ni = cp.normal_impulse;
                 let p = combine3(c.normal, ni, t0, i0, t1, i1);
                 if c.a != NONE {
                     va.v -= p * c.inv_mass_a;
                     va.w -= combine3(cp.ia_n, ni, cp.ia_t[0], i0, cp.ia_t[1], i1);
-                    va.dl -= cp.ra.cross(p);
                 }
                 if c.b != NONE {
                     vb.v += p * c.inv_mass_b;
                     vb.w += combine3(cp.ib_n, ni, cp.ib_t[0], i0, cp.ib_t[1], i1);
-                    vb.dl += cp.rb.cross(p);
                 }
             }
             store(vels, c.a, c.b, va, vb);
@@ -496,7 +529,6 @@ impl ContactSolver {
                     cp.tangent_impulse[j] = new;
                     push(
                         &mut va, &mut vb, c.a, c.b, t, d, ma, mb, cp.ia_t[j], cp.ib_t[j],
-                        cp.ra_t[j], cp.rb_t[j],
                     );
                 }
             }
@@ -548,9 +580,7 @@ impl ContactSolver {
                 }
                 cp.normal_impulse = new;
                 cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                push(
-                    &mut va, &mut vb, c.a, c.b, n, d, ma, mb, cp.ia_n, cp.ib_n, cp.ra_n, cp.rb_n,
-                );
+                push(&mut va, &mut vb, c.a, c.b, n, d, ma, mb, cp.ia_n, cp.ib_n);
             }
             store(vels, c.a, c.b, va, vb);
         }
@@ -579,9 +609,7 @@ impl ContactSolver {
                 let d = new - old;
                 cp.normal_impulse = new;
                 cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                push(
-                    &mut va, &mut vb, c.a, c.b, n, d, ma, mb, cp.ia_n, cp.ib_n, cp.ra_n, cp.rb_n,
-                );
+                push(&mut va, &mut vb, c.a, c.b, n, d, ma, mb, cp.ia_n, cp.ib_n);
             }
             store(vels, c.a, c.b, va, vb);
         }
@@ -671,10 +699,10 @@ fn along(a: &BodyVel, b: &BodyVel, d: Vec3, ra_d: Vec3, rb_d: Vec3) -> Scalar {
 }
 
 /// Applies impulse `λ·d` to B and `−λ·d` to A at their anchors: `v` moves
-/// by `λ·d/m`, `ω` by `λ·I⁻¹(r×d)` (given as `ia_d`, `ib_d`) and the
-/// angular impulse `λ·(r×d)` is recorded for the momentum write-back.
+/// by `λ·d/m`, `ω` by `λ·I⁻¹(r×d)` (given as `ia_d`, `ib_d`); the angular
+/// impulse is summed at the write-back ([`ContactSolver::scatter`]).
 /// A missing body (`NONE`) is skipped; a kinematic one has zero inverse
-/// mass and inertia, and its angular impulse is never written back.
+/// mass and inertia.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn push(
@@ -688,18 +716,17 @@ fn push(
     mb: Scalar,
     ia_d: Vec3,
     ib_d: Vec3,
-    ra_d: Vec3,
-    rb_d: Vec3,
 ) {
+    if lambda.is_zero() {
+        return;
+    }
     if a != NONE {
         va.v -= scale(d, mul(lambda, ma));
         va.w -= scale(ia_d, lambda);
-        va.dl -= scale(ra_d, lambda);
     }
     if b != NONE {
         vb.v += scale(d, mul(lambda, mb));
         vb.w += scale(ib_d, lambda);
-        vb.dl += scale(rb_d, lambda);
     }
 }
 
