@@ -437,8 +437,22 @@ impl ContactSolver {
         }
     }
 
-    /// Writes the solved velocities back; the angular impulses go into the
-    /// angular momentum exactly.
+    /// Writes the solved velocities back, leaving the angular momenta for
+    /// the next [`scatter`](Self::scatter): between a solve pass and the
+    /// relax pass of one substep only the position integration runs, and it
+    /// reads `ω`, not `L`.
+    pub(crate) fn scatter_velocities(&self, hot: &mut [BodyHot]) {
+        for (sb, vel) in self.bodies.iter().zip(&self.vels) {
+            if sb.dynamic {
+                let b = &mut hot[sb.slot as usize];
+                b.linear_velocity = vel.v;
+                b.angular_velocity = vel.w;
+            }
+        }
+    }
+
+    /// Writes the solved velocities back, and the angular impulses since the
+    /// last `scatter` into the angular momenta.
     pub(crate) fn scatter(&mut self, hot: &mut [BodyHot]) {
         // Determinism: constraints in order, points in manifold order.
         let dls = &mut self.dls;
@@ -449,6 +463,9 @@ impl ContactSolver {
                     cp.tangent_impulse[0],
                     cp.tangent_impulse[1],
                 ];
+                if now == cp.mark {
+                    continue;
+                }
                 let [dn, d0, d1] = [
                     now[0] - cp.mark[0],
                     now[1] - cp.mark[1],
@@ -730,14 +747,15 @@ fn push(
     }
 }
 
-/// `a·b`, bit for bit what `a * b` gives (rounded to nearest, ties away
-/// from zero; saturated with the overflow fault), with a shorter rounding:
-/// a product of two `i64` is at most 2¹²⁶ in size, so adding the rounding
-/// bias cannot overflow and only the final narrowing needs a check.
+/// `a·b` rounded to nearest, ties toward +∞ (one rounding per product, as
+/// `a * b`, which sends ties away from zero: a tie needs the low 32 bits
+/// of the product to be exactly one half, about one product in 2³²), and
+/// saturated with the overflow fault. Cheaper than `a * b` in the
+/// iterations: a product of two `i64` is at most 2¹²⁶ in size, so adding
+/// the half cannot overflow and only the final narrowing needs a check.
 #[inline(always)]
 fn mul(a: Scalar, b: Scalar) -> Scalar {
-    let p = a.to_bits() as i128 * b.to_bits() as i128;
-    let r = (p + ((1i128 << 31) - (p < 0) as i128)) >> 32;
+    let r = (a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32;
     let lo = r as i64;
     if lo as i128 == r {
         Scalar::from_bits(lo)

@@ -83,7 +83,7 @@ impl World {
                 for _ in 0..cfg.solver_iterations {
                     solver.solve(&params, true);
                 }
-                solver.scatter(hot);
+                solver.scatter_velocities(hot);
             }
             integrate::integrate_positions(hot, live, h);
             if solving {
