@@ -73,6 +73,8 @@ struct SolverBody {
     /// World inverse inertia `R I⁻¹ Rᵀ` at the start of the tick (zero for
     /// kinematic).
     inv_inertia: SymMat3,
+    /// Whether `inv_inertia` is a multiple of the identity (`xx`).
+    isotropic: bool,
     /// Centre at the start of the tick.
     center0: Vec3,
     /// Conjugate of the rotation at the start of the tick.
@@ -81,6 +83,19 @@ struct SolverBody {
     dp: Vec3,
     /// Rotation since the start of the tick, as a matrix.
     dr: Mat3,
+}
+
+impl SolverBody {
+    /// `I⁻¹ v` in world axes (one scale for an isotropic body, the same
+    /// bits as the full product would give).
+    #[inline]
+    fn inv_inertia_mul(&self, v: Vec3) -> Vec3 {
+        if self.isotropic {
+            v * self.inv_inertia.xx
+        } else {
+            self.inv_inertia.mul_vec(v)
+        }
+    }
 }
 
 /// One contact point's constant terms and accumulated impulses.
@@ -303,7 +318,12 @@ impl ContactSolver {
             *idx = self.bodies.len() as u32;
             let b = &hot[slot];
             let dynamic = b.kind == BodyKind::Dynamic;
-            let inv_inertia = if dynamic {
+            // An isotropic inertia (a cube, a sphere) is the same in every
+            // frame: no rotation, and products with it are one scale.
+            let isotropic = dynamic && b.isotropic;
+            let inv_inertia = if isotropic {
+                b.inv_inertia
+            } else if dynamic {
                 b.inv_inertia.rotate(&Mat3::from_quat(b.rotation))
             } else {
                 SymMat3::ZERO
@@ -313,6 +333,7 @@ impl ContactSolver {
                 dynamic,
                 inv_mass: if dynamic { b.inv_mass } else { Scalar::ZERO },
                 inv_inertia,
+                isotropic,
                 center0: b.center,
                 rotation0_inv: b.rotation.conjugate(),
                 dp: Vec3::ZERO,
@@ -377,15 +398,15 @@ impl ContactSolver {
                 cp.adjusted_separation = -mp.depth - n.dot(rb - ra);
                 cp.ra_n = ra.cross(n);
                 cp.rb_n = rb.cross(n);
-                cp.ia_n = ba.inv_inertia.mul_vec(cp.ra_n);
-                cp.ib_n = bb.inv_inertia.mul_vec(cp.rb_n);
+                cp.ia_n = ba.inv_inertia_mul(cp.ra_n);
+                cp.ib_n = bb.inv_inertia_mul(cp.rb_n);
                 cp.normal_mass =
                     inverse_or_zero(effective(ba, bb, cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n));
                 for j in 0..2 {
                     cp.ra_t[j] = ra.cross(c.tangent[j]);
                     cp.rb_t[j] = rb.cross(c.tangent[j]);
-                    cp.ia_t[j] = ba.inv_inertia.mul_vec(cp.ra_t[j]);
-                    cp.ib_t[j] = bb.inv_inertia.mul_vec(cp.rb_t[j]);
+                    cp.ia_t[j] = ba.inv_inertia_mul(cp.ra_t[j]);
+                    cp.ib_t[j] = bb.inv_inertia_mul(cp.rb_t[j]);
                     cp.tangent_mass[j] = inverse_or_zero(effective(
                         ba, bb, cp.ra_t[j], cp.rb_t[j], cp.ia_t[j], cp.ib_t[j],
                     ));
