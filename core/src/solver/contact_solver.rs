@@ -155,9 +155,11 @@ struct Constraint {
     b: u32,
     normal: Vec3,
     tangent: [Vec3; 2],
-    /// `1/mass` of each body (0 for none, static or kinematic).
-    inv_mass_a: Scalar,
-    inv_mass_b: Scalar,
+    /// The normal and the two tangents, each times `1/mass` of A and of B
+    /// (zero for none, static or kinematic): the velocity change per unit
+    /// impulse.
+    lin_a: [Vec3; 3],
+    lin_b: [Vec3; 3],
     friction: Scalar,
     restitution: Scalar,
     count: usize,
@@ -370,11 +372,11 @@ impl ContactSolver {
                 &self.bodies[c.b as usize]
             };
             let (va, vb) = (vel_or_zero(&self.vels, c.a), vel_or_zero(&self.vels, c.b));
-            c.inv_mass_a = ba.inv_mass;
-            c.inv_mass_b = bb.inv_mass;
             let n = p.manifold.normal;
             let t0 = tangent_of(n);
             let t1 = n.cross(t0);
+            c.lin_a = [n * ba.inv_mass, t0 * ba.inv_mass, t1 * ba.inv_mass];
+            c.lin_b = [n * bb.inv_mass, t0 * bb.inv_mass, t1 * bb.inv_mass];
             c.normal = n;
             c.tangent = [t0, t1];
             c.count = p.manifold.points().len();
@@ -519,18 +521,17 @@ impl ContactSolver {
         let vels = &mut self.vels;
         for c in &mut self.constraints {
             let (mut va, mut vb) = load(vels, c.a, c.b);
-            let [t0, t1] = c.tangent;
+            let ([la0, la1, la2], [lb0, lb1, lb2]) = (c.lin_a, c.lin_b);
             for cp in &mut c.points[..c.count] {
                 cp.mark = [Scalar::ZERO; 3];
                 let [i0, i1] = cp.tangent_impulse;
                 let ni = cp.normal_impulse;
-                let p = combine3(c.normal, ni, t0, i0, t1, i1);
                 if c.a != NONE {
-                    va.v -= p * c.inv_mass_a;
+                    va.v -= combine3(la0, ni, la1, i0, la2, i1);
                     va.w -= combine3(cp.ia_n, ni, cp.ia_t[0], i0, cp.ia_t[1], i1);
                 }
                 if c.b != NONE {
-                    vb.v += p * c.inv_mass_b;
+                    vb.v += combine3(lb0, ni, lb1, i0, lb2, i1);
                     vb.w += combine3(cp.ib_n, ni, cp.ib_t[0], i0, cp.ib_t[1], i1);
                 }
             }
@@ -552,7 +553,7 @@ impl ContactSolver {
         for c in &mut self.constraints {
             let (mut va, mut vb) = load(vels, c.a, c.b);
             let n = c.normal;
-            let (ma, mb) = (c.inv_mass_a, c.inv_mass_b);
+            let (lin_a, lin_b) = (c.lin_a, c.lin_b);
             // Friction, bounded by μ times the current normal impulse.
             for kk in 0..c.count {
                 let cp = &mut c.points[if reverse { c.count - 1 - kk } else { kk }];
@@ -566,7 +567,15 @@ impl ContactSolver {
                     let d = new - old;
                     cp.tangent_impulse[j] = new;
                     push(
-                        &mut va, &mut vb, c.a, c.b, t, d, ma, mb, cp.ia_t[j], cp.ib_t[j],
+                        &mut va,
+                        &mut vb,
+                        c.a,
+                        c.b,
+                        lin_a[1 + j],
+                        lin_b[1 + j],
+                        d,
+                        cp.ia_t[j],
+                        cp.ib_t[j],
                     );
                 }
             }
@@ -618,7 +627,9 @@ impl ContactSolver {
                 }
                 cp.normal_impulse = new;
                 cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                push(&mut va, &mut vb, c.a, c.b, n, d, ma, mb, cp.ia_n, cp.ib_n);
+                push(
+                    &mut va, &mut vb, c.a, c.b, lin_a[0], lin_b[0], d, cp.ia_n, cp.ib_n,
+                );
             }
             store(vels, c.a, c.b, va, vb);
         }
@@ -635,7 +646,7 @@ impl ContactSolver {
             }
             let (mut va, mut vb) = load(vels, c.a, c.b);
             let n = c.normal;
-            let (ma, mb) = (c.inv_mass_a, c.inv_mass_b);
+            let (lin_a, lin_b) = (c.lin_a, c.lin_b);
             for cp in &mut c.points[..c.count] {
                 if cp.relative_velocity > threshold || cp.max_normal_impulse.is_zero() {
                     continue;
@@ -647,7 +658,9 @@ impl ContactSolver {
                 let d = new - old;
                 cp.normal_impulse = new;
                 cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                push(&mut va, &mut vb, c.a, c.b, n, d, ma, mb, cp.ia_n, cp.ib_n);
+                push(
+                    &mut va, &mut vb, c.a, c.b, lin_a[0], lin_b[0], d, cp.ia_n, cp.ib_n,
+                );
             }
             store(vels, c.a, c.b, va, vb);
         }
@@ -737,7 +750,8 @@ fn along(a: &BodyVel, b: &BodyVel, d: Vec3, ra_d: Vec3, rb_d: Vec3) -> Scalar {
 }
 
 /// Applies impulse `λ·d` to B and `−λ·d` to A at their anchors: `v` moves
-/// by `λ·d/m`, `ω` by `λ·I⁻¹(r×d)` (given as `ia_d`, `ib_d`); the angular
+/// by `λ·d/m` (`d/m` given as `la`, `lb`), `ω` by `λ·I⁻¹(r×d)` (given as
+/// `ia_d`, `ib_d`); the angular
 /// impulse is summed at the write-back ([`ContactSolver::scatter`]).
 /// A missing body (`NONE`) is skipped; a kinematic one has zero inverse
 /// mass and inertia.
@@ -748,10 +762,9 @@ fn push(
     vb: &mut BodyVel,
     a: u32,
     b: u32,
-    d: Vec3,
+    la: Vec3,
+    lb: Vec3,
     lambda: Scalar,
-    ma: Scalar,
-    mb: Scalar,
     ia_d: Vec3,
     ib_d: Vec3,
 ) {
@@ -759,11 +772,11 @@ fn push(
         return;
     }
     if a != NONE {
-        va.v -= scale(d, mul(lambda, ma));
+        va.v -= scale(la, lambda);
         va.w -= scale(ia_d, lambda);
     }
     if b != NONE {
-        vb.v += scale(d, mul(lambda, mb));
+        vb.v += scale(lb, lambda);
         vb.w += scale(ib_d, lambda);
     }
 }
