@@ -522,18 +522,29 @@ impl ContactSolver {
         for c in &mut self.constraints {
             let (mut va, mut vb) = load(vels, c.a, c.b);
             let ([la0, la1, la2], [lb0, lb1, lb2]) = (c.lin_a, c.lin_b);
+            // The linear change is the same direction for every point: sum
+            // the impulses (exactly) and scale once per constraint.
+            let mut total = [Scalar::ZERO; 3];
             for cp in &mut c.points[..c.count] {
                 cp.mark = [Scalar::ZERO; 3];
                 let [i0, i1] = cp.tangent_impulse;
                 let ni = cp.normal_impulse;
+                total[0] += ni;
+                total[1] += i0;
+                total[2] += i1;
                 if c.a != NONE {
-                    va.v -= combine3(la0, ni, la1, i0, la2, i1);
                     va.w -= combine3(cp.ia_n, ni, cp.ia_t[0], i0, cp.ia_t[1], i1);
                 }
                 if c.b != NONE {
-                    vb.v += combine3(lb0, ni, lb1, i0, lb2, i1);
                     vb.w += combine3(cp.ib_n, ni, cp.ib_t[0], i0, cp.ib_t[1], i1);
                 }
+            }
+            let [ni, i0, i1] = total;
+            if c.a != NONE {
+                va.v -= combine3(la0, ni, la1, i0, la2, i1);
+            }
+            if c.b != NONE {
+                vb.v += combine3(lb0, ni, lb1, i0, lb2, i1);
             }
             store(vels, c.a, c.b, va, vb);
         }
