@@ -610,7 +610,7 @@ impl ContactSolver {
             for kk in 0..c.count {
                 let cp = &mut c.points[if reverse { c.count - 1 - kk } else { kk }];
                 let s =
-                    Scalar::from_wide(wide_sum([base, nb.dot_wide(cp.rb), -na.dot_wide(cp.ra)]))
+                    round_wide(wide_sum([base, nb.dot_wide(cp.rb), -na.dot_wide(cp.ra)]))
                         + cp.adjusted_separation;
                 let (bias, mass_scale, impulse_scale) = if s.is_positive() {
                     (s * params.inv_h, Scalar::ONE, Scalar::ZERO)
@@ -739,7 +739,7 @@ fn effective(
 #[inline(always)]
 fn combine3(a: Vec3, x: Scalar, b: Vec3, y: Scalar, c: Vec3, z: Scalar) -> Vec3 {
     let e = |i: usize| {
-        Scalar::from_wide(wide_sum([
+        round_wide(wide_sum([
             a.get(i).wide_mul(x),
             b.get(i).wide_mul(y),
             c.get(i).wide_mul(z),
@@ -753,7 +753,7 @@ fn combine3(a: Vec3, x: Scalar, b: Vec3, y: Scalar, c: Vec3, z: Scalar) -> Vec3 
 /// rounded once.
 #[inline(always)]
 fn along(a: &BodyVel, b: &BodyVel, d: Vec3, ra_d: Vec3, rb_d: Vec3) -> Scalar {
-    Scalar::from_wide(wide_sum([
+    round_wide(wide_sum([
         d.dot_wide(b.v - a.v),
         rb_d.dot_wide(b.w),
         -ra_d.dot_wide(a.w),
@@ -801,6 +801,25 @@ fn push(
 #[inline(always)]
 fn mul(a: Scalar, b: Scalar) -> Scalar {
     let r = (a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32;
+    let lo = r as i64;
+    if lo as i128 == r {
+        Scalar::from_bits(lo)
+    } else {
+        faults::raise(Faults::OVERFLOW);
+        if r < 0 { Scalar::MIN } else { Scalar::MAX }
+    }
+}
+
+/// A Q64.64 accumulator rounded to Q32.32, to nearest with ties toward +∞
+/// (as [`mul`]), saturated with the overflow fault. Cheaper than
+/// `Scalar::from_wide` (one checked add for the half, one check of the
+/// narrowing).
+#[inline(always)]
+fn round_wide(acc: i128) -> Scalar {
+    let r = match acc.checked_add(1 << 31) {
+        Some(x) => x >> 32,
+        None => i128::MAX >> 32,
+    };
     let lo = r as i64;
     if lo as i128 == r {
         Scalar::from_bits(lo)
