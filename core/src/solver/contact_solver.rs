@@ -86,12 +86,11 @@ struct SolverBody {
 }
 
 impl SolverBody {
-    /// `I⁻¹ v` in world axes (one scale for an isotropic body, the same
-    /// bits as the full product would give).
+    /// `I⁻¹ v` in world axes (one scale for an isotropic body).
     #[inline]
     fn inv_inertia_mul(&self, v: Vec3) -> Vec3 {
         if self.isotropic {
-            v * self.inv_inertia.xx
+            scale(v, self.inv_inertia.xx)
         } else {
             self.inv_inertia.mul_vec(v)
         }
@@ -398,15 +397,15 @@ impl ContactSolver {
                 cp.ra = ra;
                 cp.rb = rb;
                 cp.adjusted_separation = -mp.depth - n.dot(rb - ra);
-                cp.ra_n = ra.cross(n);
-                cp.rb_n = rb.cross(n);
+                cp.ra_n = cross(ra, n);
+                cp.rb_n = cross(rb, n);
                 cp.ia_n = ba.inv_inertia_mul(cp.ra_n);
                 cp.ib_n = bb.inv_inertia_mul(cp.rb_n);
                 cp.normal_mass =
                     inverse_or_zero(effective(ba, bb, cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n));
                 for j in 0..2 {
-                    cp.ra_t[j] = ra.cross(c.tangent[j]);
-                    cp.rb_t[j] = rb.cross(c.tangent[j]);
+                    cp.ra_t[j] = cross(ra, c.tangent[j]);
+                    cp.rb_t[j] = cross(rb, c.tangent[j]);
                     cp.ia_t[j] = ba.inv_inertia_mul(cp.ra_t[j]);
                     cp.ib_t[j] = bb.inv_inertia_mul(cp.rb_t[j]);
                     cp.tangent_mass[j] = inverse_or_zero(effective(
@@ -732,7 +731,7 @@ fn effective(
         + b.inv_mass.to_bits() as i128 * (1i128 << 32)
         + ra_d.dot_wide(ia_d)
         + rb_d.dot_wide(ib_d);
-    Scalar::from_wide(wide)
+    round_wide(wide)
 }
 
 /// `a·x + b·y + c·z`, each component rounded once.
@@ -827,6 +826,16 @@ fn round_wide(acc: i128) -> Scalar {
         faults::raise(Faults::OVERFLOW);
         if r < 0 { Scalar::MIN } else { Scalar::MAX }
     }
+}
+
+/// `a × b`, each component rounded once by [`round_wide`].
+#[inline(always)]
+fn cross(a: Vec3, b: Vec3) -> Vec3 {
+    Vec3::new(
+        round_wide(wide_sum([a.y.wide_mul(b.z), -a.z.wide_mul(b.y)])),
+        round_wide(wide_sum([a.z.wide_mul(b.x), -a.x.wide_mul(b.z)])),
+        round_wide(wide_sum([a.x.wide_mul(b.y), -a.y.wide_mul(b.x)])),
+    )
 }
 
 /// `v·s` per component with [`mul`].
