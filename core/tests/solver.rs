@@ -457,19 +457,19 @@ fn stack_of_20_boxes_stands_for_60_seconds() {
     check_stack(true, 1, 60);
 }
 
-// Without sleeping the stack must stand on the solver alone. With the
-// default single solve pass per substep the top box keeps swinging by a few
-// centimetres (Gauss–Seidel with one pass does not converge down a chain of
-// 20 contacts); three passes keep it within the 1 cm bar (6.5 mm at 60 s).
+// Without sleeping the stack must stand on the solver alone, in the default
+// world (one solve and one relax pass per substep): 0.8 mm of top-box drift
+// over 60 s (it swung by 8 cm while every substep solved a manifold's
+// points in the same order).
 #[test]
 fn stack_of_20_boxes_stands_10_seconds_without_sleeping() {
-    check_stack(false, 3, 10);
+    check_stack(false, 1, 10);
 }
 
 #[test]
 #[ignore = "60 s of simulated time; run with --ignored"]
 fn stack_of_20_boxes_stands_60_seconds_without_sleeping() {
-    check_stack(false, 3, 60);
+    check_stack(false, 1, 60);
 }
 
 /// A pyramid of base 20 (210 unit boxes) in the x–y plane.
@@ -505,8 +505,8 @@ fn pyramid_of_base_20_stands_for_60_seconds() {
     check_pyramid(true, 1, 60);
 }
 
-// Without sleeping: two solve passes per substep (one leaves boxes creeping
-// by up to 7 cm over 60 s; two keep every box within 0.3 mm).
+// Without sleeping: two solve passes per substep (with one, boxes creep by up
+// to 10 cm over 60 s; two keep every box within 1.5 mm).
 #[test]
 fn pyramid_of_base_20_stands_10_seconds_without_sleeping() {
     check_pyramid(false, 2, 10);
