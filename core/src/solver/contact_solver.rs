@@ -29,17 +29,27 @@
 //! anchors along the normal, from each body's change of position and
 //! orientation since the start of the tick: no narrow phase per substep.
 //!
-//! Angular impulses are added to each dynamic body's angular momentum
-//! (`ΔL = Σ r × P`), and the solver's angular velocity moves by
-//! `I⁻¹_world ΔL`: a body that no contact touches keeps `L` bit for bit, and
-//! the world's total angular momentum changes only by rounding of the
-//! contact impulses themselves. The iterations only move velocities; `ΔL`
-//! is summed at each write-back from each point's net impulse since the
-//! last one (the accumulated impulses minus their values then), so the
-//! iterations never track it.
+//! Each point stores `r×d` and `I⁻¹(r×d)` for the normal and both tangents,
+//! and each constraint the three directions scaled by each body's `1/m`, so
+//! an iteration reads a relative velocity as `d·Δv + (rB×d)·ωB − (rA×d)·ωA`
+//! and applies an impulse with three scalings per body: no cross products,
+//! inertia products or divisions in the loops, and only `v` and `ω` (a
+//! 48-byte state per body) are read and written.
+//!
+//! Angular impulses go into each dynamic body's angular momentum
+//! (`ΔL = Σ r × P`), summed once per substep from each point's net impulse
+//! since the last write-back; the solver's angular velocity moves by
+//! `I⁻¹_world ΔL` meanwhile. A body that no contact touches keeps `L` bit for
+//! bit, and the world's total angular momentum changes only by rounding of
+//! the contact impulses themselves.
+//!
+//! Products and sums in the iterations are rounded to nearest with ties
+//! toward +∞ by the solver's own [`mul`] and [`round_wide`] (cheaper than
+//! `Scalar`'s ties-away rounding; the same overflow faults).
 //!
 //! Determinism: bodies in slot (handle) order, constraints in pair order
-//! (ascending collider handles), points in manifold order.
+//! (ascending collider handles), points in manifold order starting at point
+//! `k mod count` in substep `k` of the tick.
 
 use crate::body::{BodyHot, BodyKind};
 use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind, PointImpulse};
