@@ -584,6 +584,10 @@ impl ContactSolver {
             for kk in 0..count {
                 let cp = &mut c.points[order(kk)];
                 let limit = mul(c.friction, cp.normal_impulse);
+                if limit.is_zero() && cp.tangent_impulse == [Scalar::ZERO; 2] {
+                    // Clamped to zero either way: nothing would change.
+                    continue;
+                }
                 for j in 0..2 {
                     let t = c.tangent[j];
                     let vt = along(&va, &vb, t, cp.ra_t[j], cp.rb_t[j]);
