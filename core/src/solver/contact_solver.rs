@@ -538,6 +538,9 @@ impl ContactSolver {
                 cp.mark = [Scalar::ZERO; 3];
                 let [i0, i1] = cp.tangent_impulse;
                 let ni = cp.normal_impulse;
+                if ni.is_zero() && i0.is_zero() && i1.is_zero() {
+                    continue;
+                }
                 total[0] += ni;
                 total[1] += i0;
                 total[2] += i1;
