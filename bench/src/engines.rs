@@ -436,7 +436,7 @@ pub fn run_scene(scene: &Scene, runs: usize) -> SceneResult {
 }
 
 /// The scenes by name, at full or quick size.
-fn scene_list(quick: bool) -> Vec<(&'static str, Option<Scene>)> {
+pub(crate) fn scene_list(quick: bool) -> Vec<(&'static str, Option<Scene>)> {
     if quick {
         vec![
             ("large_pyramid", Some(scenes::large_pyramid(10, 5))),
@@ -605,7 +605,10 @@ pub fn run(opts: &Options) -> SuiteOutput {
         }
         match scene {
             None => skipped.push(name),
-            Some(scene) => {
+            Some(mut scene) => {
+                if let Some(steps) = opts.steps {
+                    scene.steps = steps.max(2);
+                }
                 eprintln!(
                     "engines: {name} ({} bodies, {} steps, {runs} runs per engine)...",
                     scene.positions.len(),

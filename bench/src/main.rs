@@ -3,8 +3,9 @@
 //!
 //! ```text
 //! cargo run --release -p lockstep-bench -- math [--csv FILE] [--quick]
-//! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N]
+//! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N] [--steps N]
 //! cargo run --release -p lockstep-bench -- sleep [--quick] [--csv FILE]
+//! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N]
 //! ```
 //!
 //! Each suite is a module with a `run(&Options) -> SuiteOutput` function and
@@ -16,6 +17,7 @@ mod alloc;
 mod engines;
 mod harness;
 mod math;
+mod profile;
 mod scenes;
 mod sleep;
 
@@ -39,6 +41,8 @@ pub struct Options {
     pub scenes: Option<Vec<String>>,
     /// Runs per measurement, if not the suite's default.
     pub runs: Option<usize>,
+    /// Steps per run, if not the scene's own (`profile` suite).
+    pub steps: Option<usize>,
 }
 
 /// What a suite produced: the printed table and the CSV text.
@@ -96,6 +100,11 @@ const SUITES: &[Suite] = &[
         about: "9,600 sleeping boxes + 1 awake vs the same scene awake",
         run: sleep::run,
     },
+    Suite {
+        name: "profile",
+        about: "steps only our engine on a scene (for perf/callgrind), prints ms/step",
+        run: profile::run,
+    },
 ];
 
 /// Printed with every suite's output.
@@ -132,6 +141,10 @@ struct Cli {
     /// Runs per measurement (default: the suite's own).
     #[arg(long, value_name = "N")]
     runs: Option<usize>,
+    /// Steps per run (`profile` suite, default 20; `engines`: instead of
+    /// the scene's own count).
+    #[arg(long, value_name = "N")]
+    steps: Option<usize>,
 }
 
 fn main() -> ExitCode {
@@ -160,6 +173,7 @@ fn main() -> ExitCode {
         quick: cli.quick,
         scenes: cli.scenes.clone(),
         runs: cli.runs,
+        steps: cli.steps,
     };
     let out = (suite.run)(&opts);
     println!(

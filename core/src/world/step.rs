@@ -82,12 +82,13 @@ impl World {
             report.awake_bodies = c.integrated;
             report.gyroscopic_solves += c.gyroscopic;
             if solving {
-                solver.gather(hot);
+                // Poses are as the last full gather (or `prepare`) saw them.
+                solver.gather_velocities(hot);
                 solver.warm_start();
                 for _ in 0..cfg.solver_iterations {
                     solver.solve(&params, true);
                 }
-                solver.scatter(hot);
+                solver.scatter_velocities(hot);
             }
             integrate::integrate_positions(hot, live, h);
             if solving {
@@ -99,7 +100,7 @@ impl World {
             }
         }
         if solving {
-            solver.gather(hot);
+            solver.gather_velocities(hot);
             solver.restitution(&params);
             solver.scatter(hot);
             solver.store_impulses(self.contacts.pairs_mut());

@@ -1,0 +1,69 @@
+//! The `profile` suite: steps only lockstep-core on the chosen scenes (by
+//! default `large_pyramid`) for a few steps, so `perf record` or
+//! `valgrind --tool=callgrind` see our engine alone, and prints ms/step
+//! (first step excluded) with the scene's contact points and top-box drop.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use lockstep_core::solver::sleep::SleepConfig;
+
+use crate::engines::{build_ours, scene_list};
+use crate::{Options, SuiteOutput};
+
+/// Steps when `--steps` is not given.
+const DEFAULT_STEPS: usize = 20;
+
+/// Runs the suite.
+pub fn run(opts: &Options) -> SuiteOutput {
+    let steps = opts.steps.unwrap_or(DEFAULT_STEPS).max(2);
+    let wanted = opts
+        .scenes
+        .clone()
+        .unwrap_or_else(|| vec!["large_pyramid".to_owned()]);
+    let mut text = String::from("scene           bodies  steps   ms/step  contacts  top dy m\n");
+    let mut csv = String::from("suite,scene,bodies,steps,ms_per_step,contact_points,top_dy_m\n");
+    for (name, scene) in scene_list(opts.quick) {
+        let Some(scene) = scene else { continue };
+        if !wanted.iter().any(|w| w == name) {
+            continue;
+        }
+        let sleep = SleepConfig {
+            enabled: false,
+            ..SleepConfig::default()
+        };
+        let (mut world, bodies) = build_ours(&scene, sleep);
+        let mut total = 0.0;
+        let mut points = 0;
+        for i in 0..steps {
+            let t = Instant::now();
+            let r = world.step();
+            if i > 0 {
+                total += t.elapsed().as_secs_f64();
+            }
+            points = r.contact_points;
+        }
+        let ms = total * 1e3 / (steps - 1) as f64;
+        let top_dy = scene
+            .tops
+            .iter()
+            .map(|&i| {
+                let y = world
+                    .body(bodies[i])
+                    .map_or(f64::NAN, |b| b.position().y.to_f64());
+                (y - scene.positions[i][1]).abs()
+            })
+            .fold(0.0, f64::max);
+        let _ = writeln!(
+            text,
+            "{name:<14} {:>7} {steps:>6} {ms:>9.3} {points:>9} {top_dy:>9.4}",
+            scene.positions.len()
+        );
+        let _ = writeln!(
+            csv,
+            "profile,{name},{},{steps},{ms:.4},{points},{top_dy:.6}",
+            scene.positions.len()
+        );
+    }
+    SuiteOutput { text, csv }
+}
