@@ -1,12 +1,26 @@
-//! Sleeping: bodies that stay slow for long enough stop being simulated.
+//! Sleeping: islands of touching bodies that stay slow for long enough stop
+//! being simulated, together.
 //!
-//! Without contacts every body is its own island, so sleep is decided per
-//! body: a dynamic body whose linear speed stays under
-//! [`SleepConfig::linear_threshold`] and angular speed under
-//! [`SleepConfig::angular_threshold`] for [`SleepConfig::time_to_sleep`]
-//! falls asleep; its velocities are zeroed and the integrator skips it until
-//! something wakes it (a force, an impulse, a velocity or pose set by the
-//! game).
+//! An island is a set of awake dynamic bodies joined by touching solid
+//! contacts (static and kinematic bodies do not join islands: a floor under
+//! two piles does not make them one island). Each body counts the
+//! consecutive ticks its linear speed stayed under
+//! [`SleepConfig::linear_threshold`] and its angular speed under
+//! [`SleepConfig::angular_threshold`]; an island falls asleep when its
+//! *least* rested body has rested for [`SleepConfig::time_to_sleep`], so a
+//! box never freezes while the box on top of it still settles. A body
+//! touching a moving kinematic body (a platform) does not count as resting.
+//! Sleeping bodies have their velocities zeroed and are skipped by the
+//! integrator and the solver until something wakes them (a force, an
+//! impulse, a velocity or pose set by the game, an awake body touching
+//! them, a body they rest on moved or removed); a woken body wakes the
+//! sleepers it touches in the next step's `wake_touched` stage, so a
+//! sleeping island wakes as a whole.
+//!
+//! Islands are rebuilt every step by union–find over the touching pairs.
+//! The partition does not depend on the order of unions, and the sleep
+//! decision depends only on the partition, so the result is the same
+//! whatever order the pairs come in.
 
 use serde::{Deserialize, Serialize};
 
@@ -49,42 +63,147 @@ impl SleepConfig {
     }
 }
 
-/// Updates rest counters after a tick; returns how many bodies fell asleep.
-/// A body sleeps once it has rested for `ceil(time_to_sleep · tick_rate)`
-/// consecutive ticks.
+/// Scratch for the island pass, kept by the world between steps so a warm
+/// world never allocates.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct IslandScratch {
+    /// Union–find parent per body slot (only awake dynamic slots are used).
+    parent: Vec<u32>,
+    /// Per island root: the fewest rest ticks of its bodies.
+    min_rest: Vec<u32>,
+}
+
+/// What the sleep stage did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct SleepStats {
+    /// Bodies that fell asleep this tick.
+    pub fell_asleep: u32,
+    /// Islands of awake dynamic bodies (before any fell asleep).
+    pub islands: u32,
+    /// Whether the scratch had to grow (a new body slot since last step).
+    pub grew: bool,
+}
+
+/// How one touching solid pair's two bodies relate, for the island pass:
+/// body slots `a` and `b`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Link {
+    /// The first body's slot.
+    pub a: u32,
+    /// The second body's slot.
+    pub b: u32,
+}
+
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    // Path halving: every visited node skips to its grandparent.
+    while parent[i as usize] != i {
+        let up = parent[parent[i as usize] as usize];
+        parent[i as usize] = up;
+        i = up;
+    }
+    i
+}
+
+fn is_awake_dynamic(b: &BodyHot) -> bool {
+    b.kind == BodyKind::Dynamic && !b.sleeping
+}
+
+fn is_moving_kinematic(b: &BodyHot) -> bool {
+    b.kind == BodyKind::Kinematic && (!b.linear_velocity.is_zero() || !b.angular_velocity.is_zero())
+}
+
+/// Updates rest counters after a tick and puts whole islands to sleep.
 ///
-/// Determinism: slot order; each body's decision reads only its own state.
+/// `links` yields the body slots of every touching solid contact pair.
+/// Determinism: slot order for the counters; union by the lower root (any
+/// union order gives the same partition); decisions read only the
+/// partition and the counters.
 pub(crate) fn update_sleep(
     hot: &mut [BodyHot],
     live: &[bool],
+    links: impl Iterator<Item = Link>,
     cfg: &SleepConfig,
     tick_rate: u32,
-) -> u32 {
+    scratch: &mut IslandScratch,
+) -> SleepStats {
+    let mut stats = SleepStats::default();
     if !cfg.enabled {
-        return 0;
+        return stats;
+    }
+    let n = hot.len();
+    if scratch.parent.len() < n {
+        stats.grew = scratch.parent.capacity() < n || scratch.min_rest.capacity() < n;
+        scratch.parent.resize(n, 0);
+        scratch.min_rest.resize(n, 0);
     }
     let lin2 = cfg.linear_threshold.wide_mul(cfg.linear_threshold) as u128;
     let ang2 = cfg.angular_threshold.wide_mul(cfg.angular_threshold) as u128;
     let ticks_to_sleep = cfg.ticks_to_sleep(tick_rate);
-    let mut fell_asleep = 0;
-    for (b, &alive) in hot.iter_mut().zip(live) {
-        if !alive || b.kind != BodyKind::Dynamic || b.sleeping {
+
+    // 1. Rest counters, and every awake dynamic body its own island.
+    for (i, (b, &alive)) in hot.iter_mut().zip(live).enumerate() {
+        scratch.parent[i] = i as u32;
+        if !alive || !is_awake_dynamic(b) {
             continue;
         }
         let resting = b.linear_velocity.length_squared_wide() < lin2
             && b.angular_velocity.length_squared_wide() < ang2;
-        if resting {
-            b.rest_ticks = b.rest_ticks.saturating_add(1);
-            if b.rest_ticks >= ticks_to_sleep {
-                b.sleeping = true;
-                b.linear_velocity = Vec3::ZERO;
-                b.angular_velocity = Vec3::ZERO;
-                b.angular_momentum = Vec3::ZERO;
-                fell_asleep += 1;
-            }
+        b.rest_ticks = if resting {
+            b.rest_ticks.saturating_add(1)
         } else {
-            b.rest_ticks = 0;
+            0
+        };
+    }
+    // 2. Touching pairs join islands; riding a moving kinematic body is not
+    //    resting.
+    for link in links {
+        let (a, b) = (link.a as usize, link.b as usize);
+        if a >= n || b >= n || !live[a] || !live[b] {
+            continue;
+        }
+        match (is_awake_dynamic(&hot[a]), is_awake_dynamic(&hot[b])) {
+            (true, true) => {
+                let ra = find(&mut scratch.parent, a as u32);
+                let rb = find(&mut scratch.parent, b as u32);
+                if ra != rb {
+                    let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+                    scratch.parent[hi as usize] = lo;
+                }
+            }
+            (true, false) if is_moving_kinematic(&hot[b]) => hot[a].rest_ticks = 0,
+            (false, true) if is_moving_kinematic(&hot[a]) => hot[b].rest_ticks = 0,
+            _ => {}
         }
     }
-    fell_asleep
+    // 3. Each island's least rested body.
+    for (i, (b, &alive)) in hot.iter().zip(live).enumerate() {
+        if alive && is_awake_dynamic(b) {
+            scratch.min_rest[i] = u32::MAX;
+        }
+    }
+    for (i, (b, &alive)) in hot.iter().zip(live).enumerate() {
+        if !alive || !is_awake_dynamic(b) {
+            continue;
+        }
+        let root = find(&mut scratch.parent, i as u32) as usize;
+        if root == i {
+            stats.islands += 1;
+        }
+        scratch.min_rest[root] = scratch.min_rest[root].min(b.rest_ticks);
+    }
+    // 4. Rested islands fall asleep whole.
+    for (i, (b, &alive)) in hot.iter_mut().zip(live).enumerate() {
+        if !alive || !is_awake_dynamic(b) {
+            continue;
+        }
+        let root = find(&mut scratch.parent, i as u32) as usize;
+        if scratch.min_rest[root] >= ticks_to_sleep {
+            b.sleeping = true;
+            b.linear_velocity = Vec3::ZERO;
+            b.angular_velocity = Vec3::ZERO;
+            b.angular_momentum = Vec3::ZERO;
+            stats.fell_asleep += 1;
+        }
+    }
+    stats
 }

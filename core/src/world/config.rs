@@ -162,6 +162,9 @@ pub struct StepReport {
     pub woken_by_contact: u32,
     /// Bodies that fell asleep during this step.
     pub fell_asleep: u32,
+    /// Islands of awake dynamic bodies joined by touching contacts, counted
+    /// by the sleep stage before any fell asleep (0 with sleeping disabled).
+    pub islands: u32,
     /// Candidate pairs from the broad phase (fat boxes overlap).
     pub candidate_pairs: u32,
     /// Narrow-phase tests run.

@@ -25,6 +25,7 @@ use crate::math::{FaultScope, Faults, Quat, Scalar, SymMat3, Transform, Vec3};
 use crate::shape::MassProperties;
 use crate::solver::contact_solver::ContactSolver;
 use crate::solver::integrate::{momentum_from_omega, omega_from_momentum};
+use crate::solver::sleep::IslandScratch;
 
 /// A physics world: everything one simulation needs, and nothing global.
 ///
@@ -47,6 +48,9 @@ pub struct World {
     /// step).
     #[serde(skip)]
     solver: ContactSolver,
+    /// Scratch: the sleep stage's union–find (reused every step).
+    #[serde(skip)]
+    islands: IslandScratch,
     /// Scratch: continuous collision's start poses and candidate lists
     /// (reused every step).
     #[serde(skip)]
@@ -80,6 +84,7 @@ impl World {
             faults: Faults::NONE,
             candidates: Vec::new(),
             solver: ContactSolver::default(),
+            islands: IslandScratch::default(),
             ccd: ccd::CcdScratch::default(),
         })
     }
@@ -216,6 +221,13 @@ impl World {
     /// # Errors
     /// [`WorldError::InvalidBody`] for a stale handle.
     pub fn remove_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
+        let cold = self.bodies.cold(h).ok_or(WorldError::InvalidBody(h))?;
+        for i in 0..cold.colliders.len() {
+            let c = self.bodies.cold(h).map(|cold| cold.colliders[i]);
+            if let Some(c) = c {
+                self.wake_touching(c);
+            }
+        }
         let cold = self.bodies.remove(h).ok_or(WorldError::InvalidBody(h))?;
         for c in cold.colliders {
             if let Some(removed) = self.colliders.remove(c.0) {
@@ -308,6 +320,8 @@ impl World {
             .colliders
             .remove(h.0)
             .ok_or(WorldError::InvalidCollider(h))?;
+        // (The pairs still name `h`: wake what rested on it first.)
+        self.wake_touching(h);
         let _ = self.broad.destroy_proxy(c.proxy);
         self.contacts.remove_collider(h);
         if let Some(cold) = self.bodies.cold_mut(c.body) {
@@ -447,6 +461,13 @@ impl World {
                 momentum_from_omega(rotation, &hot.inertia, hot.angular_velocity);
         }
         wake(hot);
+        // Whatever rested on it (or under it) must see the change.
+        let touching = self.bodies.cold(h).map_or(0, |c| c.colliders.len());
+        for i in 0..touching {
+            if let Some(c) = self.bodies.cold(h).map(|cold| cold.colliders[i]) {
+                self.wake_touching(c);
+            }
+        }
         self.refresh_proxies(h);
         Ok(())
     }
@@ -652,6 +673,35 @@ impl World {
             hot.angular_momentum = Vec3::ZERO;
         }
         Ok(())
+    }
+
+    /// Wakes the sleeping dynamic bodies in contact with collider `c` (any
+    /// manifold point), because what they rest on is about to move or
+    /// vanish. The next step's `wake_touched` passes the wake on to the
+    /// rest of their islands.
+    fn wake_touching(&mut self, c: ColliderHandle) {
+        for i in 0..self.contacts.pairs().len() {
+            let p = &self.contacts.pairs()[i];
+            if p.manifold.is_empty() && !p.touching {
+                continue;
+            }
+            let other = if p.a == c {
+                p.b
+            } else if p.b == c {
+                p.a
+            } else {
+                continue;
+            };
+            let Some(body) = self.colliders.get(other.0).map(|o| o.body) else {
+                continue;
+            };
+            if let Some(hot) = self.bodies.hot_mut(body)
+                && hot.kind == BodyKind::Dynamic
+                && hot.sleeping
+            {
+                wake(hot);
+            }
+        }
     }
 
     /// Runs `f` with this world's faults attributed to it.

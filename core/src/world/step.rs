@@ -1,6 +1,7 @@
 //! `World::step`: the named stages, in order.
 
 use crate::body::BodyKind;
+use crate::collision::contacts::PairKind;
 use crate::math::{Scalar, Vec3};
 use crate::solver::contact_solver::{PairInfo, Softness, SolverParams, SolverStats};
 use crate::solver::{integrate, sleep};
@@ -32,7 +33,9 @@ impl World {
     /// 6. `snap_kinematic`: targeted kinematic bodies land exactly on their
     ///    targets and stop;
     /// 7. `clear_forces`;
-    /// 8. `sleep`: timers advance, resting bodies fall asleep;
+    /// 8. `sleep`: rest timers advance; islands (awake dynamic bodies joined
+    ///    by touching contacts) whose every body rested long enough fall
+    ///    asleep together;
     /// 9. `sync_proxies`: broad-phase proxies follow the step's motion (so
     ///    queries between steps see the new poses);
     /// 10. the tick counter advances.
@@ -114,8 +117,11 @@ impl World {
 
         self.stage_snap_kinematic();
         self.stage_clear_forces();
+        let slept = self.stage_sleep();
+        report.fell_asleep = slept.fell_asleep;
+        report.islands = slept.islands;
+        report.buffer_growths += u32::from(slept.grew);
         let (hot, live) = self.bodies.hot_slots_mut();
-        report.fell_asleep = sleep::update_sleep(hot, live, &cfg.sleep, cfg.tick_rate);
         report.sleeping_bodies = hot
             .iter()
             .zip(live)
@@ -129,6 +135,30 @@ impl World {
         self.tick += 1;
         report.tick = self.tick;
         report
+    }
+
+    /// Rest counters advance; islands of touching awake bodies that all
+    /// rested long enough fall asleep together.
+    fn stage_sleep(&mut self) -> sleep::SleepStats {
+        let World {
+            bodies,
+            colliders,
+            contacts,
+            islands,
+            config,
+            ..
+        } = self;
+        let links = contacts
+            .pairs()
+            .iter()
+            .filter(|p| p.touching && p.kind == PairKind::Solid)
+            .filter_map(|p| {
+                let a = colliders.get(p.a.0)?.body.0.index;
+                let b = colliders.get(p.b.0)?.body.0.index;
+                Some(sleep::Link { a, b })
+            });
+        let (hot, live) = bodies.hot_slots_mut();
+        sleep::update_sleep(hot, live, links, &config.sleep, config.tick_rate, islands)
     }
 
     /// The solver's settings for this world's substep.

@@ -1,0 +1,254 @@
+//! Islands and sleeping: touching bodies fall asleep together, a scene at
+//! rest stops changing, and what a sleeper rests on waking it when it moves
+//! or vanishes.
+
+use lockstep_core::shape::{Cuboid, Shape};
+use lockstep_core::{
+    BodyDesc, BodyHandle, ColliderDesc, Material, Scalar, Transform, Vec3, World, WorldConfig,
+};
+
+fn s(v: f64) -> Scalar {
+    Scalar::from_f64_lossy(v)
+}
+
+fn v(x: f64, y: f64, z: f64) -> Vec3 {
+    Vec3::new(s(x), s(y), s(z))
+}
+
+fn world() -> World {
+    World::new(WorldConfig::default()).unwrap()
+}
+
+/// A static ground whose top face is y = 0 (friction `mu`).
+fn ground(w: &mut World, mu: f64) -> BodyHandle {
+    let g = w
+        .create_body(&BodyDesc::fixed().name("ground").position(v(0.0, -1.0, 0.0)))
+        .unwrap();
+    w.add_collider(
+        g,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(100.0, 1.0, 100.0),
+        }))
+        .material(Material {
+            friction: s(mu),
+            restitution: Scalar::ZERO,
+        }),
+    )
+    .unwrap();
+    g
+}
+
+fn cube(w: &mut World, at: Vec3, vel: Vec3, half: f64, mu: f64) -> BodyHandle {
+    let b = w
+        .create_body(&BodyDesc::dynamic().position(at).linear_velocity(vel))
+        .unwrap();
+    w.add_collider(
+        b,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(half, half, half),
+        }))
+        .material(Material {
+            friction: s(mu),
+            restitution: Scalar::ZERO,
+        }),
+    )
+    .unwrap();
+    b
+}
+
+fn asleep(w: &World, b: BodyHandle) -> bool {
+    w.body(b).unwrap().is_sleeping()
+}
+
+fn step(w: &mut World) -> lockstep_core::StepReport {
+    let r = w.step();
+    assert!(r.faults.is_empty(), "fault at tick {}", r.tick);
+    r
+}
+
+#[test]
+fn a_resting_box_stays_awake_while_the_box_on_it_still_slides() {
+    // The bottom box rests from the start; the top one slides on it at
+    // 1 m/s with μ = 0.1 (stops after v²/(2μg) ≈ 0.51 m, ≈ 1.0 s). Alone the
+    // bottom box would sleep after 0.5 s; in one island it waits for the top.
+    let mut w = world();
+    ground(&mut w, 1.0);
+    let bottom = cube(&mut w, v(0.0, 1.0, 0.0), Vec3::ZERO, 1.0, 0.1);
+    let top = cube(&mut w, v(-0.6, 2.5, 0.0), v(1.0, 0.0, 0.0), 0.5, 0.1);
+    let mut bottom_slept = None;
+    let mut top_slept = None;
+    let mut islands_while_sliding = 0;
+    for tick in 1..=300u32 {
+        let r = step(&mut w);
+        if tick == 30 {
+            islands_while_sliding = r.islands;
+        }
+        if bottom_slept.is_none() && asleep(&w, bottom) {
+            bottom_slept = Some(tick);
+        }
+        if top_slept.is_none() && asleep(&w, top) {
+            top_slept = Some(tick);
+        }
+    }
+    println!("bottom slept at tick {bottom_slept:?}, top at {top_slept:?}");
+    assert_eq!(islands_while_sliding, 1, "the two boxes form one island");
+    let (b, t) = (
+        bottom_slept.expect("bottom sleeps"),
+        top_slept.expect("top sleeps"),
+    );
+    assert_eq!(b, t, "the island falls asleep as a whole");
+    // The top box slows under 0.05 m/s after (1 − 0.05)/(μg) ≈ 0.97 s (58
+    // ticks), then rests for 0.5 s (30 ticks): 88. Alone, the bottom box
+    // would have slept at tick 30.
+    assert!(t >= 85, "not before the top box stopped (tick {t})");
+}
+
+#[test]
+fn separate_piles_on_one_floor_are_separate_islands() {
+    let mut w = world();
+    ground(&mut w, 0.6);
+    let a0 = cube(&mut w, v(-5.0, 0.5, 0.0), Vec3::ZERO, 0.5, 0.6);
+    let a1 = cube(&mut w, v(-5.0, 1.5, 0.0), Vec3::ZERO, 0.5, 0.6);
+    let b0 = cube(&mut w, v(5.0, 0.5, 0.0), Vec3::ZERO, 0.5, 0.6);
+    // A lone box, falling: its own island, not touching anything yet.
+    let c = cube(&mut w, v(0.0, 3.0, 0.0), Vec3::ZERO, 0.5, 0.6);
+    let r = step(&mut w);
+    assert_eq!(r.islands, 3, "pile a, box b, falling box c");
+    // Pile a and box b rest from the start; c lands later and sleeps later.
+    let mut first = [None; 4];
+    for tick in 2..=200u32 {
+        step(&mut w);
+        for (k, &h) in [a0, a1, b0, c].iter().enumerate() {
+            if first[k].is_none() && asleep(&w, h) {
+                first[k] = Some(tick);
+            }
+        }
+    }
+    let [a0t, a1t, b0t, ct] = first.map(|t| t.expect("every body sleeps"));
+    println!("asleep at ticks: a0 {a0t}, a1 {a1t}, b0 {b0t}, c {ct}");
+    assert_eq!(a0t, a1t, "one island");
+    assert!(ct > b0t, "the falling box does not hold the others awake");
+    let r = step(&mut w);
+    assert_eq!((r.islands, r.awake_bodies), (0, 0));
+}
+
+#[test]
+fn a_scene_at_rest_sleeps_and_its_state_stops_changing() {
+    let mut w = world();
+    ground(&mut w, 0.6);
+    let mut boxes = Vec::new();
+    for i in 0..4 {
+        for j in 0..3 {
+            boxes.push(cube(
+                &mut w,
+                v(i as f64 * 1.5, 0.5 + j as f64 * 1.01, 0.0),
+                Vec3::ZERO,
+                0.5,
+                0.6,
+            ));
+        }
+    }
+    let mut ticks = 0;
+    while !boxes.iter().all(|&b| asleep(&w, b)) {
+        step(&mut w);
+        ticks += 1;
+        assert!(ticks < 600, "the scene sleeps within 10 s");
+    }
+    println!("12 boxes asleep after {ticks} ticks");
+    let bodies = w.body_hashes();
+    let pairs = w.contact_pairs().to_vec();
+    let mut hashes = std::collections::BTreeSet::new();
+    for _ in 0..120 {
+        let r = step(&mut w);
+        assert_eq!(
+            (r.awake_bodies, r.woken_by_contact, r.fell_asleep),
+            (0, 0, 0)
+        );
+        assert_eq!(w.body_hashes(), bodies, "no body changes, bit for bit");
+        assert_eq!(w.contact_pairs(), &pairs[..], "nor any contact or impulse");
+        hashes.insert(w.state_hash());
+    }
+    // The hash still moves with the tick (it covers it), once per tick.
+    assert_eq!(hashes.len(), 120);
+}
+
+#[test]
+fn removing_the_body_a_sleeper_rests_on_wakes_it_and_it_falls() {
+    let mut w = world();
+    ground(&mut w, 0.6);
+    let lower = cube(&mut w, v(0.0, 0.5, 0.0), Vec3::ZERO, 0.5, 0.6);
+    let upper = cube(&mut w, v(0.0, 1.5, 0.0), Vec3::ZERO, 0.5, 0.6);
+    for _ in 0..120 {
+        step(&mut w);
+    }
+    assert!(asleep(&w, upper) && asleep(&w, lower));
+    let y0 = w.body(upper).unwrap().position().y.to_f64();
+    w.remove_body(lower).unwrap();
+    assert!(!asleep(&w, upper), "removal wakes what rested on it");
+    for _ in 0..60 {
+        step(&mut w);
+    }
+    let y1 = w.body(upper).unwrap().position().y.to_f64();
+    println!("upper box fell from {y0:.4} to {y1:.4} m");
+    assert!((y1 - 0.5).abs() < 0.01, "it landed on the ground ({y1})");
+}
+
+#[test]
+fn moving_a_static_body_wakes_the_sleepers_on_it() {
+    let mut w = world();
+    let shelf = w
+        .create_body(&BodyDesc::fixed().position(v(0.0, 2.0, 0.0)))
+        .unwrap();
+    w.add_collider(
+        shelf,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(1.0, 0.1, 1.0),
+        })),
+    )
+    .unwrap();
+    ground(&mut w, 0.6);
+    let b = cube(&mut w, v(0.0, 2.6, 0.0), Vec3::ZERO, 0.5, 0.6);
+    for _ in 0..120 {
+        step(&mut w);
+    }
+    assert!(asleep(&w, b));
+    // The shelf is pulled out from under the box.
+    w.set_pose(shelf, Transform::from_translation(v(10.0, 2.0, 0.0)))
+        .unwrap();
+    assert!(!asleep(&w, b));
+    for _ in 0..90 {
+        step(&mut w);
+    }
+    let y = w.body(b).unwrap().position().y.to_f64();
+    assert!((y - 0.5).abs() < 0.01, "the box fell to the ground ({y})");
+}
+
+#[test]
+fn a_body_on_a_slow_moving_platform_does_not_sleep() {
+    // The platform moves at 0.02 m/s, under the sleep threshold: a box
+    // riding it is under the threshold too, yet must not fall asleep (it
+    // would be left behind, or woken and put to sleep again every 0.5 s).
+    let mut w = world();
+    let platform = w
+        .create_body(
+            &BodyDesc::kinematic()
+                .position(v(0.0, -0.5, 0.0))
+                .linear_velocity(v(0.02, 0.0, 0.0)),
+        )
+        .unwrap();
+    w.add_collider(
+        platform,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(5.0, 0.5, 5.0),
+        })),
+    )
+    .unwrap();
+    let b = cube(&mut w, v(0.0, 0.5, 0.0), Vec3::ZERO, 0.5, 0.6);
+    for _ in 0..300 {
+        step(&mut w);
+        assert!(!asleep(&w, b), "tick {}", w.tick());
+    }
+    let x = w.body(b).unwrap().position().x.to_f64();
+    println!("box rode the platform to x = {x:.4} (platform moved 0.1 m)");
+    assert!((x - 0.1).abs() < 0.005, "it moved with the platform ({x})");
+}
