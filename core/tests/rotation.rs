@@ -133,3 +133,34 @@ fn angular_momentum_state_of_a_torque_free_body_is_bit_exact() {
     }
     assert_eq!(world.body(b).unwrap().angular_momentum(), l0);
 }
+
+#[test]
+fn spin_faster_than_a_quarter_turn_per_substep_is_capped_and_reported() {
+    // 60 Hz × 4 substeps: at most π/4 per substep, 60π ≈ 188.5 rad/s. A box
+    // set spinning at 1,000 rad/s about a non-principal axis is capped (its
+    // momentum scaled with it) and the step says so; 100 rad/s is untouched.
+    let limit = lockstep_core::solver::integrate::max_angular_speed(s(1.0 / 240.0)).to_f64();
+    assert!(
+        (limit - 60.0 * std::f64::consts::PI).abs() < 1e-3,
+        "{limit}"
+    );
+    for (speed, capped) in [(1000.0, true), (100.0, false)] {
+        let mut w = zero_g(4);
+        let axis = Vec3::new(s(0.6), s(0.8), Scalar::ZERO);
+        let b = spinning_box(&mut w, Vec3::new(s(0.5), s(0.2), s(0.1)), axis * s(speed));
+        let mut reports = 0;
+        for _ in 0..30 {
+            let r = w.step();
+            assert!(r.faults.is_empty());
+            reports += r.spin_capped;
+        }
+        let omega = w.body(b).unwrap().angular_velocity().length().to_f64();
+        println!("{speed} rad/s → {omega:.3} rad/s, capped in {reports} substeps");
+        if capped {
+            assert!(reports >= 1);
+            assert!(omega <= limit * 1.2, "{omega}");
+        } else {
+            assert_eq!(reports, 0);
+        }
+    }
+}

@@ -84,6 +84,7 @@ impl World {
             let c = integrate::integrate_velocities(hot, live, cfg.gravity, h);
             report.awake_bodies = c.integrated;
             report.gyroscopic_solves += c.gyroscopic;
+            report.spin_capped += c.clamped;
             if solving {
                 // Poses are as the last full gather (or `prepare`) saw them.
                 solver.gather_velocities(hot);
