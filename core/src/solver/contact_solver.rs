@@ -821,14 +821,7 @@ fn push(
 /// the half cannot overflow and only the final narrowing needs a check.
 #[inline(always)]
 fn mul(a: Scalar, b: Scalar) -> Scalar {
-    let r = (a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32;
-    let lo = r as i64;
-    if lo as i128 == r {
-        Scalar::from_bits(lo)
-    } else {
-        faults::raise(Faults::OVERFLOW);
-        if r < 0 { Scalar::MIN } else { Scalar::MAX }
-    }
+    narrow((a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32)
 }
 
 /// A Q64.64 accumulator rounded to Q32.32, to nearest with ties toward +∞
@@ -837,10 +830,16 @@ fn mul(a: Scalar, b: Scalar) -> Scalar {
 /// narrowing).
 #[inline(always)]
 fn round_wide(acc: i128) -> Scalar {
-    let r = match acc.checked_add(1 << 31) {
+    narrow(match acc.checked_add(1 << 31) {
         Some(x) => x >> 32,
         None => i128::MAX >> 32,
-    };
+    })
+}
+
+/// An already rounded Q32.32 value in an `i128`, saturated with the
+/// overflow fault when it does not fit.
+#[inline(always)]
+fn narrow(r: i128) -> Scalar {
     let lo = r as i64;
     if lo as i128 == r {
         Scalar::from_bits(lo)
