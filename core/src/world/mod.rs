@@ -20,7 +20,9 @@ use serde::{Deserialize, Serialize};
 use crate::arena::Arena;
 use crate::body::{BodyCold, BodyDesc, BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::collider::{Collider, ColliderDesc, ColliderHandle, MassSpec};
-use crate::collision::{BroadPhase, ContactEvent, ContactPair, ContactSet, ProxyId, ProxyKey};
+use crate::collision::{
+    BroadPhase, ContactEvent, ContactPair, ContactSet, PairKind, ProxyId, ProxyKey,
+};
 use crate::math::{FaultScope, Faults, Quat, Scalar, SymMat3, Transform, Vec3};
 use crate::shape::MassProperties;
 use crate::solver::contact_solver::ContactSolver;
@@ -221,13 +223,11 @@ impl World {
     /// # Errors
     /// [`WorldError::InvalidBody`] for a stale handle.
     pub fn remove_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
-        let cold = self.bodies.cold(h).ok_or(WorldError::InvalidBody(h))?;
-        for i in 0..cold.colliders.len() {
-            let c = self.bodies.cold(h).map(|cold| cold.colliders[i]);
-            if let Some(c) = c {
-                self.wake_touching(c);
-            }
+        if !self.bodies.contains(h) {
+            return Err(WorldError::InvalidBody(h));
         }
+        // (The pairs still name its colliders: wake what rested on it first.)
+        self.wake_touching(Toucher::Body(h));
         let cold = self.bodies.remove(h).ok_or(WorldError::InvalidBody(h))?;
         for c in cold.colliders {
             if let Some(removed) = self.colliders.remove(c.0) {
@@ -321,7 +321,7 @@ impl World {
             .remove(h.0)
             .ok_or(WorldError::InvalidCollider(h))?;
         // (The pairs still name `h`: wake what rested on it first.)
-        self.wake_touching(h);
+        self.wake_touching(Toucher::Collider(h));
         let _ = self.broad.destroy_proxy(c.proxy);
         self.contacts.remove_collider(h);
         if let Some(cold) = self.bodies.cold_mut(c.body) {
@@ -462,12 +462,7 @@ impl World {
         }
         wake(hot);
         // Whatever rested on it (or under it) must see the change.
-        let touching = self.bodies.cold(h).map_or(0, |c| c.colliders.len());
-        for i in 0..touching {
-            if let Some(c) = self.bodies.cold(h).map(|cold| cold.colliders[i]) {
-                self.wake_touching(c);
-            }
-        }
+        self.wake_touching(Toucher::Body(h));
         self.refresh_proxies(h);
         Ok(())
     }
@@ -675,26 +670,30 @@ impl World {
         Ok(())
     }
 
-    /// Wakes the sleeping dynamic bodies in contact with collider `c` (any
-    /// manifold point), because what they rest on is about to move or
-    /// vanish. The next step's `wake_touched` passes the wake on to the
-    /// rest of their islands.
-    fn wake_touching(&mut self, c: ColliderHandle) {
-        for i in 0..self.contacts.pairs().len() {
-            let p = &self.contacts.pairs()[i];
-            if p.manifold.is_empty() && !p.touching {
+    /// Wakes the sleeping dynamic bodies in solid contact (any manifold
+    /// point) with `toucher`, because what they rest on is about to move or
+    /// vanish: one pass over the pairs. The next step's `wake_touched`
+    /// passes the wake on to the rest of their islands.
+    fn wake_touching(&mut self, toucher: Toucher) {
+        let body_of = |c: ColliderHandle| self.colliders.get(c.0).map(|o| o.body);
+        let mut i = 0;
+        while let Some(p) = self.contacts.pairs().get(i) {
+            i += 1;
+            if p.kind != PairKind::Solid || p.manifold.is_empty() {
                 continue;
             }
-            let other = if p.a == c {
+            let is_toucher = |c: ColliderHandle| match toucher {
+                Toucher::Collider(t) => c == t,
+                Toucher::Body(b) => body_of(c) == Some(b),
+            };
+            let other = if is_toucher(p.a) {
                 p.b
-            } else if p.b == c {
+            } else if is_toucher(p.b) {
                 p.a
             } else {
                 continue;
             };
-            let Some(body) = self.colliders.get(other.0).map(|o| o.body) else {
-                continue;
-            };
+            let Some(body) = body_of(other) else { continue };
             if let Some(hot) = self.bodies.hot_mut(body)
                 && hot.kind == BodyKind::Dynamic
                 && hot.sleeping
@@ -712,6 +711,15 @@ impl World {
         self.faults = self.faults.union(faults);
         (v, faults)
     }
+}
+
+/// Whose contacts [`World::wake_touching`] follows.
+#[derive(Clone, Copy)]
+enum Toucher {
+    /// One collider's.
+    Collider(ColliderHandle),
+    /// Every collider of a body.
+    Body(BodyHandle),
 }
 
 fn wake(hot: &mut BodyHot) {
