@@ -56,6 +56,11 @@ use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind, PointImpulse}
 use crate::math::scalar::wide_sum;
 use crate::math::{Faults, Mat3, Quat, Scalar, SymMat3, Vec3, faults};
 
+/// How many constraints ahead the passes ask the CPU to load: a
+/// constraint is about 1.9 KB and a pass spends a few hundred nanoseconds
+/// on it, enough for the next-but-one to arrive from memory.
+const PREFETCH_AHEAD: usize = 2;
+
 /// Marks "no solver body": a static or sleeping body.
 const NONE: u32 = u32::MAX;
 
@@ -164,11 +169,12 @@ struct Constraint {
     b: u32,
     normal: Vec3,
     tangent: [Vec3; 2],
-    /// The normal and the two tangents, each times `1/mass` of A and of B
-    /// (zero for none, static or kinematic): the velocity change per unit
-    /// impulse.
-    lin_a: [Vec3; 3],
-    lin_b: [Vec3; 3],
+    /// `1/mass` of A and of B (zero for none, static or kinematic).
+    inv_mass_a: Scalar,
+    inv_mass_b: Scalar,
+    /// Their sum: how fast the relative velocity along a unit direction
+    /// changes per unit impulse along it, linear part.
+    inv_mass_sum: Scalar,
     friction: Scalar,
     restitution: Scalar,
     count: usize,
@@ -384,8 +390,9 @@ impl ContactSolver {
             let n = p.manifold.normal;
             let t0 = tangent_of(n);
             let t1 = n.cross(t0);
-            c.lin_a = [n * ba.inv_mass, t0 * ba.inv_mass, t1 * ba.inv_mass];
-            c.lin_b = [n * bb.inv_mass, t0 * bb.inv_mass, t1 * bb.inv_mass];
+            c.inv_mass_a = ba.inv_mass;
+            c.inv_mass_b = bb.inv_mass;
+            c.inv_mass_sum = ba.inv_mass + bb.inv_mass;
             c.normal = n;
             c.tangent = [t0, t1];
             c.count = p.manifold.points().len();
@@ -488,7 +495,12 @@ impl ContactSolver {
     pub(crate) fn scatter(&mut self, hot: &mut [BodyHot]) {
         // Determinism: constraints in order, points in manifold order.
         let dls = &mut self.dls;
-        for c in &mut self.constraints {
+        let len = self.constraints.len();
+        for i in 0..len {
+            if i + PREFETCH_AHEAD < len {
+                prefetch(&self.constraints[i + PREFETCH_AHEAD]);
+            }
+            let c = &mut self.constraints[i];
             for cp in &mut c.points[..c.count] {
                 let now = [
                     cp.normal_impulse,
@@ -528,9 +540,13 @@ impl ContactSolver {
     pub(crate) fn warm_start(&mut self) {
         self.substeps = self.substeps.wrapping_add(1);
         let vels = &mut self.vels;
-        for c in &mut self.constraints {
+        let len = self.constraints.len();
+        for i in 0..len {
+            if i + PREFETCH_AHEAD < len {
+                prefetch(&self.constraints[i + PREFETCH_AHEAD]);
+            }
+            let c = &mut self.constraints[i];
             let (mut va, mut vb) = load(vels, c.a, c.b);
-            let ([la0, la1, la2], [lb0, lb1, lb2]) = (c.lin_a, c.lin_b);
             // The linear change is the same direction for every point: sum
             // the impulses (exactly) and scale once per constraint.
             let mut total = [Scalar::ZERO; 3];
@@ -551,13 +567,7 @@ impl ContactSolver {
                     vb.w += combine3(cp.ib_n, ni, cp.ib_t[0], i0, cp.ib_t[1], i1);
                 }
             }
-            let [ni, i0, i1] = total;
-            if c.a != NONE {
-                va.v -= combine3(la0, ni, la1, i0, la2, i1);
-            }
-            if c.b != NONE {
-                vb.v += combine3(lb0, ni, lb1, i0, lb2, i1);
-            }
+            apply_linear(c, &mut va, &mut vb, total);
             store(vels, c.a, c.b, va, vb);
         }
     }
@@ -573,10 +583,22 @@ impl ContactSolver {
         let rot = self.substeps as usize;
         let vels = &mut self.vels;
         let bodies = &self.bodies;
-        for c in &mut self.constraints {
+        let len = self.constraints.len();
+        for i in 0..len {
+            if i + PREFETCH_AHEAD < len {
+                prefetch(&self.constraints[i + PREFETCH_AHEAD]);
+            }
+            let c = &mut self.constraints[i];
             let (mut va, mut vb) = load(vels, c.a, c.b);
             let n = c.normal;
-            let (lin_a, lin_b) = (c.lin_a, c.lin_b);
+            // The linear part of the relative velocity along n, t0 and t1,
+            // kept up to date through the rows (an impulse λ along one unit
+            // direction of the basis changes it by λ(1/mA + 1/mB) along that
+            // direction and not along the other two), and the impulses
+            // applied in this visit, turned into linear velocity once at the
+            // end: three products per row instead of nine.
+            let mut u = linear_basis(c, &va, &vb);
+            let mut applied = [Scalar::ZERO; 3];
             let count = c.count.min(MAX_MANIFOLD_POINTS);
             let start = if count == 0 { 0 } else { rot % count };
             let order = |kk: usize| {
@@ -592,24 +614,17 @@ impl ContactSolver {
                     continue;
                 }
                 for j in 0..2 {
-                    let t = c.tangent[j];
-                    let vt = along(&va, &vb, t, cp.ra_t[j], cp.rb_t[j]);
+                    let vt = u[1 + j] + angular_along(&va, &vb, cp.ra_t[j], cp.rb_t[j]);
                     let lambda = -mul(cp.tangent_mass[j], vt);
                     let old = cp.tangent_impulse[j];
                     let new = (old + lambda).clamp(-limit, limit);
                     let d = new - old;
                     cp.tangent_impulse[j] = new;
-                    push(
-                        &mut va,
-                        &mut vb,
-                        c.a,
-                        c.b,
-                        lin_a[1 + j],
-                        lin_b[1 + j],
-                        d,
-                        cp.ia_t[j],
-                        cp.ib_t[j],
-                    );
+                    if !d.is_zero() {
+                        u[1 + j] += mul(c.inv_mass_sum, d);
+                        applied[1 + j] += d;
+                        push_angular(&mut va, &mut vb, c.a, c.b, d, cp.ia_t[j], cp.ib_t[j]);
+                    }
                 }
             }
             // Non-penetration. The current separation of a point is its
@@ -644,7 +659,7 @@ impl ContactSolver {
                 } else {
                     (Scalar::ZERO, Scalar::ONE, Scalar::ZERO)
                 };
-                let vn = along(&va, &vb, n, cp.ra_n, cp.rb_n);
+                let vn = u[0] + angular_along(&va, &vb, cp.ra_n, cp.rb_n);
                 let lambda = -mul(mul(cp.normal_mass, mass_scale), vn + bias)
                     - mul(impulse_scale, cp.normal_impulse);
                 let old = cp.normal_impulse;
@@ -659,10 +674,13 @@ impl ContactSolver {
                 }
                 cp.normal_impulse = new;
                 cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                push(
-                    &mut va, &mut vb, c.a, c.b, lin_a[0], lin_b[0], d, cp.ia_n, cp.ib_n,
-                );
+                if !d.is_zero() {
+                    u[0] += mul(c.inv_mass_sum, d);
+                    applied[0] += d;
+                    push_angular(&mut va, &mut vb, c.a, c.b, d, cp.ia_n, cp.ib_n);
+                }
             }
+            apply_linear(c, &mut va, &mut vb, applied);
             store(vels, c.a, c.b, va, vb);
         }
     }
@@ -677,23 +695,26 @@ impl ContactSolver {
                 continue;
             }
             let (mut va, mut vb) = load(vels, c.a, c.b);
-            let n = c.normal;
-            let (lin_a, lin_b) = (c.lin_a, c.lin_b);
+            let mut un = linear_basis(c, &va, &vb)[0];
+            let mut applied = Scalar::ZERO;
             for cp in &mut c.points[..c.count] {
                 if cp.relative_velocity > threshold || cp.max_normal_impulse.is_zero() {
                     continue;
                 }
-                let vn = along(&va, &vb, n, cp.ra_n, cp.rb_n);
+                let vn = un + angular_along(&va, &vb, cp.ra_n, cp.rb_n);
                 let lambda = -(cp.normal_mass * (vn + c.restitution * cp.relative_velocity));
                 let old = cp.normal_impulse;
                 let new = (old + lambda).max(Scalar::ZERO);
                 let d = new - old;
                 cp.normal_impulse = new;
                 cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                push(
-                    &mut va, &mut vb, c.a, c.b, lin_a[0], lin_b[0], d, cp.ia_n, cp.ib_n,
-                );
+                if !d.is_zero() {
+                    un += mul(c.inv_mass_sum, d);
+                    applied += d;
+                    push_angular(&mut va, &mut vb, c.a, c.b, d, cp.ia_n, cp.ib_n);
+                }
             }
+            apply_linear(c, &mut va, &mut vb, [applied, Scalar::ZERO, Scalar::ZERO]);
             store(vels, c.a, c.b, va, vb);
         }
     }
@@ -781,36 +802,65 @@ fn along(a: &BodyVel, b: &BodyVel, d: Vec3, ra_d: Vec3, rb_d: Vec3) -> Scalar {
     ]))
 }
 
-/// Applies impulse `λ·d` to B and `−λ·d` to A at their anchors: `v` moves
-/// by `λ·d/m` (`d/m` given as `la`, `lb`), `ω` by `λ·I⁻¹(r×d)` (given as
-/// `ia_d`, `ib_d`); the angular
-/// impulse is summed at the write-back ([`ContactSolver::scatter`]).
-/// A missing body (`NONE`) is skipped; a kinematic one has zero inverse
-/// mass and inertia.
-#[allow(clippy::too_many_arguments)]
+/// Applies the angular part of impulse `λ·d` at the anchors: `ω_B` moves by
+/// `λ·I⁻¹B(rB×d)` and `ω_A` by `−λ·I⁻¹A(rA×d)` (given as `ib_d`, `ia_d`);
+/// the linear part is summed per visit and applied by [`apply_linear`], the
+/// angular impulse at the write-back ([`ContactSolver::scatter`]). A missing
+/// body (`NONE`) is skipped; a kinematic one has zero inverse inertia.
 #[inline(always)]
-fn push(
+fn push_angular(
     va: &mut BodyVel,
     vb: &mut BodyVel,
     a: u32,
     b: u32,
-    la: Vec3,
-    lb: Vec3,
     lambda: Scalar,
     ia_d: Vec3,
     ib_d: Vec3,
 ) {
-    if lambda.is_zero() {
-        return;
-    }
     if a != NONE {
-        va.v -= scale(la, lambda);
         va.w -= scale(ia_d, lambda);
     }
     if b != NONE {
-        vb.v += scale(lb, lambda);
         vb.w += scale(ib_d, lambda);
     }
+}
+
+/// The relative linear velocity `vB − vA` along the constraint's normal and
+/// two tangents, each rounded once.
+#[inline(always)]
+fn linear_basis(c: &Constraint, va: &BodyVel, vb: &BodyVel) -> [Scalar; 3] {
+    let dv = vb.v - va.v;
+    [
+        round_wide(c.normal.dot_wide(dv)),
+        round_wide(c.tangent[0].dot_wide(dv)),
+        round_wide(c.tangent[1].dot_wide(dv)),
+    ]
+}
+
+/// Applies the linear part of impulses `imp` along the normal and the two
+/// tangents (B receives `+P`, A receives `−P`, `P = imp₀n + imp₁t₀ +
+/// imp₂t₁`): `vB += P/mB`, `vA −= P/mA`.
+#[inline(always)]
+fn apply_linear(c: &Constraint, va: &mut BodyVel, vb: &mut BodyVel, imp: [Scalar; 3]) {
+    if imp == [Scalar::ZERO; 3] {
+        return;
+    }
+    let [i0, i1, i2] = imp;
+    let p = combine3(c.normal, i0, c.tangent[0], i1, c.tangent[1], i2);
+    if c.a != NONE {
+        va.v -= scale(p, c.inv_mass_a);
+    }
+    if c.b != NONE {
+        vb.v += scale(p, c.inv_mass_b);
+    }
+}
+
+/// The angular part of the relative velocity of B's anchor against A's
+/// along a direction `d`, from `r×d` of each anchor: `(rB×d)·ωB −
+/// (rA×d)·ωA`, rounded once.
+#[inline(always)]
+fn angular_along(a: &BodyVel, b: &BodyVel, ra_d: Vec3, rb_d: Vec3) -> Scalar {
+    round_wide(wide_sum([rb_d.dot_wide(b.w), -ra_d.dot_wide(a.w)]))
 }
 
 /// `a·b` rounded to nearest, ties toward +∞ (one rounding per product, as
@@ -888,4 +938,24 @@ fn store(vels: &mut [BodyVel], a: u32, b: u32, va: BodyVel, vb: BodyVel) {
     if b != NONE {
         vels[b as usize] = vb;
     }
+}
+
+/// Hints the CPU to start loading `x` into the cache (a hint only: it
+/// changes no value, so results do not depend on it).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let base = x as *const T as *const i8;
+        let mut off = 0;
+        while off < size_of::<T>() {
+            // SAFETY: a prefetch never faults and reads nothing into the
+            // program; the address lies inside `x`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.add(off)) };
+            off += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
 }
