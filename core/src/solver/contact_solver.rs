@@ -181,6 +181,37 @@ struct Constraint {
     points: [ConstraintPoint; MAX_MANIFOLD_POINTS],
 }
 
+impl Constraint {
+    /// Adds the angular impulse of every point's impulse change since its
+    /// mark (`r×(Δλ_n n + Δλ_t0 t0 + Δλ_t1 t1)`, from the stored `r×d`) to
+    /// the write-back sums `dls` of A (negated) and B, and moves the marks.
+    #[inline(always)]
+    fn collect_angular(&mut self, dls: &mut [Vec3]) {
+        for cp in &mut self.points[..self.count] {
+            let now = [
+                cp.normal_impulse,
+                cp.tangent_impulse[0],
+                cp.tangent_impulse[1],
+            ];
+            if now == cp.mark {
+                continue;
+            }
+            let [dn, d0, d1] = [
+                now[0] - cp.mark[0],
+                now[1] - cp.mark[1],
+                now[2] - cp.mark[2],
+            ];
+            cp.mark = now;
+            if self.a != NONE {
+                dls[self.a as usize] -= combine3(cp.ra_n, dn, cp.ra_t[0], d0, cp.ra_t[1], d1);
+            }
+            if self.b != NONE {
+                dls[self.b as usize] += combine3(cp.rb_n, dn, cp.rb_t[0], d0, cp.rb_t[1], d1);
+            }
+        }
+    }
+}
+
 /// Softness of the contact spring for a substep.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Softness {
@@ -490,41 +521,11 @@ impl ContactSolver {
         }
     }
 
-    /// Writes the solved velocities back, and the angular impulses since the
-    /// last `scatter` into the angular momenta.
+    /// Writes the solved velocities back, and the angular impulses summed
+    /// since the last `scatter` (by the relax and restitution passes, see
+    /// [`Constraint::collect_angular`]) into the angular momenta.
     pub(crate) fn scatter(&mut self, hot: &mut [BodyHot]) {
-        // Determinism: constraints in order, points in manifold order.
-        let dls = &mut self.dls;
-        let len = self.constraints.len();
-        for i in 0..len {
-            if i + PREFETCH_AHEAD < len {
-                prefetch(&self.constraints[i + PREFETCH_AHEAD]);
-            }
-            let c = &mut self.constraints[i];
-            for cp in &mut c.points[..c.count] {
-                let now = [
-                    cp.normal_impulse,
-                    cp.tangent_impulse[0],
-                    cp.tangent_impulse[1],
-                ];
-                if now == cp.mark {
-                    continue;
-                }
-                let [dn, d0, d1] = [
-                    now[0] - cp.mark[0],
-                    now[1] - cp.mark[1],
-                    now[2] - cp.mark[2],
-                ];
-                cp.mark = now;
-                if c.a != NONE {
-                    dls[c.a as usize] -= combine3(cp.ra_n, dn, cp.ra_t[0], d0, cp.ra_t[1], d1);
-                }
-                if c.b != NONE {
-                    dls[c.b as usize] += combine3(cp.rb_n, dn, cp.rb_t[0], d0, cp.rb_t[1], d1);
-                }
-            }
-        }
-        for ((sb, vel), dl) in self.bodies.iter().zip(&self.vels).zip(dls.iter_mut()) {
+        for ((sb, vel), dl) in self.bodies.iter().zip(&self.vels).zip(&mut self.dls) {
             let dl = std::mem::take(dl);
             if !sb.dynamic {
                 continue;
@@ -574,6 +575,11 @@ impl ContactSolver {
 
     /// One pass over every constraint: friction, then the normal impulses
     /// (soft with `use_bias`, rigid without).
+    ///
+    /// The relax pass (`use_bias == false`) also sums each constraint's
+    /// angular impulses into its bodies' write-back (one pass over the
+    /// constraints fewer than a separate sum: the sums are exact integer
+    /// additions, so their order does not change the result).
     pub(crate) fn solve(&mut self, params: &SolverParams, use_bias: bool) {
         // Substep k starts each manifold's points at point k (mod count) and
         // goes round: always the same order lets the first point of a
@@ -582,6 +588,7 @@ impl ContactSolver {
         // swung by 8 cm; rotating the start keeps it within a millimetre).
         let rot = self.substeps as usize;
         let vels = &mut self.vels;
+        let dls = &mut self.dls;
         let bodies = &self.bodies;
         let len = self.constraints.len();
         for i in 0..len {
@@ -682,6 +689,9 @@ impl ContactSolver {
             }
             apply_linear(c, &mut va, &mut vb, applied);
             store(vels, c.a, c.b, va, vb);
+            if !use_bias {
+                c.collect_angular(dls);
+            }
         }
     }
 
@@ -689,6 +699,7 @@ impl ContactSolver {
     /// and pushed get the normal velocity `−e·v_before`.
     pub(crate) fn restitution(&mut self, params: &SolverParams) {
         let vels = &mut self.vels;
+        let dls = &mut self.dls;
         let threshold = -params.restitution_threshold;
         for c in &mut self.constraints {
             if c.restitution.is_zero() {
@@ -716,6 +727,7 @@ impl ContactSolver {
             }
             apply_linear(c, &mut va, &mut vb, [applied, Scalar::ZERO, Scalar::ZERO]);
             store(vels, c.a, c.b, va, vb);
+            c.collect_angular(dls);
         }
     }
 
