@@ -59,7 +59,7 @@ use crate::math::{Faults, Mat3, Quat, Scalar, SymMat3, Vec3, faults};
 /// How many constraints ahead the passes ask the CPU to load: a
 /// constraint is about 1.9 KB and a pass spends a few hundred nanoseconds
 /// on it, enough for the next-but-one to arrive from memory.
-const PREFETCH_AHEAD: usize = 2;
+const PREFETCH_AHEAD: usize = 1;
 
 /// Marks "no solver body": a static or sleeping body.
 const NONE: u32 = u32::MAX;
