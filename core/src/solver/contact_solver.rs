@@ -56,9 +56,10 @@ use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind, PointImpulse}
 use crate::math::scalar::wide_sum;
 use crate::math::{Faults, Mat3, Quat, Scalar, SymMat3, Vec3, faults};
 
-/// How many constraints ahead the passes ask the CPU to load: a
-/// constraint is about 1.9 KB and a pass spends a few hundred nanoseconds
-/// on it, enough for the next-but-one to arrive from memory.
+/// How many constraints ahead the passes ask the CPU to load. A constraint
+/// is about 1.9 KB and a pass spends a few hundred nanoseconds on it: on
+/// large_pyramid (15,000 constraints, far more than the caches hold) one
+/// ahead was faster than two or four, and about 10% faster than none.
 const PREFETCH_AHEAD: usize = 1;
 
 /// Marks "no solver body": a static or sleeping body.
