@@ -252,3 +252,182 @@ fn a_body_on_a_slow_moving_platform_does_not_sleep() {
     println!("box rode the platform to x = {x:.4} (platform moved 0.1 m)");
     assert!((x - 0.1).abs() < 0.005, "it moved with the platform ({x})");
 }
+
+/// Two 2 × 3 piles of unit boxes on the ground, stepped until every box
+/// sleeps.
+fn sleeping_piles(w: &mut World) -> Vec<BodyHandle> {
+    ground(w, 0.6);
+    let mut boxes = Vec::new();
+    for pile in 0..2 {
+        for i in 0..2 {
+            for j in 0..3 {
+                let x = pile as f64 * 6.0 + i as f64 * 1.02;
+                boxes.push(cube(
+                    w,
+                    v(x, 0.5 + j as f64 * 1.01, 0.0),
+                    Vec3::ZERO,
+                    0.5,
+                    0.6,
+                ));
+            }
+        }
+    }
+    let mut ticks = 0;
+    while !boxes.iter().all(|&b| asleep(w, b)) {
+        step(w);
+        ticks += 1;
+        assert!(ticks < 600, "the piles sleep within 10 s");
+    }
+    boxes
+}
+
+#[test]
+fn a_restored_world_with_sleepers_steps_bit_identically_to_the_original() {
+    let mut w = world();
+    let boxes = sleeping_piles(&mut w);
+    // A box thrown at the first pile wakes it on impact; the second pile
+    // sleeps throughout. One sleeper is woken by the game just before the
+    // snapshot, so its proxy still says "sleeping" in the snapshot.
+    cube(&mut w, v(-4.0, 1.5, 0.0), v(6.0, 0.0, 0.0), 0.3, 0.6);
+    for _ in 0..5 {
+        step(&mut w);
+    }
+    w.wake_body(boxes[11]).unwrap();
+    let sleepers = boxes.iter().filter(|&&b| asleep(&w, b)).count();
+    assert_eq!(sleepers, 11, "all but the woken box sleep at the snapshot");
+    let mut r = World::restore(&w.snapshot()).unwrap();
+    assert_eq!(r.state_hash(), w.state_hash());
+    let mut woken = 0;
+    for _ in 0..240 {
+        let mut a = step(&mut w);
+        let mut b = step(&mut r);
+        // (The restored world's scratch buffers start empty and grow.)
+        a.buffer_growths = 0;
+        b.buffer_growths = 0;
+        assert_eq!(a, b, "same report at tick {}", a.tick);
+        assert_eq!(w.state_hash(), r.state_hash(), "tick {}", a.tick);
+        woken += a.woken_by_contact;
+    }
+    assert_eq!(w.contact_pairs(), r.contact_pairs());
+    assert!(woken >= 6, "the thrown box woke the first pile ({woken})");
+}
+
+#[test]
+fn sleeping_pairs_are_kept_without_narrow_tests_or_constraints() {
+    let mut w = world();
+    let boxes = sleeping_piles(&mut w);
+    let pairs = w.contact_pairs().to_vec();
+    let touching = pairs.iter().filter(|p| p.touching).count() as u32;
+    let points: u32 = pairs
+        .iter()
+        .filter(|p| p.touching)
+        .map(|p| p.manifold.count as u32)
+        .sum();
+    assert!(touching >= 12, "each box touches the ground or a box");
+    // A box falling far from the piles stays awake and touches nothing.
+    cube(&mut w, v(50.0, 40.0, 50.0), Vec3::ZERO, 0.5, 0.6);
+    for _ in 0..30 {
+        let r = step(&mut w);
+        assert_eq!((r.awake_bodies, r.sleeping_bodies), (1, boxes.len() as u32));
+        assert_eq!((r.candidate_pairs, r.narrow_tests), (0, 0));
+        assert_eq!(r.contact_constraints, 0);
+        // The counters still cover the resting pairs.
+        assert_eq!((r.touching_pairs, r.contact_points), (touching, points));
+        assert_eq!(w.contact_pairs(), &pairs[..]);
+    }
+}
+
+/// Steps a copy of `w` once after `calls`, returning its state hash.
+fn hash_after(w: &World, calls: impl FnOnce(&mut World)) -> u64 {
+    let mut w = w.clone();
+    calls(&mut w);
+    step(&mut w);
+    w.state_hash()
+}
+
+#[test]
+fn a_force_on_a_body_put_to_sleep_is_cleared_and_one_woken_again_is_applied() {
+    let mut w = world();
+    let boxes = sleeping_piles(&mut w);
+    let top = boxes[2];
+    let f = v(0.0, 0.0, 300.0);
+    // Put to sleep after the force: the step clears it, as it clears every
+    // body's forces, and the box does not move.
+    let mut a = w.clone();
+    a.apply_force(top, f).unwrap();
+    a.sleep_body(top).unwrap();
+    step(&mut a);
+    let hot = a.body(top).unwrap().hot().clone();
+    assert_eq!((hot.force, hot.sleeping), (Vec3::ZERO, true));
+    let no_force = hash_after(&w, |w| {
+        w.wake_body(top).unwrap();
+        w.sleep_body(top).unwrap();
+    });
+    assert_eq!(a.state_hash(), no_force);
+    // Woken again before the step: the force acts as if sleep_body had not
+    // been called.
+    let slept_and_woken = hash_after(&w, |w| {
+        w.apply_force(top, f).unwrap();
+        w.sleep_body(top).unwrap();
+        w.wake_body(top).unwrap();
+    });
+    let pushed = hash_after(&w, |w| w.apply_force(top, f).unwrap());
+    assert_eq!(slept_and_woken, pushed);
+    assert_ne!(pushed, hash_after(&w, |_| {}));
+}
+
+#[test]
+fn sleeping_and_awake_counts_stay_exact_as_bodies_come_and_go() {
+    let mut w = world();
+    let boxes = sleeping_piles(&mut w);
+    let count = |w: &World| {
+        let dynamic = w
+            .body_handles()
+            .filter(|&h| w.body(h).unwrap().kind() == lockstep_core::BodyKind::Dynamic);
+        let (mut asleep_n, mut awake_n) = (0, 0);
+        for h in dynamic {
+            if asleep(w, h) {
+                asleep_n += 1;
+            } else {
+                awake_n += 1;
+            }
+        }
+        (awake_n, asleep_n)
+    };
+    // Remove a lone sleeper (held asleep in the air, touching nothing) and
+    // an awake box, then reuse their slots.
+    let lone = w
+        .create_body(
+            &BodyDesc::dynamic()
+                .position(v(30.0, 10.0, 0.0))
+                .asleep(true),
+        )
+        .unwrap();
+    let flyer = cube(&mut w, v(-20.0, 30.0, 0.0), Vec3::ZERO, 0.5, 0.6);
+    let r = step(&mut w);
+    assert_eq!((r.awake_bodies, r.sleeping_bodies), (1, 13));
+    assert_eq!(boxes.len(), 12);
+    w.remove_body(lone).unwrap();
+    w.remove_body(flyer).unwrap();
+    let r = step(&mut w);
+    assert_eq!((r.awake_bodies, r.sleeping_bodies), (0, 12));
+    let a = cube(&mut w, v(-20.0, 30.0, 0.0), Vec3::ZERO, 0.5, 0.6);
+    let b = w
+        .create_body(
+            &BodyDesc::dynamic()
+                .position(v(20.0, 30.0, 0.0))
+                .asleep(true),
+        )
+        .unwrap();
+    for _ in 0..10 {
+        let r = step(&mut w);
+        assert_eq!((r.awake_bodies, r.sleeping_bodies), count(&w));
+        assert_eq!((r.awake_bodies, r.sleeping_bodies), (1, 13));
+    }
+    w.wake_body(b).unwrap();
+    w.sleep_body(a).unwrap();
+    let r = step(&mut w);
+    assert_eq!((r.awake_bodies, r.sleeping_bodies), count(&w));
+    assert_eq!((r.awake_bodies, r.sleeping_bodies), (1, 13));
+    assert!(!asleep(&w, b) && asleep(&w, a));
+}

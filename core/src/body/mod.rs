@@ -1,6 +1,7 @@
 //! Rigid bodies: handles, descriptions, hot and cold state, and the set that
 //! stores them.
 
+mod awake;
 mod desc;
 mod set;
 mod state;

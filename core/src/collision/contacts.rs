@@ -12,6 +12,14 @@
 //! not candidates, but they are kept unchanged, so a sleeping pile keeps its
 //! contacts and emits no events.
 //!
+//! Sleeping pairs cost nothing per step: the set keeps the (derived,
+//! unserialized) list of *active* pairs, a superset of the pairs with an
+//! awake or kinematic body, and while it is valid an update only walks the
+//! active pairs and the candidates; the sleeping pairs stay where they are
+//! in the pair array. Anything that may turn a sleeping pair active (a body
+//! waking, a collider removed, a restore) invalidates the list, and the next
+//! update walks all pairs once, as it always did, and rebuilds it.
+//!
 //! Determinism: pairs, and therefore events, are in ascending order of
 //! (collider A, collider B) handles, whatever the trees' shape.
 
@@ -214,6 +222,50 @@ pub struct ContactSet {
     #[serde(skip)]
     next: Vec<ContactPair>,
     events: Vec<ContactEvent>,
+    /// Derived: which pairs an update must visit (see the module docs).
+    #[serde(skip)]
+    active: ActivePairs,
+}
+
+/// The active pairs: indices into the pair array, ascending, of every pair
+/// that may involve an awake or kinematic body, plus running totals so the
+/// step's counters need no walk over the sleeping pairs.
+#[derive(Clone, Debug, Default)]
+struct ActivePairs {
+    /// Whether `index` and the totals describe the pairs.
+    valid: bool,
+    /// Ascending pair indices.
+    index: Vec<u32>,
+    /// Scratch for the next `index`.
+    next_index: Vec<u32>,
+    /// Scratch: the merged pair array after a fast update that created or
+    /// dropped pairs.
+    merged: Vec<ContactPair>,
+    /// For each pair in `ContactSet::next` during a fast update: whether it
+    /// was a candidate (otherwise a retired pair kept asleep).
+    next_is_candidate: Vec<bool>,
+    /// Touching pairs in the whole array.
+    touching: u32,
+    /// Contact points of the touching pairs in the whole array.
+    points: u32,
+}
+
+impl PartialEq for ActivePairs {
+    /// Always equal: derived from the pairs and the bodies.
+    fn eq(&self, _: &ActivePairs) -> bool {
+        true
+    }
+}
+
+impl Eq for ActivePairs {}
+
+/// What a pair adds to the touching and point counters.
+fn counts(p: &ContactPair) -> (u32, u32) {
+    if p.touching {
+        (1, p.manifold.count as u32)
+    } else {
+        (0, 0)
+    }
 }
 
 /// What the caller knows about one candidate pair.
@@ -250,14 +302,39 @@ impl ContactSet {
     ///   candidate rests between sleeping (or sleeping and static) bodies and
     ///   must be kept as it is.
     ///
+    /// Every pair that is not a candidate afterwards rests between sleeping
+    /// (or sleeping and static) bodies; the candidates become the active
+    /// pairs. With a valid active list only the active pairs and the
+    /// candidates are visited (the other pairs rested at the last update and
+    /// nothing woke since, so they are neither candidates nor changed), and
+    /// the result is the same pair array, events and counters as a walk over
+    /// all pairs.
+    ///
     /// Determinism: must be given candidates sorted by (A, B) handle index.
     pub fn update(
+        &mut self,
+        candidates: impl Iterator<Item = Candidate>,
+        narrow: impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
+        keep_asleep: impl FnMut(&ContactPair) -> bool,
+    ) -> ContactStats {
+        if self.active.valid {
+            self.update_active(candidates, narrow, keep_asleep)
+        } else {
+            self.update_all(candidates, narrow, keep_asleep)
+        }
+    }
+
+    /// [`update`](Self::update) walking every pair; rebuilds the active
+    /// list.
+    fn update_all(
         &mut self,
         candidates: impl Iterator<Item = Candidate>,
         mut narrow: impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
         mut keep_asleep: impl FnMut(&ContactPair) -> bool,
     ) -> ContactStats {
         let mut stats = ContactStats::default();
+        let active_cap = self.active.index.capacity();
+        self.active.index.clear();
         let caps = (self.next.capacity(), self.events.capacity());
         self.next.clear();
         self.events.clear();
@@ -287,26 +364,8 @@ impl ContactSet {
                 }
                 ContactPair::new(c.a, c.b, c.kind)
             };
-            pair.kind = c.kind;
-            let was_touching = pair.touching;
-            scratch.clear();
-            narrow(c.a, c.b, &mut scratch);
-            stats.narrow_tests += 1;
-            if c.kind == PairKind::Trigger {
-                pair.touching = scratch.points().iter().any(|p| !p.depth.is_negative());
-                pair.manifold = Manifold::EMPTY;
-            } else {
-                pair.update_manifold(&scratch);
-            }
-            if pair.touching != was_touching {
-                if pair.touching {
-                    self.events.push(ContactEvent::begin(&pair));
-                    stats.begin_events += 1;
-                } else {
-                    self.events.push(ContactEvent::end(&pair));
-                    stats.end_events += 1;
-                }
-            }
+            self.active.index.push(self.next.len() as u32);
+            self.refresh_pair(&mut pair, &c, &mut narrow, &mut scratch, &mut stats);
             self.next.push(pair);
         }
         while old < self.pairs.len() {
@@ -314,16 +373,248 @@ impl ContactSet {
             old += 1;
         }
         std::mem::swap(&mut self.pairs, &mut self.next);
+        self.active.touching = 0;
+        self.active.points = 0;
         for p in &self.pairs {
-            if p.touching {
-                stats.touching += 1;
-                stats.points += p.manifold.count as u32;
-            }
+            let (t, n) = counts(p);
+            self.active.touching += t;
+            self.active.points += n;
         }
-        if self.next.capacity() != caps.0 || self.events.capacity() != caps.1 {
+        stats.touching = self.active.touching;
+        stats.points = self.active.points;
+        self.active.valid = true;
+        if self.next.capacity() != caps.0
+            || self.events.capacity() != caps.1
+            || self.active.index.capacity() != active_cap
+        {
             stats.growths += 1;
         }
         stats
+    }
+
+    /// Runs the narrow phase on one candidate and installs its manifold,
+    /// with the begin/end event its touching change calls for.
+    fn refresh_pair(
+        &mut self,
+        pair: &mut ContactPair,
+        c: &Candidate,
+        narrow: &mut impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
+        scratch: &mut Manifold,
+        stats: &mut ContactStats,
+    ) {
+        pair.kind = c.kind;
+        let was_touching = pair.touching;
+        scratch.clear();
+        narrow(c.a, c.b, scratch);
+        stats.narrow_tests += 1;
+        if c.kind == PairKind::Trigger {
+            pair.touching = scratch.points().iter().any(|p| !p.depth.is_negative());
+            pair.manifold = Manifold::EMPTY;
+        } else {
+            pair.update_manifold(scratch);
+        }
+        if pair.touching != was_touching {
+            if pair.touching {
+                self.events.push(ContactEvent::begin(pair));
+                stats.begin_events += 1;
+            } else {
+                self.events.push(ContactEvent::end(pair));
+                stats.end_events += 1;
+            }
+        }
+    }
+
+    /// [`update`](Self::update) over the active pairs only: the same merge
+    /// as [`update_all`](Self::update_all), restricted to them, then the
+    /// results go back in place (or, if pairs were created or dropped, one
+    /// merge with the untouched resting pairs).
+    fn update_active(
+        &mut self,
+        candidates: impl Iterator<Item = Candidate>,
+        mut narrow: impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
+        mut keep_asleep: impl FnMut(&ContactPair) -> bool,
+    ) -> ContactStats {
+        let mut stats = ContactStats::default();
+        // Buffers swapped with each other are counted by their summed
+        // capacities.
+        let capacities = |s: &ContactSet| {
+            [
+                s.next.capacity(),
+                s.events.capacity(),
+                s.active.next_is_candidate.capacity(),
+                s.active.index.capacity() + s.active.next_index.capacity(),
+                s.pairs.capacity() + s.active.merged.capacity(),
+            ]
+        };
+        let caps = capacities(self);
+        self.next.clear();
+        self.events.clear();
+        self.active.next_is_candidate.clear();
+        // Whether a pair was created or dropped (the array changes shape).
+        let mut reshaped = false;
+        let (mut touching, mut points) = (self.active.touching, self.active.points);
+        let mut k = 0usize;
+        let mut scratch = Manifold::EMPTY;
+        let n_active = self.active.index.len();
+        for c in candidates {
+            stats.candidates += 1;
+            let key = (c.a.index(), c.b.index());
+            while k < n_active && self.pairs[self.active.index[k] as usize].key() < key {
+                reshaped |= !self.retire_active(k, &mut keep_asleep, &mut stats);
+                k += 1;
+            }
+            let mut pair = match self.active.index.get(k).map(|&i| self.pairs[i as usize]) {
+                Some(old) if old.key() == key && old.a == c.a && old.b == c.b => {
+                    k += 1;
+                    old
+                }
+                Some(old) if old.key() == key => {
+                    // Same slots, other generations: the old pair's
+                    // colliders were removed.
+                    let i = self.active.index[k] as usize;
+                    self.retire(i, &mut |_| false, &mut stats);
+                    k += 1;
+                    reshaped = true;
+                    ContactPair::new(c.a, c.b, c.kind)
+                }
+                _ => {
+                    reshaped = true;
+                    ContactPair::new(c.a, c.b, c.kind)
+                }
+            };
+            self.refresh_pair(&mut pair, &c, &mut narrow, &mut scratch, &mut stats);
+            self.next.push(pair);
+            self.active.next_is_candidate.push(true);
+        }
+        while k < n_active {
+            reshaped |= !self.retire_active(k, &mut keep_asleep, &mut stats);
+            k += 1;
+        }
+        // The resting pairs outside the active list were kept as they are.
+        stats.kept_asleep += (self.pairs.len() - n_active) as u32;
+        for &i in &self.active.index {
+            let (t, n) = counts(&self.pairs[i as usize]);
+            touching -= t;
+            points -= n;
+        }
+        for p in &self.next {
+            let (t, n) = counts(p);
+            touching += t;
+            points += n;
+        }
+        self.active.touching = touching;
+        self.active.points = points;
+        stats.touching = touching;
+        stats.points = points;
+        let a = &mut self.active;
+        a.next_index.clear();
+        if !reshaped {
+            // Same pairs in the same places: write the results back.
+            debug_assert_eq!(a.index.len(), self.next.len());
+            for ((&i, p), &cand) in a.index.iter().zip(&self.next).zip(&a.next_is_candidate) {
+                self.pairs[i as usize] = *p;
+                if cand {
+                    a.next_index.push(i);
+                }
+            }
+        } else {
+            // Determinism: a merge by (A, B) key of the untouched resting
+            // pairs with the updated active ones; the keys are distinct (a
+            // resting pair is never a candidate while nothing wakes).
+            a.merged.clear();
+            let mut rest = a.index.iter().copied().peekable();
+            let mut j = 0usize;
+            for (i, p) in self.pairs.iter().enumerate() {
+                if rest.peek() == Some(&(i as u32)) {
+                    rest.next();
+                    continue;
+                }
+                while j < self.next.len() && self.next[j].key() < p.key() {
+                    if a.next_is_candidate[j] {
+                        a.next_index.push(a.merged.len() as u32);
+                    }
+                    a.merged.push(self.next[j]);
+                    j += 1;
+                }
+                debug_assert!(j >= self.next.len() || self.next[j].key() != p.key());
+                a.merged.push(*p);
+            }
+            while j < self.next.len() {
+                if a.next_is_candidate[j] {
+                    a.next_index.push(a.merged.len() as u32);
+                }
+                a.merged.push(self.next[j]);
+                j += 1;
+            }
+            std::mem::swap(&mut self.pairs, &mut a.merged);
+        }
+        std::mem::swap(&mut a.index, &mut a.next_index);
+        if capacities(self) != caps {
+            stats.growths += 1;
+        }
+        stats
+    }
+
+    /// An active pair (the `k`-th) that is no longer a candidate, in a fast
+    /// update: kept in `next` if asleep; returns whether it was kept.
+    fn retire_active(
+        &mut self,
+        k: usize,
+        keep_asleep: &mut impl FnMut(&ContactPair) -> bool,
+        stats: &mut ContactStats,
+    ) -> bool {
+        let i = self.active.index[k] as usize;
+        let before = self.next.len();
+        self.retire(i, keep_asleep, stats);
+        let kept = self.next.len() > before;
+        if kept {
+            self.active.next_is_candidate.push(false);
+        }
+        kept
+    }
+
+    /// Copies the impulses of `copies` (the active pairs, in order, as
+    /// handed to the solver) back into the pairs they were copied from.
+    pub(crate) fn copy_impulses_back(&mut self, copies: &[ContactPair]) {
+        for (&i, c) in self.active.index.iter().zip(copies) {
+            self.pairs[i as usize].impulses = c.impulses;
+        }
+    }
+
+    /// Forgets the active list: the next update walks every pair. Called
+    /// when a resting pair may have become active (a body woke).
+    pub(crate) fn invalidate_active(&mut self) {
+        self.active.valid = false;
+    }
+
+    /// The active pairs' indices (ascending), if the list is valid: a
+    /// superset of the pairs with an awake or kinematic body.
+    pub(crate) fn active(&self) -> Option<&[u32]> {
+        self.active.valid.then_some(&self.active.index[..])
+    }
+
+    /// Rebuilds the active list from one walk over the pairs: `is_active`
+    /// says whether a pair may involve an awake or kinematic body (answer
+    /// true when unsure). Returns whether a buffer grew.
+    pub(crate) fn rebuild_active(
+        &mut self,
+        mut is_active: impl FnMut(&ContactPair) -> bool,
+    ) -> bool {
+        let cap = self.active.index.capacity();
+        self.active.index.clear();
+        let (mut touching, mut points) = (0, 0);
+        for (i, p) in self.pairs.iter().enumerate() {
+            if is_active(p) {
+                self.active.index.push(i as u32);
+            }
+            let (t, n) = counts(p);
+            touching += t;
+            points += n;
+        }
+        self.active.touching = touching;
+        self.active.points = points;
+        self.active.valid = true;
+        self.active.index.capacity() != cap
     }
 
     /// An old pair that is no longer a candidate: kept if asleep, otherwise
@@ -348,6 +639,7 @@ impl ContactSet {
     /// a touching pair's end event is appended to the current event list
     /// (removals happen between steps).
     pub fn remove_collider(&mut self, c: ColliderHandle) {
+        self.active.valid = false;
         let events = &mut self.events;
         self.pairs.retain(|p| {
             let involved = p.a == c || p.b == c;

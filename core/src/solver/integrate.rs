@@ -98,19 +98,23 @@ pub(crate) struct VelocityCounters {
 /// Velocity stage for one substep: gravity, accumulated forces and torques,
 /// damping; sets each dynamic body's angular velocity for the substep.
 ///
+/// `awake` lists the slots to visit (the awake dynamic and kinematic
+/// bodies, ascending): sleeping and static bodies cost nothing here.
+///
 /// Determinism: visits bodies in slot order; each body's update reads only
 /// its own state.
 pub(crate) fn integrate_velocities(
     hot: &mut [BodyHot],
-    live: &[bool],
+    awake: &[u32],
     gravity: Vec3,
     h: Scalar,
 ) -> VelocityCounters {
     let mut counters = VelocityCounters::default();
     let max_w = max_angular_speed(h);
     let max_w2 = max_w.wide_mul(max_w) as u128;
-    for (b, &alive) in hot.iter_mut().zip(live) {
-        if !alive || b.kind != BodyKind::Dynamic || b.sleeping {
+    for &slot in awake {
+        let b = &mut hot[slot as usize];
+        if b.kind != BodyKind::Dynamic || b.sleeping {
             continue;
         }
         counters.integrated += 1;
@@ -159,10 +163,11 @@ pub fn max_angular_speed(h: Scalar) -> Scalar {
 }
 
 /// Position stage for one substep: `x += v·h`, `q ← normalize(q + ½h ω⊗q)`
-/// for every moving dynamic and kinematic body.
-pub(crate) fn integrate_positions(hot: &mut [BodyHot], live: &[bool], h: Scalar) {
-    for (b, &alive) in hot.iter_mut().zip(live) {
-        if !alive || !b.is_moving() {
+/// for every moving dynamic and kinematic body (the slots in `awake`).
+pub(crate) fn integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar) {
+    for &slot in awake {
+        let b = &mut hot[slot as usize];
+        if !b.is_moving() {
             continue;
         }
         b.center += b.linear_velocity * h;
@@ -174,10 +179,11 @@ pub(crate) fn integrate_positions(hot: &mut [BodyHot], live: &[bool], h: Scalar)
 
 /// After the last substep: each anisotropic dynamic body's angular velocity
 /// becomes the one its momentum gives at the new orientation (the midpoint
-/// value was only for the substep).
-pub(crate) fn finish_angular_velocities(hot: &mut [BodyHot], live: &[bool]) {
-    for (b, &alive) in hot.iter_mut().zip(live) {
-        if alive && b.kind == BodyKind::Dynamic && !b.sleeping && !b.isotropic {
+/// value was only for the substep). Visits the slots in `awake`.
+pub(crate) fn finish_angular_velocities(hot: &mut [BodyHot], awake: &[u32]) {
+    for &slot in awake {
+        let b = &mut hot[slot as usize];
+        if b.kind == BodyKind::Dynamic && !b.sleeping && !b.isotropic {
             b.angular_velocity =
                 omega_from_momentum(b.rotation, &b.inv_inertia, b.angular_momentum);
         }

@@ -67,7 +67,8 @@ impl SleepConfig {
 /// world never allocates.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct IslandScratch {
-    /// Union–find parent per body slot (only awake dynamic slots are used).
+    /// Union–find parent per body slot (only awake dynamic slots are set and
+    /// read, so a step never touches a sleeper's entry).
     parent: Vec<u32>,
     /// Per island root: the fewest rest ticks of its bodies.
     min_rest: Vec<u32>,
@@ -114,13 +115,19 @@ fn is_moving_kinematic(b: &BodyHot) -> bool {
 
 /// Updates rest counters after a tick and puts whole islands to sleep.
 ///
-/// `links` yields the body slots of every touching solid contact pair.
+/// `awake` lists the awake slots (ascending; sleeping and static bodies are
+/// never visited); `links` yields the body slots of the touching solid
+/// contact pairs, and must include every such pair with an awake dynamic
+/// body (pairs between sleeping or static bodies change nothing and may be
+/// left out). Bodies that fall asleep get `sleeping` set here: the caller
+/// must tell the body set (`BodySet::note_fell_asleep`).
+///
 /// Determinism: slot order for the counters; union by the lower root (any
 /// union order gives the same partition); decisions read only the
 /// partition and the counters.
 pub(crate) fn update_sleep(
     hot: &mut [BodyHot],
-    live: &[bool],
+    awake: &[u32],
     links: impl Iterator<Item = Link>,
     cfg: &SleepConfig,
     tick_rate: u32,
@@ -140,12 +147,14 @@ pub(crate) fn update_sleep(
     let ang2 = cfg.angular_threshold.wide_mul(cfg.angular_threshold) as u128;
     let ticks_to_sleep = cfg.ticks_to_sleep(tick_rate);
 
-    // 1. Rest counters, and every awake dynamic body its own island.
-    for (i, (b, &alive)) in hot.iter_mut().zip(live).enumerate() {
-        scratch.parent[i] = i as u32;
-        if !alive || !is_awake_dynamic(b) {
+    // 1. Rest counters, and every awake dynamic body its own island (only
+    //    awake dynamic slots are ever read from the scratch).
+    for &s in awake {
+        let b = &mut hot[s as usize];
+        if !is_awake_dynamic(b) {
             continue;
         }
+        scratch.parent[s as usize] = s;
         let resting = b.linear_velocity.length_squared_wide() < lin2
             && b.angular_velocity.length_squared_wide() < ang2;
         b.rest_ticks = if resting {
@@ -155,10 +164,10 @@ pub(crate) fn update_sleep(
         };
     }
     // 2. Touching pairs join islands; riding a moving kinematic body is not
-    //    resting.
+    //    resting. (Removed bodies have a static, awake-less hot state.)
     for link in links {
         let (a, b) = (link.a as usize, link.b as usize);
-        if a >= n || b >= n || !live[a] || !live[b] {
+        if a >= n || b >= n {
             continue;
         }
         match (is_awake_dynamic(&hot[a]), is_awake_dynamic(&hot[b])) {
@@ -176,27 +185,29 @@ pub(crate) fn update_sleep(
         }
     }
     // 3. Each island's least rested body.
-    for (i, (b, &alive)) in hot.iter().zip(live).enumerate() {
-        if alive && is_awake_dynamic(b) {
-            scratch.min_rest[i] = u32::MAX;
+    for &s in awake {
+        if is_awake_dynamic(&hot[s as usize]) {
+            scratch.min_rest[s as usize] = u32::MAX;
         }
     }
-    for (i, (b, &alive)) in hot.iter().zip(live).enumerate() {
-        if !alive || !is_awake_dynamic(b) {
+    for &s in awake {
+        let b = &hot[s as usize];
+        if !is_awake_dynamic(b) {
             continue;
         }
-        let root = find(&mut scratch.parent, i as u32) as usize;
-        if root == i {
+        let root = find(&mut scratch.parent, s) as usize;
+        if root == s as usize {
             stats.islands += 1;
         }
         scratch.min_rest[root] = scratch.min_rest[root].min(b.rest_ticks);
     }
     // 4. Rested islands fall asleep whole.
-    for (i, (b, &alive)) in hot.iter_mut().zip(live).enumerate() {
-        if !alive || !is_awake_dynamic(b) {
+    for &s in awake {
+        let b = &mut hot[s as usize];
+        if !is_awake_dynamic(b) {
             continue;
         }
-        let root = find(&mut scratch.parent, i as u32) as usize;
+        let root = find(&mut scratch.parent, s) as usize;
         if scratch.min_rest[root] >= ticks_to_sleep {
             b.sleeping = true;
             b.linear_velocity = Vec3::ZERO;

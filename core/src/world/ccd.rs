@@ -382,15 +382,21 @@ impl World {
         }
     }
 
-    /// Records every body's pose at the start of the tick (before the
-    /// substeps move them): the start of the motion CCD sweeps. Returns the
-    /// buffer growths.
+    /// Records every awake body's pose at the start of the tick (before the
+    /// substeps move them): the start of the motion CCD sweeps. Only awake
+    /// dynamic bodies are swept, so sleepers' entries are left as they are.
+    /// Returns the buffer growths.
     pub(crate) fn stage_ccd_begin(&mut self) -> u32 {
-        let (hot, _) = self.bodies.hot_slots_mut();
+        let (hot, awake) = self.bodies.awake_slots_mut();
         let start = &mut self.ccd.start;
         let growths = u32::from(start.capacity() < hot.len());
-        start.clear();
-        start.extend(hot.iter().map(|b| (b.center, b.rotation)));
+        if start.len() < hot.len() {
+            start.resize(hot.len(), (Vec3::ZERO, Quat::IDENTITY));
+        }
+        for &s in awake {
+            let b = &hot[s as usize];
+            start[s as usize] = (b.center, b.rotation);
+        }
         growths
     }
 
@@ -429,7 +435,8 @@ impl World {
         {
             let World { bodies, ccd, .. } = &mut *self;
             ccd.movers.clear();
-            for (h, hot, _) in bodies.iter() {
+            // Only awake dynamic bodies are candidates.
+            for (h, hot) in bodies.iter_awake() {
                 let Some(&start) = ccd.start.get(h.index() as usize) else {
                     continue;
                 };
@@ -458,7 +465,7 @@ impl World {
             self.sync_proxies(true);
             let World { bodies, ccd, .. } = &mut *self;
             ccd.movers.clear();
-            for (h, hot, _) in bodies.iter() {
+            for (h, hot) in bodies.iter_awake() {
                 let Some(&start) = ccd.start.get(h.index() as usize) else {
                     continue;
                 };

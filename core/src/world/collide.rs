@@ -1,7 +1,7 @@
 //! The collision stage of `World::step`: broad-phase update, candidate
 //! pairs, narrow phase, persistent manifolds and events.
 
-use crate::body::{BodyHandle, BodyKind, BodySet};
+use crate::body::{BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::collider::ColliderHandle;
 use crate::collision::contacts::{Candidate, ContactStats, PairKind};
 use crate::collision::{ProxyKey, ProxyKind, narrow};
@@ -25,13 +25,18 @@ fn collider_of(key: ProxyKey) -> ColliderHandle {
 /// How the broad phase should treat a body's colliders.
 pub(crate) fn proxy_kind_of(bodies: &BodySet, body: BodyHandle) -> ProxyKind {
     match bodies.hot(body) {
-        Some(b) => match b.kind {
-            BodyKind::Static => ProxyKind::Static,
-            BodyKind::Kinematic => ProxyKind::Kinematic,
-            BodyKind::Dynamic if b.sleeping => ProxyKind::Sleeping,
-            BodyKind::Dynamic => ProxyKind::Dynamic,
-        },
+        Some(b) => proxy_kind_of_hot(b),
         None => ProxyKind::Static,
+    }
+}
+
+/// How the broad phase should treat the colliders of a live body.
+fn proxy_kind_of_hot(b: &BodyHot) -> ProxyKind {
+    match b.kind {
+        BodyKind::Static => ProxyKind::Static,
+        BodyKind::Kinematic => ProxyKind::Kinematic,
+        BodyKind::Dynamic if b.sleeping => ProxyKind::Sleeping,
+        BodyKind::Dynamic => ProxyKind::Dynamic,
     }
 }
 
@@ -70,6 +75,12 @@ impl World {
     /// collision stage, since the game may wake or put bodies to sleep
     /// between steps.
     ///
+    /// Only the awake bodies and those whose sleep state changed since the
+    /// last call are visited (every body after a snapshot restore): a
+    /// sleeping or static body's proxies neither move nor change kind. The
+    /// broad phase sees the same calls in the same order as from a walk over
+    /// every body.
+    ///
     /// Determinism: bodies in handle order, colliders in the order added.
     pub(crate) fn sync_proxies(&mut self, move_shapes: bool) {
         let margin = self.config.contact_margin;
@@ -80,11 +91,11 @@ impl World {
             broad,
             ..
         } = self;
-        for (handle, hot, cold) in bodies.iter() {
+        bodies.for_each_to_sync(|_, hot, cold| {
             if cold.colliders.is_empty() {
-                continue;
+                return;
             }
-            let kind = proxy_kind_of(bodies, handle);
+            let kind = proxy_kind_of_hot(hot);
             let moving = move_shapes && matches!(kind, ProxyKind::Dynamic | ProxyKind::Kinematic);
             let origin = hot.origin_pose(cold.local_center);
             let displacement = hot.linear_velocity * dt;
@@ -100,7 +111,7 @@ impl World {
                     let _ = broad.move_proxy(c.proxy, aabb, displacement);
                 }
             }
-        }
+        });
     }
 
     /// The collision stage: find candidate pairs (the proxies were moved at
@@ -182,7 +193,40 @@ impl World {
         };
         let mut stats = contacts.update(cands, narrow_phase, resting);
         stats.growths += pair_stats.buffer_growths;
+        debug_assert!(
+            self.active_pairs_cover_moving(),
+            "active pair list misses a pair"
+        );
         (stats, pair_stats.reinsertions)
+    }
+
+    /// Whether the contact set's active list is valid, ascending, and holds
+    /// every pair with an awake or kinematic body, and the pairs are in
+    /// strictly ascending key order (a debug check: walks every pair).
+    fn active_pairs_cover_moving(&self) -> bool {
+        let Some(active) = self.contacts.active() else {
+            return false;
+        };
+        let pairs = self.contacts.pairs();
+        if pairs.windows(2).any(|w| w[0].key() >= w[1].key())
+            || active.windows(2).any(|w| w[0] >= w[1])
+        {
+            return false;
+        }
+        let moving = |c: ColliderHandle| {
+            self.colliders
+                .get(c.0)
+                .and_then(|c| self.bodies.hot(c.body))
+                .is_none_or(|b| b.is_moving())
+        };
+        let mut listed = active.iter().peekable();
+        for (i, p) in pairs.iter().enumerate() {
+            let is_listed = listed.next_if(|&&k| k as usize == i).is_some();
+            if !is_listed && (moving(p.a) || moving(p.b)) {
+                return false;
+            }
+        }
+        listed.next().is_none()
     }
 
     /// Wakes sleeping dynamic bodies that a moving body touches or is about
@@ -200,21 +244,63 @@ impl World {
     pub(crate) fn stage_wake_touched(&mut self) -> u32 {
         // Repeat until a pass wakes nothing, so a woken body passes the wake
         // on through pairs that come before it in handle order: the whole
-        // touching set wakes this step, whatever the handle order.
+        // touching set wakes this step, whatever the handle order. The set
+        // of bodies woken is the closure of "touched by a moving body", so
+        // it does not depend on the order of the pairs or the passes: the
+        // first pass walks only the active pairs (every pair with a moving
+        // body is among them), the next ones every pair (a woken sleeper's
+        // resting pairs are not active).
         let mut total = 0;
+        let mut all = false;
         loop {
-            let woken = self.wake_pass();
+            let woken = self.wake_pass(all);
             total += woken;
             if woken == 0 {
-                return total;
+                break;
             }
+            all = true;
         }
+        if all {
+            // Sleepers woke: their resting pairs may be active now.
+            self.rebuild_active_pairs();
+        }
+        total
     }
 
-    /// One pass of [`World::stage_wake_touched`] over the pairs.
-    fn wake_pass(&mut self) -> u32 {
+    /// Rebuilds the contact set's active list from the bodies' states (one
+    /// walk over all pairs): a pair is active unless both bodies are
+    /// sleeping or static. Returns whether a buffer grew.
+    pub(crate) fn rebuild_active_pairs(&mut self) -> bool {
+        let World {
+            bodies,
+            colliders,
+            contacts,
+            ..
+        } = self;
+        let dormant = |c: ColliderHandle| {
+            colliders
+                .get(c.0)
+                .and_then(|c| bodies.hot(c.body))
+                .is_some_and(|b| b.kind == BodyKind::Static || b.sleeping)
+        };
+        contacts.rebuild_active(|p| !(dormant(p.a) && dormant(p.b)))
+    }
+
+    /// One pass of [`World::stage_wake_touched`] over the active pairs, or
+    /// over every pair when `all`.
+    fn wake_pass(&mut self, all: bool) -> u32 {
         let mut woken = 0;
-        for i in 0..self.contacts.pairs().len() {
+        let n = match (all, self.contacts.active()) {
+            (false, Some(active)) => active.len(),
+            _ => self.contacts.pairs().len(),
+        };
+        let use_active = !all && self.contacts.active().is_some();
+        for k in 0..n {
+            let i = if use_active {
+                self.contacts.active().map_or(k, |a| a[k] as usize)
+            } else {
+                k
+            };
             let p = self.contacts.pairs()[i];
             // Any point counts, speculative ones included: the solver would
             // otherwise stop the mover against a sleeper as against a wall
@@ -240,12 +326,10 @@ impl World {
                 if !moving {
                     continue;
                 }
-                if let Some(s) = self.bodies.hot_mut(sleeper)
-                    && s.kind == BodyKind::Dynamic
-                    && s.sleeping
-                {
-                    s.sleeping = false;
-                    s.rest_ticks = 0;
+                if self.bodies.set_sleeping(sleeper, false) {
+                    if let Some(s) = self.bodies.hot_mut(sleeper) {
+                        s.rest_ticks = 0;
+                    }
                     woken += 1;
                 }
             }

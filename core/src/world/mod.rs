@@ -50,6 +50,10 @@ pub struct World {
     /// step).
     #[serde(skip)]
     solver: ContactSolver,
+    /// Scratch: a copy of the active contact pairs for the solver, when
+    /// they are fewer than all pairs (reused every step).
+    #[serde(skip)]
+    solver_pairs: Vec<ContactPair>,
     /// Scratch: the sleep stage's union–find (reused every step).
     #[serde(skip)]
     islands: IslandScratch,
@@ -86,6 +90,7 @@ impl World {
             faults: Faults::NONE,
             candidates: Vec::new(),
             solver: ContactSolver::default(),
+            solver_pairs: Vec::new(),
             islands: IslandScratch::default(),
             ccd: ccd::CcdScratch::default(),
         })
@@ -460,7 +465,7 @@ impl World {
             hot.angular_momentum =
                 momentum_from_omega(rotation, &hot.inertia, hot.angular_velocity);
         }
-        wake(hot);
+        self.wake(h);
         // Whatever rested on it (or under it) must see the change.
         self.wake_touching(Toucher::Body(h));
         self.refresh_proxies(h);
@@ -476,7 +481,7 @@ impl World {
         let hot = self.hot_mut(h)?;
         if hot.kind != BodyKind::Static {
             hot.linear_velocity = v;
-            wake(hot);
+            self.wake(h);
         }
         Ok(())
     }
@@ -498,7 +503,7 @@ impl World {
                 hot.angular_momentum = momentum_from_omega(hot.rotation, &hot.inertia, w);
                 hot.angular_velocity =
                     omega_from_momentum(hot.rotation, &hot.inv_inertia, hot.angular_momentum);
-                wake(hot);
+                self.wake(h);
             }
         }
         Ok(())
@@ -558,7 +563,7 @@ impl World {
         let hot = self.hot_mut(h)?;
         if hot.kind == BodyKind::Dynamic {
             hot.force += f;
-            wake(hot);
+            self.wake(h);
         }
         Ok(())
     }
@@ -578,7 +583,7 @@ impl World {
         if hot.kind == BodyKind::Dynamic {
             hot.force += f;
             hot.torque += (point - hot.center).cross(f);
-            wake(hot);
+            self.wake(h);
         }
         Ok(())
     }
@@ -591,7 +596,7 @@ impl World {
         let hot = self.hot_mut(h)?;
         if hot.kind == BodyKind::Dynamic {
             hot.torque += t;
-            wake(hot);
+            self.wake(h);
         }
         Ok(())
     }
@@ -604,7 +609,7 @@ impl World {
         let hot = self.hot_mut(h)?;
         if hot.kind == BodyKind::Dynamic {
             hot.linear_velocity += j * hot.inv_mass;
-            wake(hot);
+            self.wake(h);
         }
         Ok(())
     }
@@ -626,7 +631,7 @@ impl World {
             hot.angular_momentum += (point - hot.center).cross(j);
             hot.angular_velocity =
                 omega_from_momentum(hot.rotation, &hot.inv_inertia, hot.angular_momentum);
-            wake(hot);
+            self.wake(h);
         }
         Ok(())
     }
@@ -641,7 +646,7 @@ impl World {
             hot.angular_momentum += a;
             hot.angular_velocity =
                 omega_from_momentum(hot.rotation, &hot.inv_inertia, hot.angular_momentum);
-            wake(hot);
+            self.wake(h);
         }
         Ok(())
     }
@@ -651,8 +656,14 @@ impl World {
     /// # Errors
     /// [`WorldError::InvalidBody`].
     pub fn wake_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
-        wake(self.hot_mut(h)?);
+        self.hot_mut(h)?;
+        self.wake(h);
         Ok(())
+    }
+
+    /// Wakes a live body (see the free function [`wake`]).
+    fn wake(&mut self, h: BodyHandle) {
+        wake(&mut self.bodies, &mut self.contacts, h);
     }
 
     /// Puts a dynamic body to sleep now (velocities zeroed).
@@ -662,10 +673,10 @@ impl World {
     pub fn sleep_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
         let hot = self.hot_mut(h)?;
         if hot.kind == BodyKind::Dynamic {
-            hot.sleeping = true;
             hot.linear_velocity = Vec3::ZERO;
             hot.angular_velocity = Vec3::ZERO;
             hot.angular_momentum = Vec3::ZERO;
+            self.bodies.set_sleeping(h, true);
         }
         Ok(())
     }
@@ -694,11 +705,8 @@ impl World {
                 continue;
             };
             let Some(body) = body_of(other) else { continue };
-            if let Some(hot) = self.bodies.hot_mut(body)
-                && hot.kind == BodyKind::Dynamic
-                && hot.sleeping
-            {
-                wake(hot);
+            if self.bodies.hot(body).is_some_and(|b| b.sleeping) {
+                wake(&mut self.bodies, &mut self.contacts, body);
             }
         }
     }
@@ -722,9 +730,16 @@ enum Toucher {
     Body(BodyHandle),
 }
 
-fn wake(hot: &mut BodyHot) {
-    hot.sleeping = false;
-    hot.rest_ticks = 0;
+/// Wakes a body (any kind: its rest counter restarts) through the body set,
+/// so the awake list learns of it; a sleeper that wakes may turn resting
+/// contact pairs active, so the contact set's active list is dropped.
+fn wake(bodies: &mut BodySet, contacts: &mut ContactSet, h: BodyHandle) {
+    if let Some(b) = bodies.hot_mut(h) {
+        b.rest_ticks = 0;
+    }
+    if bodies.set_sleeping(h, false) {
+        contacts.invalidate_active();
+    }
 }
 
 /// A collider's mass properties in the body frame (before the local pose is

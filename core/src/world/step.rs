@@ -1,6 +1,7 @@
 //! `World::step`: the named stages, in order.
 
 use crate::body::BodyKind;
+use crate::collision::ContactPair;
 use crate::collision::contacts::PairKind;
 use crate::math::{Scalar, Vec3};
 use crate::solver::contact_solver::{PairInfo, Softness, SolverParams, SolverStats};
@@ -58,10 +59,19 @@ impl World {
             ..StepReport::default()
         };
 
+        // The per-body stages walk the awake slots only: sleeping and static
+        // bodies cost nothing (see `body/awake.rs`). Growths of the awake
+        // bookkeeping between steps (the game's calls) are not the step's.
+        self.bodies.take_awake_growths();
+        self.bodies.refresh_awake();
+
         report.kinematic_bodies = self.stage_kinematic_targets();
 
         let (contacts, reinserted) = self.stage_collide();
         report.woken_by_contact = self.stage_wake_touched();
+        if report.woken_by_contact > 0 {
+            self.bodies.refresh_awake();
+        }
         report.candidate_pairs = contacts.candidates;
         report.narrow_tests = contacts.narrow_tests;
         report.touching_pairs = contacts.touching;
@@ -77,11 +87,17 @@ impl World {
         report.buffer_growths += prep.growths;
 
         report.buffer_growths += self.stage_ccd_begin();
-        let World { bodies, solver, .. } = self;
-        let (hot, live) = bodies.hot_slots_mut();
+        let World {
+            bodies,
+            solver,
+            solver_pairs,
+            contacts,
+            ..
+        } = self;
+        let (hot, awake) = bodies.awake_slots_mut();
         let solving = !solver.is_empty();
         for _ in 0..cfg.substeps {
-            let c = integrate::integrate_velocities(hot, live, cfg.gravity, h);
+            let c = integrate::integrate_velocities(hot, awake, cfg.gravity, h);
             report.awake_bodies = c.integrated;
             report.gyroscopic_solves += c.gyroscopic;
             report.spin_capped += c.clamped;
@@ -94,7 +110,7 @@ impl World {
                 }
                 solver.scatter_velocities(hot);
             }
-            integrate::integrate_positions(hot, live, h);
+            integrate::integrate_positions(hot, awake, h);
             if solving {
                 solver.gather(hot);
                 for _ in 0..cfg.relax_iterations {
@@ -107,9 +123,16 @@ impl World {
             solver.gather_velocities(hot);
             solver.restitution(&params);
             solver.scatter(hot);
-            solver.store_impulses(self.contacts.pairs_mut());
+            if solver_pairs.is_empty() {
+                solver.store_impulses(contacts.pairs_mut());
+            } else {
+                // The solver saw a copy of the active pairs: hand the
+                // impulses back to the pairs they came from.
+                solver.store_impulses(solver_pairs);
+                contacts.copy_impulses_back(solver_pairs);
+            }
         }
-        integrate::finish_angular_velocities(hot, live);
+        integrate::finish_angular_velocities(hot, awake);
 
         let ccd = self.stage_ccd();
         report.ccd_bodies = ccd.bodies;
@@ -117,21 +140,22 @@ impl World {
         report.buffer_growths += ccd.growths;
 
         self.stage_snap_kinematic();
-        self.stage_clear_forces();
+        self.bodies.clear_forces();
         let slept = self.stage_sleep();
         report.fell_asleep = slept.fell_asleep;
         report.islands = slept.islands;
         report.buffer_growths += u32::from(slept.grew);
-        let (hot, live) = self.bodies.hot_slots_mut();
-        report.sleeping_bodies = hot
-            .iter()
-            .zip(live)
-            .filter(|(b, l)| **l && b.kind == BodyKind::Dynamic && b.sleeping)
-            .count() as u32;
+        if slept.fell_asleep > 0 {
+            self.bodies.note_fell_asleep();
+            self.bodies.refresh_awake();
+        }
+        // A maintained count, not a scan of the slots.
+        report.sleeping_bodies = self.bodies.sleeping_count();
 
         // Broad phase: proxies follow this step's motion, so queries between
         // steps see where the bodies are now.
         self.sync_proxies(true);
+        report.buffer_growths += self.bodies.take_awake_growths();
 
         self.tick += 1;
         report.tick = self.tick;
@@ -149,17 +173,24 @@ impl World {
             config,
             ..
         } = self;
-        let links = contacts
-            .pairs()
-            .iter()
+        // Only pairs with an awake body can join islands or stop a body
+        // resting: the active pairs hold all of them.
+        let pairs = contacts.pairs();
+        let all = 0..pairs.len() as u32;
+        let indices: &mut dyn Iterator<Item = u32> = match contacts.active() {
+            Some(active) => &mut active.iter().copied(),
+            None => &mut all.into_iter(),
+        };
+        let links = indices
+            .map(|i| &pairs[i as usize])
             .filter(|p| p.touching && p.kind == PairKind::Solid)
             .filter_map(|p| {
                 let a = colliders.get(p.a.0)?.body.0.index;
                 let b = colliders.get(p.b.0)?.body.0.index;
                 Some(sleep::Link { a, b })
             });
-        let (hot, live) = bodies.hot_slots_mut();
-        sleep::update_sleep(hot, live, links, &config.sleep, config.tick_rate, islands)
+        let (hot, awake) = bodies.awake_slots_mut();
+        sleep::update_sleep(hot, awake, links, &config.sleep, config.tick_rate, islands)
     }
 
     /// The solver's settings for this world's substep.
@@ -179,16 +210,40 @@ impl World {
     }
 
     /// Builds this tick's contact constraints from the solid pairs.
+    ///
+    /// Pairs between sleeping or static bodies make no constraint, so when
+    /// the active pairs are fewer than all pairs the solver is handed a copy
+    /// of the active ones (same order, so the same constraints in the same
+    /// order); with no solid pair with points among them it is handed
+    /// nothing, and does no per-slot work.
     fn stage_prepare_contacts(&mut self) -> SolverStats {
         let World {
             bodies,
             colliders,
             contacts,
             solver,
+            solver_pairs,
             ..
         } = self;
         let (hot, _) = bodies.hot_slots_mut();
-        solver.prepare(contacts.pairs(), hot, |p| {
+        let cap = solver_pairs.capacity();
+        solver_pairs.clear();
+        let pairs: &[ContactPair] = match contacts.active() {
+            Some(active) if active.len() < contacts.pairs().len() => {
+                let all = contacts.pairs();
+                solver_pairs.extend(active.iter().map(|&i| all[i as usize]));
+                solver_pairs
+            }
+            _ => contacts.pairs(),
+        };
+        let growth = u32::from(solver_pairs.capacity() != cap);
+        let constrains = |p: &ContactPair| p.kind == PairKind::Solid && !p.manifold.is_empty();
+        let (pairs, hot) = if pairs.iter().any(constrains) {
+            (pairs, &*hot)
+        } else {
+            (&[][..], &hot[..0])
+        };
+        let mut stats = solver.prepare(pairs, hot, |p| {
             let ca = colliders.get(p.a.0)?;
             let cb = colliders.get(p.b.0)?;
             let m = ca.material.combine(&cb.material);
@@ -198,7 +253,12 @@ impl World {
                 friction: m.friction,
                 restitution: m.restitution,
             })
-        })
+        });
+        if pairs.is_empty() {
+            solver_pairs.clear();
+        }
+        stats.growths += growth;
+        stats
     }
 
     /// Kinematic bodies with a target get the constant velocities that carry
@@ -207,7 +267,8 @@ impl World {
     fn stage_kinematic_targets(&mut self) -> u32 {
         let ticks_per_second = self.config.tick_rate as i64;
         let mut moving = 0;
-        self.bodies.for_each_mut(|b, cold| {
+        // Kinematic bodies never sleep: they are all in the awake list.
+        self.bodies.for_each_awake_mut(|b, cold| {
             if b.kind != BodyKind::Kinematic {
                 return;
             }
@@ -226,7 +287,7 @@ impl World {
 
     /// Targeted kinematic bodies land exactly on their targets and stop.
     fn stage_snap_kinematic(&mut self) {
-        self.bodies.for_each_mut(|b, cold| {
+        self.bodies.for_each_awake_mut(|b, cold| {
             if b.kind != BodyKind::Kinematic {
                 return;
             }
@@ -237,15 +298,5 @@ impl World {
                 b.angular_velocity = Vec3::ZERO;
             }
         });
-    }
-
-    fn stage_clear_forces(&mut self) {
-        let (hot, live) = self.bodies.hot_slots_mut();
-        for (b, &alive) in hot.iter_mut().zip(live) {
-            if alive {
-                b.force = Vec3::ZERO;
-                b.torque = Vec3::ZERO;
-            }
-        }
     }
 }
