@@ -1,7 +1,7 @@
 //! Contacts between a convex hull and a sphere, a capsule, a box or another
 //! hull: the pair entry points and the round-core (sphere, capsule) cases.
 //! The polyhedron–polyhedron separating axis test that box–hull and
-//! hull–hull use lives in [`polytope`](super::polytope), which knows no
+//! hull–hull use lives in the sibling module `polytope`, which knows no
 //! shape kind; this file picks the method per pair and owns the fallbacks.
 //!
 //! # Design: SAT for polyhedra, GJK for round cores
@@ -24,7 +24,7 @@
 //! Everything is computed in A's frame from the exact difference of the
 //! translations (`Rel`), so results are translation invariant bit for
 //! bit. Ties go to the lowest face/edge index. Feature ids:
-//! * box–hull and hull–hull: as documented in [`polytope`](super::polytope)
+//! * box–hull and hull–hull: as documented in `polytope`
 //!   (clipped face points and edge–edge points);
 //! * sphere/capsule: `pair(core feature, hull face)`, with `0x7fff` for a
 //!   GJK point and `0x4000 | edge` for a capsule–edge point;
