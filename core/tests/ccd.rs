@@ -2,7 +2,11 @@
 //! through thin shapes; slow bodies pay nothing; the stage is
 //! deterministic.
 
+mod common;
+
 use std::time::Instant;
+
+use common::{Rng, f, s, v as v3, zero_g};
 
 use lockstep_core::shape::{Capsule, Cuboid, Shape, Sphere};
 use lockstep_core::world::CCD_TARGET_GAP;
@@ -10,18 +14,6 @@ use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, Material, Quat, Scalar, StepReport, Vec3,
     World, WorldConfig,
 };
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
-
-fn v3(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
-
-fn f(v: Vec3) -> [f64; 3] {
-    [v.x.to_f64(), v.y.to_f64(), v.z.to_f64()]
-}
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -31,18 +23,8 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-/// splitmix64: the test's own seeded generator.
-struct Rng(u64);
-
+/// The projectile distributions of these tests, on the shared SplitMix64.
 impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
     /// Uniform in `[lo, hi)`.
     fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * ((self.next() >> 11) as f64 / (1u64 << 53) as f64)
@@ -236,11 +218,7 @@ fn thin_box_shots(seed: u64, batches: u32, per_batch: u32) -> (u32, u32, u32, u3
     let mut rng = Rng(seed);
     let mut totals = (0, 0, 0, 0);
     for _ in 0..batches {
-        let cfg = WorldConfig {
-            gravity: Vec3::ZERO,
-            ..WorldConfig::default()
-        };
-        let mut w = World::new(cfg).unwrap();
+        let mut w = zero_g();
         let mut shots = Vec::new();
         for lane in 0..per_batch {
             let bit = 1u32 << (lane % 32);
@@ -432,11 +410,7 @@ fn a_resting_pile_reports_no_ccd_bodies() {
 
 /// A thin dynamic box floating in zero gravity, and a 4 cm ball at 300 m/s.
 fn bullet_world(bullet: bool, speed: f64) -> (World, BodyHandle, BodyHandle) {
-    let cfg = WorldConfig {
-        gravity: Vec3::ZERO,
-        ..WorldConfig::default()
-    };
-    let mut w = World::new(cfg).unwrap();
+    let mut w = zero_g();
     let plate = w.create_body(&BodyDesc::dynamic().name("plate")).unwrap();
     w.add_collider(
         plate,
@@ -510,11 +484,7 @@ fn a_bullet_does_not_pass_through_a_thin_dynamic_box() {
 #[test]
 fn a_ccd_hit_stops_the_body_a_few_mm_short_and_keeps_its_velocity() {
     for (restitution, expect_vx) in [(0.0, 0.0), (1.0, -300.0)] {
-        let cfg = WorldConfig {
-            gravity: Vec3::ZERO,
-            ..WorldConfig::default()
-        };
-        let mut w = World::new(cfg).unwrap();
+        let mut w = zero_g();
         let wall = w.create_body(&BodyDesc::fixed()).unwrap();
         let mat = Material {
             friction: Scalar::HALF,
@@ -634,11 +604,7 @@ fn the_bullet_flag_is_hashed_and_set_only_on_dynamic_bodies() {
 /// step time over 60 ticks (after 5 warm-up ticks) and the CCD bodies and
 /// growths reported.
 fn skimmers(speed: f64, height: f64) -> (f64, u32, u32) {
-    let cfg = WorldConfig {
-        gravity: Vec3::ZERO,
-        ..WorldConfig::default()
-    };
-    let mut w = World::new(cfg).unwrap();
+    let mut w = zero_g();
     let floor = w.create_body(&BodyDesc::fixed()).unwrap();
     w.add_collider(
         floor,

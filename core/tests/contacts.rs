@@ -1,27 +1,12 @@
 //! The collision stage inside `World::step`: candidate pairs, manifolds,
 //! touch and trigger events, filtering.
 
+mod common;
+
+use common::{s, v, zero_g};
 use lockstep_core::collision::{ContactEventKind, PairKind};
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
-use lockstep_core::{
-    BodyDesc, ColliderDesc, CollisionFilter, Scalar, Transform, Vec3, World, WorldConfig,
-};
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
-
-fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
-
-fn zero_g() -> World {
-    World::new(WorldConfig {
-        gravity: Vec3::ZERO,
-        ..WorldConfig::default()
-    })
-    .unwrap()
-}
+use lockstep_core::{BodyDesc, ColliderDesc, CollisionFilter, Transform, Vec3, World, WorldConfig};
 
 fn ball(w: &mut World, name: &str, at: Vec3, vel: Vec3) -> lockstep_core::BodyHandle {
     let b = w

@@ -13,24 +13,17 @@
 //! [`reference_sin_cos`]); for atan2 the rounding of the inputs moves the
 //! angle by at most 2⁻⁵³ rad (2⁻²¹ ulp), far inside the bound.
 
+mod common;
+
+use common::Rng;
 use lockstep_core::math::elem;
 use lockstep_core::math::{FaultScope, Faults, Scalar};
 
 /// 2³², the Q32.32 scale.
 const SCALE: f64 = 4_294_967_296.0;
 
-/// A small deterministic generator for test inputs (SplitMix64).
-struct Rng(u64);
-
+/// The input distributions of these tests, on the shared SplitMix64.
 impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
     /// Random bits with a uniformly random magnitude: any sign, any power of
     /// two from 2⁻³² to 2³¹.
     fn scalar(&mut self) -> Scalar {

@@ -2,24 +2,13 @@
 //! `shared/SCENES.md`): collisions, bouncing, friction, rolling, stacking,
 //! mass ratios, overlap recovery, warm starting. Each test prints its error.
 
+mod common;
+
+use common::{f, s, v};
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
-use lockstep_core::{
-    BodyDesc, BodyHandle, ColliderDesc, Material, Scalar, Vec3, World, WorldConfig,
-};
+use lockstep_core::{BodyDesc, BodyHandle, ColliderDesc, Material, Vec3, World, WorldConfig};
 
 const G: f64 = 9.81;
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
-
-fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
-
-fn f(v: Vec3) -> [f64; 3] {
-    [v.x.to_f64(), v.y.to_f64(), v.z.to_f64()]
-}
 
 fn mat(friction: f64, restitution: f64) -> Material {
     Material {

@@ -26,6 +26,7 @@ pub mod epa;
 pub mod gjk;
 pub mod hull_contact;
 pub mod mesh_contact;
+mod polytope;
 pub mod segment;
 pub mod sphere_box;
 pub mod sphere_capsule;

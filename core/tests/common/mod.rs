@@ -1,0 +1,52 @@
+//! Helpers that several integration tests share: the seeded generator, the
+//! f64 ↔ fixed-point conversions used to write test inputs and read
+//! results, and the zero-gravity world. One copy here means a fix to any of
+//! them reaches every test that uses it.
+//!
+//! Each test file is its own crate and includes this module with
+//! `mod common;`, using only part of it; hence the `dead_code` allowance.
+
+#![allow(dead_code)]
+
+use lockstep_core::{Scalar, Vec3, World, WorldConfig};
+
+/// SplitMix64, seeded by its field: a tiny deterministic generator (no
+/// `rand` dependency), so every run of a randomised test draws the same
+/// inputs. Tests add their own sampling methods in `impl Rng` blocks.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// The next 64 random bits.
+    pub fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+}
+
+/// A test input in metres (or any unit) as the nearest Scalar.
+pub fn s(v: f64) -> Scalar {
+    Scalar::from_f64_lossy(v)
+}
+
+/// A test vector from f64 components.
+pub fn v(x: f64, y: f64, z: f64) -> Vec3 {
+    Vec3::new(s(x), s(y), s(z))
+}
+
+/// A result vector as f64 components, for comparing with closed forms.
+pub fn f(v: Vec3) -> [f64; 3] {
+    [v.x.to_f64(), v.y.to_f64(), v.z.to_f64()]
+}
+
+/// A world with the default configuration but no gravity: projectiles and
+/// colliding pairs then move in straight lines the test can predict.
+pub fn zero_g() -> World {
+    World::new(WorldConfig {
+        gravity: Vec3::ZERO,
+        ..WorldConfig::default()
+    })
+    .unwrap()
+}
