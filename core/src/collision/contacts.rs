@@ -48,8 +48,20 @@ pub struct PointImpulse {
     /// Accumulated normal impulse, N·s, over one substep (the solver
     /// applies it again at the start of every substep: warm starting).
     pub normal: Scalar,
-    /// Accumulated friction impulses along the two tangent directions.
+}
+
+/// The friction the solver accumulated on a whole manifold (friction acts
+/// at the centre of the contact patch, not per point: see
+/// `solver::contact_solver`), carried to the same pair next step while it
+/// keeps any contact point.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PatchFriction {
+    /// Accumulated friction impulses along the two tangent directions of
+    /// the normal, N·s per substep.
     pub tangent: [Scalar; 2],
+    /// Accumulated twist impulse about the normal (resisting spin of one
+    /// shape on the other), N·m·s per substep.
+    pub twist: Scalar,
 }
 
 /// Whether a pair makes contacts or only reports overlap.
@@ -76,8 +88,10 @@ pub struct ContactPair {
     pub touching: bool,
     /// The contact manifold, normal from A to B (always empty for triggers).
     pub manifold: Manifold,
-    /// Accumulated impulses, one per manifold point.
+    /// Accumulated normal impulses, one per manifold point.
     pub impulses: [PointImpulse; MAX_MANIFOLD_POINTS],
+    /// Accumulated friction of the whole manifold.
+    pub friction: PatchFriction,
 }
 
 impl ContactPair {
@@ -90,6 +104,7 @@ impl ContactPair {
             touching: false,
             manifold: Manifold::EMPTY,
             impulses: [PointImpulse::default(); MAX_MANIFOLD_POINTS],
+            friction: PatchFriction::default(),
         }
     }
 
@@ -101,7 +116,8 @@ impl ContactPair {
     /// Installs this step's manifold, carrying each point's impulses over
     /// from last step's point with the same feature id, or else from the
     /// nearest unclaimed old point within [`MATCH_DISTANCE`] (new points
-    /// start at zero).
+    /// start at zero). The patch friction is kept while the manifold has
+    /// points and dropped when it empties.
     pub fn update_manifold(&mut self, new: &Manifold) {
         let mut impulses = [PointImpulse::default(); MAX_MANIFOLD_POINTS];
         let old = self.manifold.points();
@@ -139,6 +155,9 @@ impl ContactPair {
         }
         self.manifold = *new;
         self.impulses = impulses;
+        if new.is_empty() {
+            self.friction = PatchFriction::default();
+        }
         self.touching = new.points().iter().any(|p| p.depth >= -TOUCH_TOLERANCE);
     }
 }
@@ -577,7 +596,9 @@ impl ContactSet {
     /// handed to the solver) back into the pairs they were copied from.
     pub(crate) fn copy_impulses_back(&mut self, copies: &[ContactPair]) {
         for (&i, c) in self.active.index.iter().zip(copies) {
-            self.pairs[i as usize].impulses = c.impulses;
+            let p = &mut self.pairs[i as usize];
+            p.impulses = c.impulses;
+            p.friction = c.friction;
         }
     }
 
@@ -673,9 +694,10 @@ impl ContactSet {
             for (pt, imp) in p.manifold.points().iter().zip(&p.impulses) {
                 hash_point(h, pt);
                 h.scalar(imp.normal);
-                h.scalar(imp.tangent[0]);
-                h.scalar(imp.tangent[1]);
             }
+            h.scalar(p.friction.tangent[0]);
+            h.scalar(p.friction.tangent[1]);
+            h.scalar(p.friction.twist);
         }
     }
 }
@@ -743,18 +765,28 @@ mod tests {
         p.update_manifold(&manifold(&[(10, 1), (11, 1), (12, 1)]));
         p.impulses[0].normal = Scalar::from_int(5);
         p.impulses[1].normal = Scalar::from_int(6);
-        p.impulses[2].tangent = [Scalar::from_int(7), Scalar::from_int(8)];
+        p.impulses[2].normal = Scalar::from_int(7);
+        let friction = PatchFriction {
+            tangent: [Scalar::from_int(8), Scalar::from_int(9)],
+            twist: Scalar::from_int(10),
+        };
+        p.friction = friction;
         // Point 11 disappears, 13 is new, 12 and 10 swap places.
         p.update_manifold(&manifold(&[(12, 2), (13, 1), (10, 2)]));
-        assert_eq!(
-            p.impulses[0].tangent,
-            [Scalar::from_int(7), Scalar::from_int(8)]
-        );
+        assert_eq!(p.impulses[0].normal, Scalar::from_int(7));
         assert_eq!(p.impulses[1], PointImpulse::default());
         assert_eq!(p.impulses[2].normal, Scalar::from_int(5));
+        assert_eq!(p.friction, friction, "the patch keeps its friction");
         assert!(p.touching);
         p.update_manifold(&manifold(&[(12, -1)]));
         assert!(!p.touching, "speculative points are not touching");
+        assert_eq!(p.friction, friction, "a speculative point keeps it too");
+        p.update_manifold(&Manifold::EMPTY);
+        assert_eq!(
+            p.friction,
+            PatchFriction::default(),
+            "an empty one drops it"
+        );
     }
 
     #[test]

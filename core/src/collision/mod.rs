@@ -11,7 +11,8 @@ pub mod narrow;
 
 pub use broad_phase::{BroadPhase, BroadPhaseError, PairStats, ProxyId, ProxyKey, ProxyKind};
 pub use contacts::{
-    ContactEvent, ContactEventKind, ContactPair, ContactSet, ContactStats, PairKind, PointImpulse,
+    ContactEvent, ContactEventKind, ContactPair, ContactSet, ContactStats, PairKind, PatchFriction,
+    PointImpulse,
 };
 pub use dynamic_tree::{DynamicTree, LeafId, TreeError};
 pub use manifold::{ContactPoint, FeatureId, MAX_MANIFOLD_POINTS, Manifold};

@@ -29,10 +29,18 @@
 //! anchors along the normal, from each body's change of position and
 //! orientation since the start of the tick: no narrow phase per substep.
 //!
-//! Each point stores `r×d` and `I⁻¹(r×d)` for the normal and both tangents,
-//! and each constraint the three directions scaled by each body's `1/m`, so
-//! an iteration reads a relative velocity as `d·Δv + (rB×d)·ωB − (rA×d)·ωA`
-//! and applies an impulse with three scalings per body: no cross products,
+//! Friction acts at the centre of each manifold's contact patch (see
+//! [`Patch`]): two tangent rows and a twist row per manifold, where
+//! per-point friction needs two rows per point. On large_pyramid (box
+//! faces, four points) that cut the step's instructions by 17% and was no
+//! less accurate in the closed-form tests (ramp creep 0.15 mm against
+//! 0.18 mm, the kinematic platform's passenger 0.1 mm against 1.3 mm).
+//!
+//! Each point stores `r×n` and `I⁻¹(r×n)`, and each patch the same for its
+//! two tangents, so an iteration reads a relative velocity as `d·Δv +
+//! (rB×d)·ωB − (rA×d)·ωA` and applies the angular part of an impulse with
+//! one scaling per body; the linear part is kept along the constraint's
+//! basis through a visit and applied once at its end. No cross products,
 //! inertia products or divisions in the loops, and only `v` and `ω` (a
 //! 48-byte state per body) are read and written.
 //!
@@ -52,7 +60,8 @@
 //! `k mod count` in substep `k` of the tick.
 
 use crate::body::{BodyHot, BodyKind};
-use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind, PointImpulse};
+use crate::collision::contacts::TOUCH_TOLERANCE;
+use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind, PatchFriction, PointImpulse};
 use crate::math::scalar::wide_sum;
 use crate::math::{Faults, Mat3, Quat, Scalar, SymMat3, Vec3, faults};
 
@@ -131,11 +140,6 @@ struct ConstraintPoint {
     /// `I⁻¹A (ra × n)`, `I⁻¹B (rb × n)`.
     ia_n: Vec3,
     ib_n: Vec3,
-    /// The same for the two tangents.
-    ra_t: [Vec3; 2],
-    rb_t: [Vec3; 2],
-    ia_t: [Vec3; 2],
-    ib_t: [Vec3; 2],
     /// Separation at the start of the tick minus `n·(rb − ra)`: adding the
     /// current anchor offset along `n` gives the current separation.
     adjusted_separation: Scalar,
@@ -145,16 +149,11 @@ struct ConstraintPoint {
     relative_velocity: Scalar,
     /// `1/k` along the normal.
     normal_mass: Scalar,
-    /// `1/k` along each tangent.
-    tangent_mass: [Scalar; 2],
     /// Accumulated normal impulse (per substep).
     normal_impulse: Scalar,
-    /// The normal and the two friction impulses at the last write-back of
-    /// angular impulses (zero after a warm start, which applies them all
-    /// again).
-    mark: [Scalar; 3],
-    /// Accumulated friction impulses.
-    tangent_impulse: [Scalar; 2],
+    /// The normal impulse at the last write-back of angular impulses (zero
+    /// after a warm start, which applies it all again).
+    mark: Scalar,
     /// The largest normal impulse seen this tick (restitution only applies
     /// to points that pushed).
     max_normal_impulse: Scalar,
@@ -178,37 +177,80 @@ struct Constraint {
     inv_mass_sum: Scalar,
     friction: Scalar,
     restitution: Scalar,
+    /// The friction rows, acting at the centre of the patch.
+    patch: Patch,
     count: usize,
     points: [ConstraintPoint; MAX_MANIFOLD_POINTS],
 }
 
+/// Friction of one manifold, solved at the centre of its contact patch
+/// (the mean of its points) rather than at every point: two tangent rows
+/// bounded by μ times the manifold's total normal impulse, and a twist row
+/// about the normal bounded by μ times that total times the points' mean
+/// distance from the centre. For a patch whose points share the load, the
+/// friction force and its moment about the centre are the same as
+/// per-point friction's, with three rows per manifold instead of two per
+/// point (eight for a box face).
+#[derive(Clone, Copy, Debug, Default)]
+struct Patch {
+    /// `ra × t_j`, `rb × t_j` for the anchor at the patch centre.
+    ra_t: [Vec3; 2],
+    rb_t: [Vec3; 2],
+    /// `I⁻¹A (ra × t_j)`, `I⁻¹B (rb × t_j)`.
+    ia_t: [Vec3; 2],
+    ib_t: [Vec3; 2],
+    /// `1/k` along each tangent.
+    tangent_mass: [Scalar; 2],
+    /// `I⁻¹A n`, `I⁻¹B n`: the spin change per unit twist impulse.
+    ia_w: Vec3,
+    ib_w: Vec3,
+    /// `1/k` of the twist row.
+    twist_mass: Scalar,
+    /// μ times the points' mean distance from the centre: the twist bound
+    /// per unit of total normal impulse.
+    twist_reach: Scalar,
+    /// Accumulated tangent and twist impulses.
+    tangent_impulse: [Scalar; 2],
+    twist_impulse: Scalar,
+    /// The two tangent and the twist impulses at the last write-back of
+    /// angular impulses.
+    mark: [Scalar; 3],
+}
+
 impl Constraint {
-    /// Adds the angular impulse of every point's impulse change since its
-    /// mark (`r×(Δλ_n n + Δλ_t0 t0 + Δλ_t1 t1)`, from the stored `r×d`) to
-    /// the write-back sums `dls` of A (negated) and B, and moves the marks.
+    /// Adds the angular impulse of every impulse change since its mark
+    /// (`r×n Δλ_n` per point; `ra×t_j Δλ_tj` and `n Δλ_twist` for the
+    /// patch, all from stored products) to the write-back sums `dls` of A
+    /// (negated) and B, and moves the marks.
     #[inline(always)]
     fn collect_angular(&mut self, dls: &mut [Vec3]) {
+        let (a, b) = (self.a, self.b);
         for cp in &mut self.points[..self.count] {
-            let now = [
-                cp.normal_impulse,
-                cp.tangent_impulse[0],
-                cp.tangent_impulse[1],
-            ];
-            if now == cp.mark {
+            let dn = cp.normal_impulse - cp.mark;
+            if dn.is_zero() {
                 continue;
             }
-            let [dn, d0, d1] = [
-                now[0] - cp.mark[0],
-                now[1] - cp.mark[1],
-                now[2] - cp.mark[2],
-            ];
-            cp.mark = now;
-            if self.a != NONE {
-                dls[self.a as usize] -= combine3(cp.ra_n, dn, cp.ra_t[0], d0, cp.ra_t[1], d1);
+            cp.mark = cp.normal_impulse;
+            if a != NONE {
+                dls[a as usize] -= scale(cp.ra_n, dn);
             }
-            if self.b != NONE {
-                dls[self.b as usize] += combine3(cp.rb_n, dn, cp.rb_t[0], d0, cp.rb_t[1], d1);
+            if b != NONE {
+                dls[b as usize] += scale(cp.rb_n, dn);
             }
+        }
+        let f = &mut self.patch;
+        let now = [f.tangent_impulse[0], f.tangent_impulse[1], f.twist_impulse];
+        if now == f.mark {
+            return;
+        }
+        let [d0, d1, dw] = [now[0] - f.mark[0], now[1] - f.mark[1], now[2] - f.mark[2]];
+        f.mark = now;
+        let n = self.normal;
+        if a != NONE {
+            dls[a as usize] -= combine3(f.ra_t[0], d0, f.ra_t[1], d1, n, dw);
+        }
+        if b != NONE {
+            dls[b as usize] += combine3(f.rb_t[0], d0, f.rb_t[1], d1, n, dw);
         }
     }
 }
@@ -452,21 +494,13 @@ impl ContactSolver {
                 cp.ib_n = bb.inv_inertia_mul(cp.rb_n);
                 cp.normal_mass =
                     inverse_or_zero(effective(ba, bb, cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n));
-                for j in 0..2 {
-                    cp.ra_t[j] = cross(ra, c.tangent[j]);
-                    cp.rb_t[j] = cross(rb, c.tangent[j]);
-                    cp.ia_t[j] = ba.inv_inertia_mul(cp.ra_t[j]);
-                    cp.ib_t[j] = bb.inv_inertia_mul(cp.rb_t[j]);
-                    cp.tangent_mass[j] = inverse_or_zero(effective(
-                        ba, bb, cp.ra_t[j], cp.rb_t[j], cp.ia_t[j], cp.ib_t[j],
-                    ));
-                }
                 cp.relative_velocity = along(&va, &vb, n, cp.ra_n, cp.rb_n);
                 cp.normal_impulse = imp.normal;
-                cp.tangent_impulse = imp.tangent;
-                cp.mark = [imp.normal, imp.tangent[0], imp.tangent[1]];
+                cp.mark = imp.normal;
                 cp.max_normal_impulse = Scalar::ZERO;
             }
+            let patch = prepare_patch(p, c, ba, bb);
+            c.patch = patch;
         }
         let grew = (
             self.bodies.capacity(),
@@ -551,25 +585,29 @@ impl ContactSolver {
             let (mut va, mut vb) = load(vels, c.a, c.b);
             // The linear change is the same direction for every point: sum
             // the impulses (exactly) and scale once per constraint.
-            let mut total = [Scalar::ZERO; 3];
+            let mut total = Scalar::ZERO;
             for cp in &mut c.points[..c.count] {
-                cp.mark = [Scalar::ZERO; 3];
-                let [i0, i1] = cp.tangent_impulse;
+                cp.mark = Scalar::ZERO;
                 let ni = cp.normal_impulse;
-                if ni.is_zero() && i0.is_zero() && i1.is_zero() {
+                if ni.is_zero() {
                     continue;
                 }
-                total[0] += ni;
-                total[1] += i0;
-                total[2] += i1;
+                total += ni;
+                push_angular(&mut va, &mut vb, c.a, c.b, ni, cp.ia_n, cp.ib_n);
+            }
+            let f = &mut c.patch;
+            f.mark = [Scalar::ZERO; 3];
+            let [i0, i1] = f.tangent_impulse;
+            let iw = f.twist_impulse;
+            if !(i0.is_zero() && i1.is_zero() && iw.is_zero()) {
                 if c.a != NONE {
-                    va.w -= combine3(cp.ia_n, ni, cp.ia_t[0], i0, cp.ia_t[1], i1);
+                    va.w -= combine3(f.ia_t[0], i0, f.ia_t[1], i1, f.ia_w, iw);
                 }
                 if c.b != NONE {
-                    vb.w += combine3(cp.ib_n, ni, cp.ib_t[0], i0, cp.ib_t[1], i1);
+                    vb.w += combine3(f.ib_t[0], i0, f.ib_t[1], i1, f.ib_w, iw);
                 }
             }
-            apply_linear(c, &mut va, &mut vb, total);
+            apply_linear(c, &mut va, &mut vb, [total, i0, i1]);
             store(vels, c.a, c.b, va, vb);
         }
     }
@@ -613,26 +651,42 @@ impl ContactSolver {
                 let k = kk + start;
                 if k >= count { k - count } else { k }
             };
-            // Friction, bounded by μ times the current normal impulse.
-            for kk in 0..count {
-                let cp = &mut c.points[order(kk)];
-                let limit = mul(c.friction, cp.normal_impulse);
-                if limit.is_zero() && cp.tangent_impulse == [Scalar::ZERO; 2] {
-                    // Clamped to zero either way: nothing would change.
-                    continue;
-                }
+            // Friction at the patch centre, bounded by μ times the
+            // manifold's current total normal impulse (the points are
+            // visited in the same rotated order as below, so the exact sum
+            // does not depend on it).
+            let mut total = Scalar::ZERO;
+            for cp in &c.points[..count] {
+                total += cp.normal_impulse;
+            }
+            let limit = mul(c.friction, total);
+            let f = &mut c.patch;
+            if !(limit.is_zero()
+                && f.tangent_impulse == [Scalar::ZERO; 2]
+                && f.twist_impulse.is_zero())
+            {
                 for j in 0..2 {
-                    let vt = u[1 + j] + angular_along(&va, &vb, cp.ra_t[j], cp.rb_t[j]);
-                    let lambda = -mul(cp.tangent_mass[j], vt);
-                    let old = cp.tangent_impulse[j];
+                    let vt = u[1 + j] + angular_along(&va, &vb, f.ra_t[j], f.rb_t[j]);
+                    let lambda = -mul(f.tangent_mass[j], vt);
+                    let old = f.tangent_impulse[j];
                     let new = (old + lambda).clamp(-limit, limit);
                     let d = new - old;
-                    cp.tangent_impulse[j] = new;
+                    f.tangent_impulse[j] = new;
                     if !d.is_zero() {
                         u[1 + j] += mul(c.inv_mass_sum, d);
                         applied[1 + j] += d;
-                        push_angular(&mut va, &mut vb, c.a, c.b, d, cp.ia_t[j], cp.ib_t[j]);
+                        push_angular(&mut va, &mut vb, c.a, c.b, d, f.ia_t[j], f.ib_t[j]);
                     }
+                }
+                // Twist: the relative spin about the normal.
+                let twist_limit = mul(f.twist_reach, total);
+                let spin = angular_along(&va, &vb, n, n);
+                let old = f.twist_impulse;
+                let new = (old - mul(f.twist_mass, spin)).clamp(-twist_limit, twist_limit);
+                let d = new - old;
+                f.twist_impulse = new;
+                if !d.is_zero() {
+                    push_angular(&mut va, &mut vb, c.a, c.b, d, f.ia_w, f.ib_w);
                 }
             }
             // Non-penetration. The current separation of a point is its
@@ -740,11 +794,73 @@ impl ContactSolver {
             for (k, cp) in c.points[..c.count].iter().enumerate() {
                 p.impulses[k] = PointImpulse {
                     normal: cp.normal_impulse,
-                    tangent: cp.tangent_impulse,
                 };
             }
+            p.friction = PatchFriction {
+                tangent: c.patch.tangent_impulse,
+                twist: c.patch.twist_impulse,
+            };
         }
     }
+}
+
+/// The friction rows of pair `p` for constraint `c` (its normal, tangents
+/// and friction already set) between solver bodies `ba` and `bb` (a body
+/// that is `NONE` in `c`, static or asleep, takes no anchor), warm-started
+/// from the pair's stored patch friction.
+///
+/// The centre is the mean of the touching points (all points if none
+/// touches yet): a speculative point where nothing touches must not move
+/// the friction off the actual contact.
+fn prepare_patch(p: &ContactPair, c: &Constraint, ba: &SolverBody, bb: &SolverBody) -> Patch {
+    let n = c.normal;
+    let pts = p.manifold.points();
+    let touching = |q: &&crate::collision::ContactPoint| q.depth >= -TOUCH_TOLERANCE;
+    let use_all = !pts.iter().any(|q| touching(&q));
+    let chosen = || pts.iter().filter(move |q| use_all || touching(q));
+    let count = chosen().count().max(1) as i32;
+    let sum = chosen().fold(Vec3::ZERO, |acc, q| acc + q.point);
+    let k = Scalar::from_int(count);
+    let center = Vec3::new(sum.x / k, sum.y / k, sum.z / k);
+    let spread = chosen().fold(Scalar::ZERO, |acc, q| acc + (q.point - center).length()) / k;
+    let ra = if c.a == NONE {
+        Vec3::ZERO
+    } else {
+        center - ba.center0
+    };
+    let rb = if c.b == NONE {
+        Vec3::ZERO
+    } else {
+        center - bb.center0
+    };
+    let mut f = Patch {
+        tangent_impulse: p.friction.tangent,
+        twist_impulse: p.friction.twist,
+        mark: [
+            p.friction.tangent[0],
+            p.friction.tangent[1],
+            p.friction.twist,
+        ],
+        twist_reach: c.friction * spread,
+        ..Patch::default()
+    };
+    for (j, &t) in c.tangent.iter().enumerate() {
+        f.ra_t[j] = cross(ra, t);
+        f.rb_t[j] = cross(rb, t);
+        f.ia_t[j] = ba.inv_inertia_mul(f.ra_t[j]);
+        f.ib_t[j] = bb.inv_inertia_mul(f.rb_t[j]);
+        f.tangent_mass[j] = inverse_or_zero(effective(
+            ba, bb, f.ra_t[j], f.rb_t[j], f.ia_t[j], f.ib_t[j],
+        ));
+    }
+    // The twist row has no linear part: k = n·I⁻¹A n + n·I⁻¹B n.
+    f.ia_w = ba.inv_inertia_mul(n);
+    f.ib_w = bb.inv_inertia_mul(n);
+    f.twist_mass = inverse_or_zero(round_wide(wide_sum([
+        n.dot_wide(f.ia_w),
+        n.dot_wide(f.ib_w),
+    ])));
+    f
 }
 
 /// A unit tangent for normal `n`, continuous for normals within about 54°
