@@ -363,7 +363,10 @@ impl ContactSolver {
         self.bodies.clear();
         self.vels.clear();
         self.dls.clear();
-        self.constraints.clear();
+        // Constraints are overwritten in place and the rest cut off at the
+        // end: a fresh push would build each (over a kilobyte) on the stack
+        // and copy it.
+        let mut used = 0;
         self.body_of_slot.clear();
         self.body_of_slot.resize(hot.len(), NONE);
         let moves = |slot: u32| {
@@ -392,15 +395,20 @@ impl ContactSolver {
             if mb {
                 self.body_of_slot[pi.slot_b as usize] = 0;
             }
-            self.constraints.push(Constraint {
-                pair: i as u32,
-                a: if ma { pi.slot_a } else { NONE },
-                b: if mb { pi.slot_b } else { NONE },
-                friction: pi.friction,
-                restitution: pi.restitution,
-                ..Constraint::default()
-            });
+            if used == self.constraints.len() {
+                self.constraints.push(Constraint::default());
+            }
+            // Every other field is set in step 3 (`points` up to `count`,
+            // which is all any pass reads).
+            let c = &mut self.constraints[used];
+            c.pair = i as u32;
+            c.a = if ma { pi.slot_a } else { NONE };
+            c.b = if mb { pi.slot_b } else { NONE };
+            c.friction = pi.friction;
+            c.restitution = pi.restitution;
+            used += 1;
         }
+        self.constraints.truncate(used);
         // 2. Solver bodies in slot order.
         for (slot, idx) in self.body_of_slot.iter_mut().enumerate() {
             if *idx == NONE {
@@ -818,11 +826,21 @@ fn prepare_patch(p: &ContactPair, c: &Constraint, ba: &SolverBody, bb: &SolverBo
     let touching = |q: &&crate::collision::ContactPoint| q.depth >= -TOUCH_TOLERANCE;
     let use_all = !pts.iter().any(|q| touching(&q));
     let chosen = || pts.iter().filter(move |q| use_all || touching(q));
-    let count = chosen().count().max(1) as i32;
+    // 1/1, 1/2, 1/3, 1/4 (1/3 rounded to nearest): a mean is one product,
+    // not a division.
+    const RECIP: [Scalar; MAX_MANIFOLD_POINTS] = [
+        Scalar::ONE,
+        Scalar::from_bits(1 << 31),
+        Scalar::from_bits(1_431_655_765),
+        Scalar::from_bits(1 << 30),
+    ];
+    let inv = RECIP[chosen().count().clamp(1, MAX_MANIFOLD_POINTS) - 1];
     let sum = chosen().fold(Vec3::ZERO, |acc, q| acc + q.point);
-    let k = Scalar::from_int(count);
-    let center = Vec3::new(sum.x / k, sum.y / k, sum.z / k);
-    let spread = chosen().fold(Scalar::ZERO, |acc, q| acc + (q.point - center).length()) / k;
+    let center = scale(sum, inv);
+    let spread = mul(
+        chosen().fold(Scalar::ZERO, |acc, q| acc + (q.point - center).length()),
+        inv,
+    );
     let ra = if c.a == NONE {
         Vec3::ZERO
     } else {
