@@ -120,9 +120,14 @@ pub struct BodyCold {
 
 impl BodyHot {
     /// The pose of the body origin (what colliders are attached to), derived
-    /// from the centre of mass and the rotation.
+    /// from the centre of mass and the rotation. A centre of mass at the
+    /// origin (a single centred shape, the common case) skips the rotation:
+    /// it would rotate the zero vector.
     #[inline]
     pub fn origin_pose(&self, local_center: Vec3) -> Transform {
+        if local_center.is_zero() {
+            return Transform::new(self.center, self.rotation);
+        }
         Transform::new(
             self.center - self.rotation.rotate(local_center),
             self.rotation,

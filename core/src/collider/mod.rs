@@ -132,9 +132,14 @@ pub struct Collider {
 }
 
 impl Collider {
-    /// The collider's world pose given its body's origin pose.
+    /// The collider's world pose given its body's origin pose. A collider at
+    /// the body origin (the common case) has exactly the body's pose: the
+    /// body rotation is already unit, so it is not normalized again.
     #[inline]
     pub fn world_pose(&self, body_origin: &Transform) -> Transform {
+        if self.local_pose == Transform::IDENTITY {
+            return *body_origin;
+        }
         body_origin.mul_transform(&self.local_pose)
     }
 }
