@@ -50,7 +50,8 @@ fn rapier_parameters() -> IntegrationParameters {
 fn settings_text() -> String {
     let p = rapier_parameters();
     format!(
-        "ours: lockstep-core, tick_rate {TICK_RATE}, substeps {SUBSTEPS}, sleep off, contact margin 2 cm\n\
+        "ours: lockstep-core (Q32.32), tick_rate {TICK_RATE}, substeps {SUBSTEPS} (1 solve + 1 relax pass each), \
+         friction at each manifold's patch centre (2 tangent rows + twist), sleep off, contact margin 2 cm\n\
          rapier3d 0.36.1 (dim3, f32, enhanced-determinism; no `parallel`: one thread): dt 1/{TICK_RATE}, \
          num_solver_iterations {} (= substeps), num_internal_pgs_iterations {}, \
          num_internal_stabilization_iterations {}, warmstart_coefficient {}, contact_clustering {}, \
