@@ -1,0 +1,234 @@
+//! The solver's row arithmetic: relative velocities along a direction,
+//! impulse application, and the products and roundings the passes use
+//! (ties toward +∞, see [`mul`]). Kept apart from the passes so the passes
+//! read as the algorithm.
+
+use super::{BodyVel, Constraint, NONE, SolverBody};
+use crate::math::scalar::wide_sum;
+use crate::math::{Faults, Scalar, Vec3, faults};
+
+/// A unit tangent for normal `n`, continuous for normals within about 54°
+/// of the y or z axis and of the x axis: the switch between the two
+/// formulas (at |n.x| = 0.577) is far from the axis-aligned normals of
+/// resting contacts, so the friction impulses carried from last tick keep
+/// their directions while a normal wobbles.
+pub(super) fn tangent_of(n: Vec3) -> Vec3 {
+    // 0.57735 ≈ 1/√3 (bits of 0.57735·2³²): every unit vector has a
+    // component at least this big.
+    const SWITCH: Scalar = Scalar::from_bits(2_479_700_526);
+    if n.x.abs() >= SWITCH {
+        Vec3::new(n.y, -n.x, Scalar::ZERO).normalize_or_zero()
+    } else {
+        Vec3::new(Scalar::ZERO, n.z, -n.y).normalize_or_zero()
+    }
+}
+
+/// `1/k`, or zero when `k` is zero (two infinite masses never reach here,
+/// but a degenerate inertia must not divide by zero).
+pub(super) fn inverse_or_zero(k: Scalar) -> Scalar {
+    if k.is_positive() {
+        k.recip()
+    } else {
+        Scalar::ZERO
+    }
+}
+
+/// `k = 1/mA + 1/mB + (rA×d)·I⁻¹A(rA×d) + (rB×d)·I⁻¹B(rB×d)`.
+/// `ia_d`, `ib_d` are `I⁻¹A (rA×d)` and `I⁻¹B (rB×d)`, already computed.
+pub(super) fn effective(
+    a: &SolverBody,
+    b: &SolverBody,
+    ra_d: Vec3,
+    rb_d: Vec3,
+    ia_d: Vec3,
+    ib_d: Vec3,
+) -> Scalar {
+    let wide = a.inv_mass.to_bits() as i128 * (1i128 << 32)
+        + b.inv_mass.to_bits() as i128 * (1i128 << 32)
+        + ra_d.dot_wide(ia_d)
+        + rb_d.dot_wide(ib_d);
+    round_wide(wide)
+}
+
+/// `a·x + b·y + c·z`, each component rounded once.
+#[inline(always)]
+pub(super) fn combine3(a: Vec3, x: Scalar, b: Vec3, y: Scalar, c: Vec3, z: Scalar) -> Vec3 {
+    let e = |i: usize| {
+        round_wide(wide_sum([
+            a.get(i).wide_mul(x),
+            b.get(i).wide_mul(y),
+            c.get(i).wide_mul(z),
+        ]))
+    };
+    Vec3::new(e(0), e(1), e(2))
+}
+
+/// Velocity of B's anchor relative to A's along the unit direction `d`,
+/// from `r×d` of each anchor: `d·(vB − vA) + (rB×d)·ωB − (rA×d)·ωA`,
+/// rounded once.
+#[inline(always)]
+pub(super) fn along(a: &BodyVel, b: &BodyVel, d: Vec3, ra_d: Vec3, rb_d: Vec3) -> Scalar {
+    round_wide(wide_sum([
+        d.dot_wide(b.v - a.v),
+        rb_d.dot_wide(b.w),
+        -ra_d.dot_wide(a.w),
+    ]))
+}
+
+/// Applies the angular part of impulse `λ·d` at the anchors: `ω_B` moves by
+/// `λ·I⁻¹B(rB×d)` and `ω_A` by `−λ·I⁻¹A(rA×d)` (given as `ib_d`, `ia_d`);
+/// the linear part is summed per visit and applied by [`apply_linear`], the
+/// angular impulse at the write-back ([`ContactSolver::scatter`]). A missing
+/// body (`NONE`) is skipped; a kinematic one has zero inverse inertia.
+#[inline(always)]
+pub(super) fn push_angular(
+    va: &mut BodyVel,
+    vb: &mut BodyVel,
+    a: u32,
+    b: u32,
+    lambda: Scalar,
+    ia_d: Vec3,
+    ib_d: Vec3,
+) {
+    if a != NONE {
+        va.w -= scale(ia_d, lambda);
+    }
+    if b != NONE {
+        vb.w += scale(ib_d, lambda);
+    }
+}
+
+/// The relative linear velocity `vB − vA` along the constraint's normal and
+/// two tangents, each rounded once.
+#[inline(always)]
+pub(super) fn linear_basis(c: &Constraint, va: &BodyVel, vb: &BodyVel) -> [Scalar; 3] {
+    let dv = vb.v - va.v;
+    [
+        round_wide(c.normal.dot_wide(dv)),
+        round_wide(c.tangent[0].dot_wide(dv)),
+        round_wide(c.tangent[1].dot_wide(dv)),
+    ]
+}
+
+/// Applies the linear part of impulses `imp` along the normal and the two
+/// tangents (B receives `+P`, A receives `−P`, `P = imp₀n + imp₁t₀ +
+/// imp₂t₁`): `vB += P/mB`, `vA −= P/mA`.
+#[inline(always)]
+pub(super) fn apply_linear(c: &Constraint, va: &mut BodyVel, vb: &mut BodyVel, imp: [Scalar; 3]) {
+    if imp == [Scalar::ZERO; 3] {
+        return;
+    }
+    let [i0, i1, i2] = imp;
+    let p = combine3(c.normal, i0, c.tangent[0], i1, c.tangent[1], i2);
+    if c.a != NONE {
+        va.v -= scale(p, c.inv_mass_a);
+    }
+    if c.b != NONE {
+        vb.v += scale(p, c.inv_mass_b);
+    }
+}
+
+/// The angular part of the relative velocity of B's anchor against A's
+/// along a direction `d`, from `r×d` of each anchor: `(rB×d)·ωB −
+/// (rA×d)·ωA`, rounded once.
+#[inline(always)]
+pub(super) fn angular_along(a: &BodyVel, b: &BodyVel, ra_d: Vec3, rb_d: Vec3) -> Scalar {
+    round_wide(wide_sum([rb_d.dot_wide(b.w), -ra_d.dot_wide(a.w)]))
+}
+
+/// `a·b` rounded to nearest, ties toward +∞ (one rounding per product, as
+/// `a * b`, which sends ties away from zero: a tie needs the low 32 bits
+/// of the product to be exactly one half, about one product in 2³²), and
+/// saturated with the overflow fault. Cheaper than `a * b` in the
+/// iterations: a product of two `i64` is at most 2¹²⁶ in size, so adding
+/// the half cannot overflow and only the final narrowing needs a check.
+#[inline(always)]
+pub(super) fn mul(a: Scalar, b: Scalar) -> Scalar {
+    narrow((a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32)
+}
+
+/// A Q64.64 accumulator rounded to Q32.32, to nearest with ties toward +∞
+/// (as [`mul`]), saturated with the overflow fault. Cheaper than
+/// `Scalar::from_wide` (one checked add for the half, one check of the
+/// narrowing).
+#[inline(always)]
+pub(super) fn round_wide(acc: i128) -> Scalar {
+    narrow(match acc.checked_add(1 << 31) {
+        Some(x) => x >> 32,
+        None => i128::MAX >> 32,
+    })
+}
+
+/// An already rounded Q32.32 value in an `i128`, saturated with the
+/// overflow fault when it does not fit.
+#[inline(always)]
+fn narrow(r: i128) -> Scalar {
+    let lo = r as i64;
+    if lo as i128 == r {
+        Scalar::from_bits(lo)
+    } else {
+        faults::raise(Faults::OVERFLOW);
+        if r < 0 { Scalar::MIN } else { Scalar::MAX }
+    }
+}
+
+/// `a × b`, each component rounded once by [`round_wide`].
+#[inline(always)]
+pub(super) fn cross(a: Vec3, b: Vec3) -> Vec3 {
+    Vec3::new(
+        round_wide(wide_sum([a.y.wide_mul(b.z), -a.z.wide_mul(b.y)])),
+        round_wide(wide_sum([a.z.wide_mul(b.x), -a.x.wide_mul(b.z)])),
+        round_wide(wide_sum([a.x.wide_mul(b.y), -a.y.wide_mul(b.x)])),
+    )
+}
+
+/// `v·s` per component with [`mul`].
+#[inline(always)]
+pub(super) fn scale(v: Vec3, s: Scalar) -> Vec3 {
+    Vec3::new(mul(v.x, s), mul(v.y, s), mul(v.z, s))
+}
+
+/// The velocity state of solver body `i`, or zero for `NONE`.
+#[inline(always)]
+pub(super) fn vel_or_zero(vels: &[BodyVel], i: u32) -> BodyVel {
+    if i == NONE {
+        BodyVel::default()
+    } else {
+        vels[i as usize]
+    }
+}
+
+#[inline(always)]
+pub(super) fn load(vels: &[BodyVel], a: u32, b: u32) -> (BodyVel, BodyVel) {
+    (vel_or_zero(vels, a), vel_or_zero(vels, b))
+}
+
+#[inline(always)]
+pub(super) fn store(vels: &mut [BodyVel], a: u32, b: u32, va: BodyVel, vb: BodyVel) {
+    if a != NONE {
+        vels[a as usize] = va;
+    }
+    if b != NONE {
+        vels[b as usize] = vb;
+    }
+}
+
+/// Hints the CPU to start loading `x` into the cache (a hint only: it
+/// changes no value, so results do not depend on it).
+#[inline(always)]
+pub(super) fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let base = x as *const T as *const i8;
+        let mut off = 0;
+        while off < size_of::<T>() {
+            // SAFETY: a prefetch never faults and reads nothing into the
+            // program; the address lies inside `x`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.add(off)) };
+            off += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
