@@ -252,3 +252,15 @@ pub(crate) fn perpendicular_fallback(axis: Vec3) -> Vec3 {
 pub(crate) fn sat_tolerance(best: Scalar) -> Scalar {
     Scalar::from_bits((best.abs().to_bits() >> 5) + (1 << 21))
 }
+
+/// Box faces by corner index bits (bit 0: +x, bit 1: +y, bit 2: +z), in the
+/// order −x, +x, −y, +y, −z, +z, counter-clockwise seen from outside: the
+/// polytope SAT and the triangle–box test walk the same loops.
+pub(super) const BOX_FACE_LOOPS: [[u32; 4]; 6] = [
+    [0, 4, 6, 2],
+    [1, 3, 7, 5],
+    [0, 1, 5, 4],
+    [2, 6, 7, 3],
+    [0, 2, 3, 1],
+    [4, 5, 7, 6],
+];

@@ -35,6 +35,7 @@
 //!   deep-overlap fallback point uses the deepest incident vertex index;
 //! * edge–edge: `pair(0x4000 | edge of A, 0x4000 | edge of B)`.
 
+use super::BOX_FACE_LOOPS;
 use super::gjk::{ONE_Q62, Rel, cross_wide, fit, q62, unit_from_wide};
 use crate::collision::{ContactPoint, FeatureId, Manifold};
 use crate::math::scalar::round_shift;
@@ -74,15 +75,6 @@ pub(super) struct BoxPoly {
     corners: [Vec3; 8],
     half: Vec3,
 }
-
-const BOX_FACES: [[u32; 4]; 6] = [
-    [0, 4, 6, 2],
-    [1, 3, 7, 5],
-    [0, 1, 5, 4],
-    [2, 6, 7, 3],
-    [0, 2, 3, 1],
-    [4, 5, 7, 6],
-];
 
 const BOX_EDGES: [[u32; 2]; 12] = [
     [0, 1],
@@ -134,7 +126,7 @@ impl Poly for BoxPoly {
         self.half.get(f / 2)
     }
     fn face(&self, f: usize) -> &[u32] {
-        &BOX_FACES[f]
+        &BOX_FACE_LOOPS[f]
     }
     fn edges(&self) -> &[[u32; 2]] {
         &BOX_EDGES

@@ -45,24 +45,13 @@
 //! (clipping, closest points) are made in the child module `points`
 //! (`triangle_points`), which reads the shape view's private parts.
 
-use super::sat_tolerance;
 use super::segment::{closest_point_on_segment, closest_points_segments};
+use super::{BOX_FACE_LOOPS, sat_tolerance};
 use crate::math::{Scalar, Vec3};
 use crate::shape::{Capsule, ConvexHull, Cuboid, Sphere};
 
 mod points;
 pub(crate) use points::{TriPoint, triangle_points};
-
-/// Box faces by corner index bits (bit 0: +x, bit 1: +y, bit 2: +z), in the
-/// order −x, +x, −y, +y, −z, +z, counter-clockwise seen from outside.
-const BOX_LOOPS: [[u32; 4]; 6] = [
-    [0, 4, 6, 2],
-    [1, 3, 7, 5],
-    [0, 1, 5, 4],
-    [2, 6, 7, 3],
-    [0, 2, 3, 1],
-    [4, 5, 7, 6],
-];
 
 /// Box edges as corner pairs: the four along x, then y, then z, each group
 /// ordered by the corner bits of the other two axes.
@@ -210,7 +199,7 @@ impl<'a> Convex<'a> {
 
     fn face_loop(&self, f: usize) -> &[u32] {
         match &self.kind {
-            Kind::Box(..) => &BOX_LOOPS[f],
+            Kind::Box(..) => &BOX_FACE_LOOPS[f],
             Kind::Hull(h) => h.face_vertices(f),
             _ => &[],
         }
