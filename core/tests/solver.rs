@@ -205,6 +205,49 @@ fn sliding_box_stops_at_v_squared_over_two_mu_g() {
     assert!(err < 0.02);
 }
 
+/// A box spinning flat on the ground about the vertical stops under twist
+/// friction: its four corner contacts at distance `h√2` from the centre
+/// each carry `mg/4`, so the friction torque is `μ m g h√2` and, with
+/// `I = (2/3) m h²`, the spin slows at `α = (3√2/2) μ g / h` and turns
+/// through `ω₀²/(2α)` before it stops (what per-point friction at the
+/// corners gives too).
+#[test]
+fn spinning_box_stops_after_the_closed_form_twist_angle() {
+    let (mu, h, w0) = (0.5, 0.5, 10.0);
+    let mut w = world_with(v(0.0, -G, 0.0), false);
+    let m = mat(mu, 0.0);
+    ground(&mut w, m);
+    let b = cube(&mut w, v(0.0, h, 0.0), h, 1.0, m);
+    for _ in 0..30 {
+        step(&mut w);
+    }
+    let yaw = |w: &World| {
+        let q = w.body(b).unwrap().rotation();
+        2.0 * q.y.to_f64().atan2(q.w.to_f64())
+    };
+    let (yaw0, p0) = (yaw(&w), pos(&w, b));
+    w.set_angular_velocity(b, v(0.0, w0, 0.0)).unwrap();
+    let mut ticks = 0;
+    while f(w.body(b).unwrap().angular_velocity())[1].abs() > 1e-3 && ticks < 600 {
+        step(&mut w);
+        ticks += 1;
+    }
+    let alpha = 1.5 * 2f64.sqrt() * mu * G / h;
+    let expected = w0 * w0 / (2.0 * alpha);
+    let turned = yaw(&w) - yaw0;
+    let err = (turned - expected).abs() / expected;
+    let t_err = (ticks as f64 / 60.0 - w0 / alpha).abs();
+    let p = pos(&w, b);
+    let drift = ((p[0] - p0[0]).powi(2) + (p[2] - p0[2]).powi(2)).sqrt();
+    println!(
+        "spinning box: turned {turned:.4} rad vs {expected:.4}: error {err:.4}; stopped after \
+         {ticks} ticks ({t_err:.3} s off); drift {drift:.2e} m"
+    );
+    assert!(err < 0.03, "twist angle error {err}");
+    assert!(t_err < 2.0 / 60.0, "stop time off by {t_err} s");
+    assert!(drift < 1e-3, "the centre stays put: {drift}");
+}
+
 /// Distance and speed of a box on a `theta` slope after 2 s from rest.
 fn ramp(theta: f64, mu: f64) -> (f64, f64) {
     let mut w = world_with(gravity_down_slope(theta), false);
