@@ -248,6 +248,34 @@ fn spinning_box_stops_after_the_closed_form_twist_angle() {
     assert!(drift < 1e-3, "the centre stays put: {drift}");
 }
 
+/// Far from the origin (600,000 km, where four contact positions summed
+/// would leave Q32.32) a box still rests on the ground without a fault.
+#[test]
+fn a_box_rests_far_from_the_origin_without_overflow() {
+    let far = 6.0e8;
+    let mut w = world_with(v(0.0, -G, 0.0), false);
+    let m = mat(0.5, 0.0);
+    let g = w
+        .create_body(&BodyDesc::fixed().position(v(far, -1.0, far)))
+        .unwrap();
+    w.add_collider(
+        g,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(10.0, 1.0, 10.0),
+        }))
+        .material(m),
+    )
+    .unwrap();
+    let b = cube(&mut w, v(far, 0.5, far), 0.5, 1.0, m);
+    for _ in 0..120 {
+        step(&mut w);
+    }
+    let p = pos(&w, b);
+    println!("far box: rests at y {:.6}", p[1]);
+    assert!((p[1] - 0.5).abs() < 2e-3, "rests on the ground: y {}", p[1]);
+    assert!(w.step().sticky_faults.is_empty());
+}
+
 /// Distance and speed of a box on a `theta` slope after 2 s from rest.
 fn ramp(theta: f64, mu: f64) -> (f64, f64) {
     let mut w = world_with(gravity_down_slope(theta), false);

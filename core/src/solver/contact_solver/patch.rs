@@ -71,8 +71,11 @@ pub(super) fn prepare_patch(
         Scalar::from_bits(1 << 30),
     ];
     let inv = RECIP[chosen().count().clamp(1, MAX_MANIFOLD_POINTS) - 1];
-    let sum = chosen().fold(Vec3::ZERO, |acc, q| acc + q.point);
-    let center = scale(sum, inv);
+    // Offsets from one of the points, not world positions, are summed: four
+    // points far from the origin would overflow a sum of positions.
+    let base = chosen().next().map_or(Vec3::ZERO, |q| q.point);
+    let sum = chosen().fold(Vec3::ZERO, |acc, q| acc + (q.point - base));
+    let center = base + scale(sum, inv);
     let spread = mul(
         chosen().fold(Scalar::ZERO, |acc, q| acc + (q.point - center).length()),
         inv,
