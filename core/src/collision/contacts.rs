@@ -592,16 +592,6 @@ impl ContactSet {
         kept
     }
 
-    /// Copies the impulses of `copies` (the active pairs, in order, as
-    /// handed to the solver) back into the pairs they were copied from.
-    pub(crate) fn copy_impulses_back(&mut self, copies: &[ContactPair]) {
-        for (&i, c) in self.active.index.iter().zip(copies) {
-            let p = &mut self.pairs[i as usize];
-            p.impulses = c.impulses;
-            p.friction = c.friction;
-        }
-    }
-
     /// Forgets the active list: the next update walks every pair. Called
     /// when a resting pair may have become active (a body woke).
     pub(crate) fn invalidate_active(&mut self) {

@@ -79,6 +79,19 @@ use crate::math::{Mat3, Quat, Scalar, SymMat3, Vec3};
 /// ahead was faster than two or four, and about 10% faster than none.
 const PREFETCH_AHEAD: usize = 1;
 
+/// Visits the constraints in order, asking the CPU to load the next ones
+/// first (see [`PREFETCH_AHEAD`]).
+#[inline(always)]
+fn for_each_prefetched(cs: &mut [Constraint], mut f: impl FnMut(&mut Constraint)) {
+    let len = cs.len();
+    for i in 0..len {
+        if i + PREFETCH_AHEAD < len {
+            prefetch(&cs[i + PREFETCH_AHEAD]);
+        }
+        f(&mut cs[i]);
+    }
+}
+
 /// Marks "no solver body": a static or sleeping body.
 const NONE: u32 = u32::MAX;
 
@@ -294,8 +307,12 @@ pub(crate) struct ContactSolver {
     vels: Vec<BodyVel>,
     /// Angular impulse of each solver body since the last write-back.
     dls: Vec<Vec3>,
-    /// Slot → solver body index, or `NONE`.
+    /// Slot → solver body index, or `NONE`. Only the slots of `bodies` hold
+    /// an index, so a tick resets just those, never every slot.
     body_of_slot: Vec<u32>,
+    /// The slots this tick's constraints touch, sorted into solver body
+    /// order in `prepare`.
+    touched: Vec<u32>,
     constraints: Vec<Constraint>,
     /// Warm starts (substeps) since `prepare`: the point each manifold's
     /// solve starts from.
@@ -319,10 +336,16 @@ impl ContactSolver {
     /// Builds the solver bodies and constraints for this tick from the
     /// contact pairs (at the poses and velocities of the start of the tick).
     ///
+    /// `active`, when given, lists the indices (ascending) of the only pairs
+    /// that may make a constraint (those with a moving body); otherwise
+    /// every pair is looked at. The work is proportional to those pairs and
+    /// the bodies they touch, not to all pairs or body slots.
+    ///
     /// Determinism: pairs in contact-set order; bodies in slot order.
     pub(crate) fn prepare(
         &mut self,
         pairs: &[ContactPair],
+        active: Option<&[u32]>,
         hot: &[BodyHot],
         mut info: impl FnMut(&ContactPair) -> Option<PairInfo>,
     ) -> SolverStats {
@@ -332,8 +355,16 @@ impl ContactSolver {
             self.dls.capacity(),
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
+            self.touched.capacity(),
         );
         self.substeps = 0;
+        for sb in &self.bodies {
+            if let Some(idx) = self.body_of_slot.get_mut(sb.slot as usize) {
+                *idx = NONE;
+            }
+        }
+        self.body_of_slot.resize(hot.len(), NONE);
+        self.touched.clear();
         self.bodies.clear();
         self.vels.clear();
         self.dls.clear();
@@ -341,15 +372,16 @@ impl ContactSolver {
         // end: a fresh push would build each (over a kilobyte) on the stack
         // and copy it.
         let mut used = 0;
-        self.body_of_slot.clear();
-        self.body_of_slot.resize(hot.len(), NONE);
         let moves = |slot: u32| {
             let b = &hot[slot as usize];
             b.kind != BodyKind::Static && !b.sleeping
         };
         // 1. Constraints (body indices filled in below) and the set of
         //    bodies they touch.
-        for (i, p) in pairs.iter().enumerate() {
+        let candidates = active.map_or(pairs.len(), <[u32]>::len);
+        for k in 0..candidates {
+            let i = active.map_or(k, |a| a[k] as usize);
+            let Some(p) = pairs.get(i) else { continue };
             if p.kind != PairKind::Solid || p.manifold.is_empty() {
                 continue;
             }
@@ -363,11 +395,13 @@ impl ContactSolver {
             if !dyn_a && !dyn_b {
                 continue;
             }
-            if ma {
-                self.body_of_slot[pi.slot_a as usize] = 0;
-            }
-            if mb {
-                self.body_of_slot[pi.slot_b as usize] = 0;
+            for (moves, slot) in [(ma, pi.slot_a), (mb, pi.slot_b)] {
+                let idx = &mut self.body_of_slot[slot as usize];
+                if moves && *idx == NONE {
+                    // Marked; the index is set in step 2.
+                    *idx = 0;
+                    self.touched.push(slot);
+                }
             }
             if used == self.constraints.len() {
                 self.constraints.push(Constraint::default());
@@ -384,12 +418,10 @@ impl ContactSolver {
         }
         self.constraints.truncate(used);
         // 2. Solver bodies in slot order.
-        for (slot, idx) in self.body_of_slot.iter_mut().enumerate() {
-            if *idx == NONE {
-                continue;
-            }
-            *idx = self.bodies.len() as u32;
-            let b = &hot[slot];
+        self.touched.sort_unstable();
+        for &slot in &self.touched {
+            self.body_of_slot[slot as usize] = self.bodies.len() as u32;
+            let b = &hot[slot as usize];
             let dynamic = b.kind == BodyKind::Dynamic;
             // An isotropic inertia (a cube, a sphere) is the same in every
             // frame: no rotation, and products with it are one scale.
@@ -402,7 +434,7 @@ impl ContactSolver {
                 SymMat3::ZERO
             };
             self.bodies.push(SolverBody {
-                slot: slot as u32,
+                slot,
                 dynamic,
                 inv_mass: if dynamic { b.inv_mass } else { Scalar::ZERO },
                 inv_inertia,
@@ -490,6 +522,7 @@ impl ContactSolver {
             self.dls.capacity(),
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
+            self.touched.capacity(),
         ) != caps;
         SolverStats {
             constraints: self.constraints.len() as u32,
@@ -558,12 +591,7 @@ impl ContactSolver {
     pub(crate) fn warm_start(&mut self) {
         self.substeps = self.substeps.wrapping_add(1);
         let vels = &mut self.vels;
-        let len = self.constraints.len();
-        for i in 0..len {
-            if i + PREFETCH_AHEAD < len {
-                prefetch(&self.constraints[i + PREFETCH_AHEAD]);
-            }
-            let c = &mut self.constraints[i];
+        for_each_prefetched(&mut self.constraints, |c| {
             let (mut va, mut vb) = load(vels, c.a, c.b);
             // The linear change is the same direction for every point: sum
             // the impulses (exactly) and scale once per constraint.
@@ -591,7 +619,7 @@ impl ContactSolver {
             }
             apply_linear(c, &mut va, &mut vb, [total, i0, i1]);
             store(vels, c.a, c.b, va, vb);
-        }
+        });
     }
 
     /// One pass over every constraint: friction, then the normal impulses
@@ -611,12 +639,7 @@ impl ContactSolver {
         let vels = &mut self.vels;
         let dls = &mut self.dls;
         let bodies = &self.bodies;
-        let len = self.constraints.len();
-        for i in 0..len {
-            if i + PREFETCH_AHEAD < len {
-                prefetch(&self.constraints[i + PREFETCH_AHEAD]);
-            }
-            let c = &mut self.constraints[i];
+        for_each_prefetched(&mut self.constraints, |c| {
             let (mut va, mut vb) = load(vels, c.a, c.b);
             let n = c.normal;
             // The linear part of the relative velocity along n, t0 and t1,
@@ -729,7 +752,7 @@ impl ContactSolver {
             if !use_bias {
                 c.collect_angular(dls);
             }
-        }
+        });
     }
 
     /// After the substeps: points that approached faster than the threshold

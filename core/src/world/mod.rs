@@ -50,10 +50,6 @@ pub struct World {
     /// step).
     #[serde(skip)]
     solver: ContactSolver,
-    /// Scratch: a copy of the active contact pairs for the solver, when
-    /// they are fewer than all pairs (reused every step).
-    #[serde(skip)]
-    solver_pairs: Vec<ContactPair>,
     /// Scratch: the sleep stage's union–find (reused every step).
     #[serde(skip)]
     islands: IslandScratch,
@@ -90,7 +86,6 @@ impl World {
             faults: Faults::NONE,
             candidates: Vec::new(),
             solver: ContactSolver::default(),
-            solver_pairs: Vec::new(),
             islands: IslandScratch::default(),
             ccd: ccd::CcdScratch::default(),
         })

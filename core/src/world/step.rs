@@ -1,7 +1,6 @@
 //! `World::step`: the named stages, in order.
 
 use crate::body::BodyKind;
-use crate::collision::ContactPair;
 use crate::collision::contacts::PairKind;
 use crate::math::{Scalar, Vec3};
 use crate::solver::contact_solver::{PairInfo, Softness, SolverParams, SolverStats};
@@ -90,7 +89,6 @@ impl World {
         let World {
             bodies,
             solver,
-            solver_pairs,
             contacts,
             ..
         } = self;
@@ -123,14 +121,7 @@ impl World {
             solver.gather_velocities(hot);
             solver.restitution(&params);
             solver.scatter(hot);
-            if solver_pairs.is_empty() {
-                solver.store_impulses(contacts.pairs_mut());
-            } else {
-                // The solver saw a copy of the active pairs: hand the
-                // impulses back to the pairs they came from.
-                solver.store_impulses(solver_pairs);
-                contacts.copy_impulses_back(solver_pairs);
-            }
+            solver.store_impulses(contacts.pairs_mut());
         }
         integrate::finish_angular_velocities(hot, awake);
 
@@ -209,41 +200,20 @@ impl World {
         }
     }
 
-    /// Builds this tick's contact constraints from the solid pairs.
-    ///
-    /// Pairs between sleeping or static bodies make no constraint, so when
-    /// the active pairs are fewer than all pairs the solver is handed a copy
-    /// of the active ones (same order, so the same constraints in the same
-    /// order); with no solid pair with points among them it is handed
-    /// nothing, and does no per-slot work.
+    /// Builds this tick's contact constraints from the solid pairs: only
+    /// the active ones (those with a moving body) when the contact set
+    /// keeps that list, since pairs between sleeping or static bodies make
+    /// no constraint.
     fn stage_prepare_contacts(&mut self) -> SolverStats {
         let World {
             bodies,
             colliders,
             contacts,
             solver,
-            solver_pairs,
             ..
         } = self;
         let (hot, _) = bodies.hot_slots_mut();
-        let cap = solver_pairs.capacity();
-        solver_pairs.clear();
-        let pairs: &[ContactPair] = match contacts.active() {
-            Some(active) if active.len() < contacts.pairs().len() => {
-                let all = contacts.pairs();
-                solver_pairs.extend(active.iter().map(|&i| all[i as usize]));
-                solver_pairs
-            }
-            _ => contacts.pairs(),
-        };
-        let growth = u32::from(solver_pairs.capacity() != cap);
-        let constrains = |p: &ContactPair| p.kind == PairKind::Solid && !p.manifold.is_empty();
-        let (pairs, hot) = if pairs.iter().any(constrains) {
-            (pairs, &*hot)
-        } else {
-            (&[][..], &hot[..0])
-        };
-        let mut stats = solver.prepare(pairs, hot, |p| {
+        solver.prepare(contacts.pairs(), contacts.active(), hot, |p| {
             let ca = colliders.get(p.a.0)?;
             let cb = colliders.get(p.b.0)?;
             let m = ca.material.combine(&cb.material);
@@ -253,12 +223,7 @@ impl World {
                 friction: m.friction,
                 restitution: m.restitution,
             })
-        });
-        if pairs.is_empty() {
-            solver_pairs.clear();
-        }
-        stats.growths += growth;
-        stats
+        })
     }
 
     /// Kinematic bodies with a target get the constant velocities that carry
