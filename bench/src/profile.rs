@@ -1,7 +1,9 @@
 //! The `profile` suite: steps only lockstep-core on the chosen scenes (by
 //! default `large_pyramid`) for a few steps, so `perf record` or
 //! `valgrind --tool=callgrind` see our engine alone, and prints ms/step
-//! (first step excluded) with the scene's contact points and top-box drop.
+//! (first step excluded) with the scene's contact points, top-box drop and
+//! final state hash (so a change meant to keep results can be checked bit
+//! for bit).
 
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -21,8 +23,10 @@ pub fn run(opts: &Options) -> SuiteOutput {
         .scenes
         .clone()
         .unwrap_or_else(|| vec!["large_pyramid".to_owned()]);
-    let mut text = String::from("scene           bodies  steps   ms/step  contacts  top dy m\n");
-    let mut csv = String::from("suite,scene,bodies,steps,ms_per_step,contact_points,top_dy_m\n");
+    let mut text =
+        String::from("scene           bodies  steps   ms/step  contacts  top dy m  state hash\n");
+    let mut csv =
+        String::from("suite,scene,bodies,steps,ms_per_step,contact_points,top_dy_m,state_hash\n");
     for (name, scene) in scene_list(opts.quick) {
         let Some(scene) = scene else { continue };
         if !wanted.iter().any(|w| w == name) {
@@ -43,6 +47,9 @@ pub fn run(opts: &Options) -> SuiteOutput {
             }
             points = r.contact_points;
         }
+        // The final state hash: optimisations that must not change results
+        // are checked by comparing it before and after.
+        let hash = world.state_hash();
         let ms = total * 1e3 / (steps - 1) as f64;
         let top_dy = scene
             .tops
@@ -56,12 +63,12 @@ pub fn run(opts: &Options) -> SuiteOutput {
             .fold(0.0, f64::max);
         let _ = writeln!(
             text,
-            "{name:<14} {:>7} {steps:>6} {ms:>9.3} {points:>9} {top_dy:>9.4}",
+            "{name:<14} {:>7} {steps:>6} {ms:>9.3} {points:>9} {top_dy:>9.4}  {hash:016x}",
             scene.positions.len()
         );
         let _ = writeln!(
             csv,
-            "profile,{name},{},{steps},{ms:.4},{points},{top_dy:.6}",
+            "profile,{name},{},{steps},{ms:.4},{points},{top_dy:.6},{hash:016x}",
             scene.positions.len()
         );
     }
