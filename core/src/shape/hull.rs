@@ -5,6 +5,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use super::mass::MassProperties;
 use super::quickhull;
+use super::sat_features::SatFeatures;
 use super::wide::{self, BigInt, RawPoint, from_raw, orient3d, ratio_to_scalar, raw};
 use super::{ShapeError, rotation_margin};
 use crate::math::{Aabb, Mat3, Scalar, SymMat3, Transform, Vec3};
@@ -62,6 +63,8 @@ pub struct ConvexHull {
     face_vertices: Vec<u32>,
     edges: Vec<[u32; 2]>,
     local_aabb: Aabb,
+    /// Derived from the above at construction (never serialised).
+    sat: SatFeatures,
 }
 
 /// The exact integrals of a hull relative to the local origin (raw scales
@@ -193,12 +196,24 @@ impl ConvexHull {
         let local_aabb = vertices
             .iter()
             .fold(Aabb::new(first, first), |b, &v| b.include_point(v));
+        let sat = SatFeatures::new(
+            &vertices,
+            &edges,
+            faces.len(),
+            |f| {
+                let face = &faces[f];
+                &face_vertices[face.first as usize..(face.first + face.count) as usize]
+            },
+            |f| faces[f].normal,
+            |f| faces[f].offset,
+        );
         Ok(ConvexHull {
             vertices,
             faces,
             face_vertices,
             edges,
             local_aabb,
+            sat,
         })
     }
 
@@ -226,6 +241,12 @@ impl ConvexHull {
     /// needs for its edge–edge axes.
     pub fn edges(&self) -> &[[u32; 2]] {
         &self.edges
+    }
+
+    /// The edge adjacency, Gauss-map arcs and bounding balls that the
+    /// narrow phase's separating axis test reads.
+    pub(crate) fn sat(&self) -> &SatFeatures {
+        &self.sat
     }
 
     /// The index of the vertex farthest along `dir` (exact dot products;

@@ -16,6 +16,7 @@ mod heightfield;
 mod hull;
 mod mass;
 mod quickhull;
+pub(crate) mod sat_features;
 mod sphere;
 mod trimesh;
 mod wide;

@@ -4,7 +4,7 @@
 //! points). It lives apart from them because it knows nothing of any shape
 //! kind: a box and a hull both enter through the [`Poly`] view.
 //!
-//! # Design: SAT with Gauss-map pruning
+//! # Design: SAT with Gauss-map pruning and ball bounds
 //!
 //! The test runs over the face normals of both shapes and the edge–edge
 //! axes, then clips the incident face against the reference face (as
@@ -18,11 +18,24 @@
 //!   by the same code;
 //! * stable features: the winning axis *is* a face or an edge pair, which
 //!   gives the clipping its reference face and the points their feature ids
-//!   directly (EPA's triangulated faces would need a second search);
-//! * cost: faces are `O(F·V)`; edge pairs are pruned by the Gauss-map
-//!   (Minkowski face) test, `O(1)` each, so only pairs that can realise the
-//!   separation compute an axis. For hulls of a few dozen vertices this is
-//!   cheaper than EPA's expansion with its normalisations.
+//!   directly (EPA's triangulated faces would need a second search).
+//!
+//! Cost: a plain SAT tests `F·V` face–vertex pairs and `E_A·E_B` edge
+//! pairs (a 32-point hull: 60 faces, 90 edges, so 8,100 edge pairs). Each
+//! shape carries, from construction, an inscribed and a bounding ball about
+//! one centre and a cone around each edge's arc of normals
+//! ([`SatFeatures`](crate::shape::sat_features::SatFeatures)). With them
+//! one dot product bounds a face's separation from both sides, and one
+//! bounds every separation an edge can take part in. A pair whose best
+//! face bound is beyond the margin ends there, before B's vertices are
+//! moved into A's frame; otherwise only the faces whose upper bound
+//! reaches the best lower bound, and the edges whose bound reaches the
+//! best face, are tested exactly (for the hulls of `convex_pile`, a few
+//! faces and about a fifth of the edges of each). Skipping never changes a
+//! result: a skipped feature's separation is below the winner's by more
+//! than any rounding in the bounds, so the outcome is bit for bit that of
+//! testing everything (a test compares the two on random pairs). Gauss-map
+//! pruning then rejects most remaining edge pairs in `O(1)` each.
 //!
 //! The test works on stack buffers for hulls of up to [`MAX_SAT_VERTICES`]
 //! vertices (hence at most 252 faces and 378 edges); the callers send
@@ -35,18 +48,24 @@
 //!   deep-overlap fallback point uses the deepest incident vertex index;
 //! * edge–edge: `pair(0x4000 | edge of A, 0x4000 | edge of B)`.
 
-use super::BOX_FACE_LOOPS;
+mod poly;
+#[cfg(test)]
+mod tests;
+
+pub(super) use poly::{BoxPoly, Poly};
+use poly::{Fixed, Frame, Moved};
+
 use super::gjk::{ONE_Q62, Rel, cross_wide, fit, q62, unit_from_wide};
 use crate::collision::{ContactPoint, FeatureId, Manifold};
 use crate::math::scalar::round_shift;
 use crate::math::{Scalar, Transform, Vec3};
-use crate::shape::{ConvexHull, Cuboid};
+use crate::shape::sat_features::{Balls, NO_FACE};
 
 /// Largest hull (in vertices) the SAT path handles; bigger hulls use GJK +
 /// EPA with a single point.
 pub const MAX_SAT_VERTICES: usize = 128;
-const MAX_SAT_FACES: usize = 2 * MAX_SAT_VERTICES - 4;
-const MAX_SAT_EDGES: usize = 3 * MAX_SAT_VERTICES - 6;
+pub(super) const MAX_SAT_FACES: usize = 2 * MAX_SAT_VERTICES - 4;
+pub(super) const MAX_SAT_EDGES: usize = 3 * MAX_SAT_VERTICES - 6;
 /// Room for a clipped polygon: an incident face grows by at most one point
 /// per reference side.
 const CLIP_CAP: usize = 2 * MAX_SAT_VERTICES;
@@ -58,170 +77,9 @@ pub(super) fn feature_tolerance(sep: Scalar) -> Scalar {
     Scalar::from_bits(1 << 22) + Scalar::from_bits(sep.to_bits().abs() >> 5)
 }
 
-/// The polyhedron view that SAT and clipping need.
-pub(super) trait Poly {
-    fn nv(&self) -> usize;
-    fn vertex(&self, i: usize) -> Vec3;
-    fn nf(&self) -> usize;
-    fn normal(&self, f: usize) -> Vec3;
-    fn offset(&self, f: usize) -> Scalar;
-    fn face(&self, f: usize) -> &[u32];
-    fn edges(&self) -> &[[u32; 2]];
-}
-
-/// A box as a polyhedron: corners by index bits (bit 0: +x, bit 1: +y,
-/// bit 2: +z), faces −x +x −y +y −z +z counter-clockwise from outside.
-pub(super) struct BoxPoly {
-    corners: [Vec3; 8],
-    half: Vec3,
-}
-
-const BOX_EDGES: [[u32; 2]; 12] = [
-    [0, 1],
-    [0, 2],
-    [0, 4],
-    [1, 3],
-    [1, 5],
-    [2, 3],
-    [2, 6],
-    [3, 7],
-    [4, 5],
-    [4, 6],
-    [5, 7],
-    [6, 7],
-];
-
-impl BoxPoly {
-    pub(super) fn new(c: &Cuboid) -> BoxPoly {
-        BoxPoly {
-            corners: c.corners(),
-            half: c.half_extents,
-        }
-    }
-}
-
-impl Poly for BoxPoly {
-    fn nv(&self) -> usize {
-        8
-    }
-    fn vertex(&self, i: usize) -> Vec3 {
-        self.corners[i]
-    }
-    fn nf(&self) -> usize {
-        6
-    }
-    fn normal(&self, f: usize) -> Vec3 {
-        let mut n = Vec3::ZERO;
-        n.set(
-            f / 2,
-            if f % 2 == 1 {
-                Scalar::ONE
-            } else {
-                Scalar::NEG_ONE
-            },
-        );
-        n
-    }
-    fn offset(&self, f: usize) -> Scalar {
-        self.half.get(f / 2)
-    }
-    fn face(&self, f: usize) -> &[u32] {
-        &BOX_FACE_LOOPS[f]
-    }
-    fn edges(&self) -> &[[u32; 2]] {
-        &BOX_EDGES
-    }
-}
-
-impl Poly for ConvexHull {
-    fn nv(&self) -> usize {
-        self.vertices().len()
-    }
-    fn vertex(&self, i: usize) -> Vec3 {
-        self.vertices()[i]
-    }
-    fn nf(&self) -> usize {
-        self.faces().len()
-    }
-    fn normal(&self, f: usize) -> Vec3 {
-        self.faces()[f].normal()
-    }
-    fn offset(&self, f: usize) -> Scalar {
-        self.faces()[f].offset()
-    }
-    fn face(&self, f: usize) -> &[u32] {
-        self.face_vertices(f)
-    }
-    fn edges(&self) -> &[[u32; 2]] {
-        ConvexHull::edges(self)
-    }
-}
-
-/// A polyhedron expressed in A's frame, in fixed buffers.
-struct Posed<'p, P: Poly> {
-    p: &'p P,
-    verts: [Vec3; MAX_SAT_VERTICES],
-    normals: [Vec3; MAX_SAT_FACES],
-    offsets: [Scalar; MAX_SAT_FACES],
-    /// The two faces of each edge: [face running low→high, high→low].
-    adj: [[u16; 2]; MAX_SAT_EDGES],
-    /// Per edge, `n₁ × n₀` of its two face normals: the normal of the
-    /// edge's arc on the Gauss map (the same formula serves A and −B).
-    arcs: [Vec3; MAX_SAT_EDGES],
-}
-
-impl<'p, P: Poly> Posed<'p, P> {
-    /// `rel` maps the polyhedron's frame into A's (`None`: it is A).
-    fn new(p: &'p P, rel: Option<&Rel>) -> Posed<'p, P> {
-        let mut s = Posed {
-            p,
-            verts: [Vec3::ZERO; MAX_SAT_VERTICES],
-            normals: [Vec3::ZERO; MAX_SAT_FACES],
-            offsets: [Scalar::ZERO; MAX_SAT_FACES],
-            adj: [[u16::MAX; 2]; MAX_SAT_EDGES],
-            arcs: [Vec3::ZERO; MAX_SAT_EDGES],
-        };
-        for i in 0..p.nv() {
-            s.verts[i] = match rel {
-                Some(r) => r.point(p.vertex(i)),
-                None => p.vertex(i),
-            };
-        }
-        for f in 0..p.nf() {
-            let (n, d) = (p.normal(f), p.offset(f));
-            (s.normals[f], s.offsets[f]) = match rel {
-                Some(r) => {
-                    let m = r.rot.mul_vec(n);
-                    (m, d + m.dot(r.t))
-                }
-                None => (n, d),
-            };
-            let fv = p.face(f);
-            for k in 0..fv.len() {
-                let (u, v) = (fv[k], fv[(k + 1) % fv.len()]);
-                let key = [u.min(v), u.max(v)];
-                if let Ok(e) = p.edges().binary_search(&key) {
-                    s.adj[e][usize::from(u > v)] = f as u16;
-                }
-            }
-        }
-        for e in 0..p.edges().len() {
-            let [f0, f1] = s.adj[e];
-            if f0 != u16::MAX && f1 != u16::MAX {
-                s.arcs[e] = s.normals[f1 as usize].cross(s.normals[f0 as usize]);
-            }
-        }
-        s
-    }
-
-    /// The smallest `n · v` over the vertices (exact).
-    fn min_dot(&self, n: Vec3) -> i128 {
-        self.verts[..self.p.nv()]
-            .iter()
-            .map(|v| n.dot_wide(*v))
-            .min()
-            .unwrap_or(0)
-    }
+/// The smallest `n · v` over `verts` (exact).
+fn min_dot(verts: &[Vec3], n: Vec3) -> i128 {
+    verts.iter().map(|v| n.dot_wide(*v)).min().unwrap_or(0)
 }
 
 /// `s` widened to Q64.64, to compare with exact `i128` dot products.
@@ -229,11 +87,102 @@ pub(super) fn wide_of(s: Scalar) -> i128 {
     (s.to_bits() as i128) << 32
 }
 
-/// The face of `p` that separates `q` most: (separation, face).
-fn face_query<P: Poly, Q: Poly>(p: &Posed<P>, q: &Posed<Q>) -> (Scalar, usize) {
+/// The pair's balls in both frames, and the allowance that makes the
+/// bounds built on them safe against rounding.
+///
+/// A face's separation (the smallest `n · v − d` over the other shape's
+/// vertices) lies between `n · c − d − outer` and `n · c − d − inner` for
+/// the other shape's balls about `c`: the vertices are within `outer` of
+/// `c`, and the ball of radius `inner` is inside the shape. The exact test
+/// then needs to run only for faces whose upper bound reaches the best
+/// lower bound. An edge pair's separation is at most `u · (c_B − c_A) −
+/// inner_A − inner_B` along its axis `u`, and `u` lies in both edges'
+/// cones, which bounds `u · (c_B − c_A)` per edge. Features whose bound
+/// falls short are skipped; the result is the same as testing them all,
+/// bit for bit: a skipped feature's separation is below the winner's by
+/// more than the rounding of any of these numbers.
+struct Bounds {
+    /// B's centre in A's frame; A's centre in B's frame.
+    cb_in_a: Vec3,
+    ca_in_b: Vec3,
+    /// `|c_B − c_A|`, rounded up.
+    dist: Scalar,
+    /// Added to every upper bound and taken from every lower one (Q64.64):
+    /// 2⁻¹⁶ m plus 2⁻¹⁶ of the pair's extent, far above the few ulps by
+    /// which the rounded relative pose, normals and vertices move a
+    /// separation.
+    slack: i128,
+}
+
+impl Bounds {
+    fn new<PA: Poly, PB: Poly>(a: &PA, b: &PB, rel: &Rel) -> Bounds {
+        let (ba, bb) = (a.balls(), b.balls());
+        let cb_in_a = rel.point(bb.center);
+        let ca_in_b = rel.dir_in_b(ba.center - rel.t);
+        let d = cb_in_a - ba.center;
+        let dist =
+            Scalar::from_bits(crate::math::elem::isqrt_u128(d.length_squared_wide()) as i64 + 1);
+        let l1 = |v: Vec3| {
+            v.x.to_bits().unsigned_abs() as i128
+                + v.y.to_bits().unsigned_abs() as i128
+                + v.z.to_bits().unsigned_abs() as i128
+        };
+        let extent = ba.outer.to_bits() as i128
+            + bb.outer.to_bits() as i128
+            + l1(rel.t)
+            + l1(ba.center)
+            + l1(bb.center);
+        Bounds {
+            cb_in_a,
+            ca_in_b,
+            dist,
+            slack: (1i128 << 48) + (extent << 16),
+        }
+    }
+}
+
+/// The best lower bound on `p`'s face separations against the shape with
+/// balls `q` (centre `cq` in `p`'s own frame), Q64.64.
+fn face_low<P: Poly>(p: &P, q: &Balls, cq: Vec3, slack: i128) -> i128 {
+    (0..p.nf())
+        .map(|f| face_estimate(p, f, cq))
+        .max()
+        .unwrap_or(0)
+        - wide_of(q.outer)
+        - slack
+}
+
+/// `n · c − d` for face `f` of `p` and a point `c` of `p`'s frame.
+#[inline(always)]
+fn face_estimate<P: Poly>(p: &P, f: usize, c: Vec3) -> i128 {
+    p.normal(f).dot_wide(c) - wide_of(p.offset(f))
+}
+
+/// Whether a lower bound from [`face_low`] already puts the separation
+/// beyond `margin`, after rounding to Q32.32.
+fn beyond(low: i128, margin: Scalar) -> bool {
+    low > wide_of(margin) + (1 << 32)
+}
+
+/// The face of `p` that separates the other shape most: (separation,
+/// face), the lowest index on ties, as if every face were tested exactly
+/// by `exact(f)` (Q64.64, in A's frame) and rounded. Only faces whose upper
+/// bound (from the other shape's balls `q`, centre `cq` in `p`'s frame)
+/// reaches `low` (from [`face_low`]) are tested.
+fn face_query<P: Poly>(
+    p: &P,
+    q: &Balls,
+    cq: Vec3,
+    slack: i128,
+    low: i128,
+    mut exact: impl FnMut(usize) -> i128,
+) -> (Scalar, usize) {
     let mut best = (Scalar::MIN, 0);
-    for f in 0..p.p.nf() {
-        let sep = Scalar::from_wide(q.min_dot(p.normals[f]) - wide_of(p.offsets[f]));
+    for f in 0..p.nf() {
+        if face_estimate(p, f, cq) - wide_of(q.inner) + slack < low {
+            continue;
+        }
+        let sep = Scalar::from_wide(exact(f));
         if sep > best.0 {
             best = (sep, f);
         }
@@ -250,35 +199,87 @@ fn dot_sign(u: Vec3, v: Vec3) -> i64 {
     (t(u.x) * t(v.x) + t(u.y) * t(v.y) + t(u.z) * t(v.z)).signum()
 }
 
-/// The best edge–edge axis: (separation, edge of A, edge of B, axis A→B).
-///
-/// Only pairs whose arcs cross on the Gauss map (Gregorius' Minkowski-face
-/// test, on the signs of exact dot products with the precomputed arc
-/// normals) can realise the separation; the others are skipped without
-/// computing an axis. Strict signs: parallel edges never pass (their axes
-/// are face axes).
-fn edge_query<P: Poly, Q: Poly>(
-    a: &Posed<P>,
-    b: &Posed<Q>,
-) -> Option<(Scalar, usize, usize, Vec3)> {
-    let mut best: Option<(Scalar, usize, usize, Vec3)> = None;
-    for (ea, &[alo, ahi]) in a.p.edges().iter().enumerate() {
-        let [fa0, fa1] = a.adj[ea];
-        if fa0 == u16::MAX || fa1 == u16::MAX {
+/// The edges of `p` (own frame) whose cone bound can reach `floor`: `dir`
+/// is `c_B − c_A` seen from `p`'s side (A: `c_B − c_A`; B: `c_A − c_B`, as
+/// B's arcs hold `−u`), in `p`'s frame; `inner` is both inner radii.
+/// Writes their indices, ascending, to `out`; returns how many.
+fn edge_candidates<P: Poly>(
+    p: &P,
+    dir: Vec3,
+    bounds: &Bounds,
+    inner: i128,
+    floor: i128,
+    out: &mut [u16; MAX_SAT_EDGES],
+) -> usize {
+    let mut n = 0;
+    for e in 0..p.edges().len() {
+        let [f0, f1] = p.edge_faces(e);
+        if f0 == NO_FACE || f1 == NO_FACE {
             continue;
         }
-        let (na, nb) = (a.normals[fa0 as usize], a.normals[fa1 as usize]);
-        let arc_a = a.arcs[ea];
-        let pa = a.verts[alo as usize];
-        let ua = a.verts[ahi as usize] - pa;
-        for (eb, &[blo, bhi]) in b.p.edges().iter().enumerate() {
-            let [fb0, fb1] = b.adj[eb];
-            if fb0 == u16::MAX || fb1 == u16::MAX {
-                continue;
-            }
+        let (axis, radius) = p.cone(e);
+        let up = axis.dot_wide(dir) + radius.wide_mul(bounds.dist) - inner + bounds.slack;
+        if up >= floor {
+            out[n] = e as u16;
+            n += 1;
+        }
+    }
+    n
+}
+
+/// The best edge–edge axis: (separation, edge of A, edge of B, axis A→B),
+/// over the edges whose cone bounds can beat `floor` (the best face
+/// separation; an edge pair below it can neither win nor separate).
+///
+/// Only pairs whose arcs cross on the Gauss map (Gregorius' Minkowski-face
+/// test, on the signs of exact dot products with the arc normals) can
+/// realise the separation; the others are skipped without computing an
+/// axis. Strict signs: parallel edges never pass (their axes are face
+/// axes).
+fn edge_query<PA: Poly, PB: Poly>(
+    a: &PA,
+    b: &mut Moved<PB>,
+    bounds: &Bounds,
+    floor: Scalar,
+) -> Option<(Scalar, usize, usize, Vec3)> {
+    let (ba, bb) = (a.balls(), b.p.balls());
+    let inner = wide_of(ba.inner) + wide_of(bb.inner);
+    let floor = wide_of(floor);
+    let mut ca = [0u16; MAX_SAT_EDGES];
+    let na_count = edge_candidates(a, bounds.cb_in_a - ba.center, bounds, inner, floor, &mut ca);
+    if na_count == 0 {
+        return None;
+    }
+    let mut cb = [0u16; MAX_SAT_EDGES];
+    let nb_count = edge_candidates(
+        b.p,
+        bounds.ca_in_b - bb.center,
+        bounds,
+        inner,
+        floor,
+        &mut cb,
+    );
+    // B's planes and arcs for the candidates, once, before the pair loop.
+    for &eb in &cb[..nb_count] {
+        b.arc(eb as usize);
+    }
+    let av = a.vertices();
+    let mut best: Option<(Scalar, usize, usize, Vec3)> = None;
+    for &ea in &ca[..na_count] {
+        let ea = ea as usize;
+        let [alo, ahi] = a.edges()[ea];
+        let [fa0, fa1] = a.edge_faces(ea);
+        let (na, nb) = (a.normal(fa0 as usize), a.normal(fa1 as usize));
+        let arc_a = a.arc(ea);
+        let pa = av[alo as usize];
+        let ua = av[ahi as usize] - pa;
+        for &eb in &cb[..nb_count] {
+            let eb = eb as usize;
+            let [blo, bhi] = b.p.edges()[eb];
+            let [fb0, fb1] = b.p.edge_faces(eb);
             // B's normals enter negated (the Minkowski difference A − B).
-            let cba = -dot_sign(b.normals[fb0 as usize], arc_a);
-            let dba = -dot_sign(b.normals[fb1 as usize], arc_a);
+            let cba = -dot_sign(b.planes[fb0 as usize].0, arc_a);
+            let dba = -dot_sign(b.planes[fb1 as usize].0, arc_a);
             if cba * dba >= 0 {
                 continue;
             }
@@ -410,22 +411,21 @@ pub(super) fn emit(out: &mut Manifold, pose_a: &Transform, normal: Vec3, cands: 
 /// Clips the incident face of `inc` against reference face `rf` of `rfp`
 /// and returns the points within `margin` (A's frame, normal of the
 /// reference face; the caller orients it).
-fn clip_faces<R: Poly, I: Poly>(
-    rfp: &Posed<R>,
+fn clip_faces<R: Frame, I: Frame>(
+    rfp: &mut R,
     rf: usize,
-    inc: &Posed<I>,
+    inc: &mut I,
     ref_is_b: bool,
     margin: Scalar,
     out: &mut [Cand; 4],
 ) -> usize {
-    let n = rfp.normals[rf];
-    let d = rfp.offsets[rf];
+    let (n, d) = rfp.plane(rf);
     // The incident shape's deepest vertex along −n, then the face through
     // it most anti-parallel to n (lowest index on ties): the polygon then
     // always holds the deepest point.
     let mut deep = 0;
     let mut deep_dot = i128::MAX;
-    for (i, v) in inc.verts[..inc.p.nv()].iter().enumerate() {
+    for (i, v) in inc.verts().iter().enumerate() {
         let dot = n.dot_wide(*v);
         if dot < deep_dot {
             deep_dot = dot;
@@ -434,27 +434,27 @@ fn clip_faces<R: Poly, I: Poly>(
     }
     let mut inc_f = 0;
     let mut low = i128::MAX;
-    for f in 0..inc.p.nf() {
-        if !inc.p.face(f).contains(&(deep as u32)) {
+    for f in 0..inc.poly().nf() {
+        if !inc.poly().face(f).contains(&(deep as u32)) {
             continue;
         }
-        let dot = inc.normals[f].dot_wide(n);
+        let dot = inc.plane(f).0.dot_wide(n);
         if dot < low {
             low = dot;
             inc_f = f;
         }
     }
     let mut buf = [[(Vec3::ZERO, 0u16); CLIP_CAP]; 2];
-    let iv = inc.p.face(inc_f);
+    let iv = inc.poly().face(inc_f);
     let mut count = iv.len().min(CLIP_CAP);
     for (k, &v) in iv.iter().take(count).enumerate() {
-        buf[0][k] = (inc.verts[v as usize], v as u16);
+        buf[0][k] = (inc.verts()[v as usize], v as u16);
     }
-    let rv = rfp.p.face(rf);
+    let rv = rfp.poly().face(rf);
     let mut cur = 0;
     for k in 0..rv.len() {
-        let a = rfp.verts[rv[k] as usize];
-        let b = rfp.verts[rv[(k + 1) % rv.len()] as usize];
+        let a = rfp.verts()[rv[k] as usize];
+        let b = rfp.verts()[rv[(k + 1) % rv.len()] as usize];
         let Some(side) = unit_from_wide(cross_wide(b - a, n)) else {
             continue;
         };
@@ -506,7 +506,7 @@ fn clip_faces<R: Poly, I: Poly>(
     if nc == 0 {
         // Deep overlap with the incident face outside the reference face's
         // prism: the deepest vertex alone.
-        let p = inc.verts[deep];
+        let p = inc.verts()[deep];
         let sep = Scalar::from_wide(deep_dot - wide_of(d));
         if sep > margin {
             return 0;
@@ -523,6 +523,11 @@ fn clip_faces<R: Poly, I: Poly>(
 
 /// SAT + clipping between two polyhedra, A's frame; the callers keep hulls
 /// beyond the buffers ([`MAX_SAT_VERTICES`]) away from it.
+///
+/// The same result, bit for bit, as testing every face and every
+/// Gauss-map-valid edge pair exactly; the balls' bounds (see [`Bounds`])
+/// decide only which of those tests can be skipped, and a pair apart by
+/// more than `margin` on a face bound ends before any vertex is moved.
 pub(super) fn poly_poly<PA: Poly, PB: Poly>(
     a: &PA,
     pose_a: &Transform,
@@ -531,21 +536,47 @@ pub(super) fn poly_poly<PA: Poly, PB: Poly>(
     margin: Scalar,
     out: &mut Manifold,
 ) -> bool {
+    sat_and_clip(a, pose_a, b, pose_b, margin, true, out)
+}
+
+/// [`poly_poly`], or with `prune` false the same test with bounds so loose
+/// that nothing is skipped (the reference its tests compare with).
+fn sat_and_clip<PA: Poly, PB: Poly>(
+    a: &PA,
+    pose_a: &Transform,
+    b: &PB,
+    pose_b: &Transform,
+    margin: Scalar,
+    prune: bool,
+    out: &mut Manifold,
+) -> bool {
     let rel = Rel::new(pose_a, pose_b);
-    let pa = Posed::new(a, None);
-    let pb = Posed::new(b, Some(&rel));
-    let (sa, fa) = face_query(&pa, &pb);
+    let mut bounds = Bounds::new(a, b, &rel);
+    if !prune {
+        bounds.slack = 1 << 100;
+    }
+    let slack = bounds.slack;
+    let low_a = face_low(a, b.balls(), bounds.cb_in_a, slack);
+    if beyond(low_a, margin) {
+        return false;
+    }
+    let low_b = face_low(b, a.balls(), bounds.ca_in_b, slack);
+    if beyond(low_b, margin) {
+        return false;
+    }
+    let mut pa = Fixed(a);
+    let mut pb = Moved::new(b, &rel);
+    let (sa, fa) = face_query(a, b.balls(), bounds.cb_in_a, slack, low_a, |f| {
+        min_dot(pb.verts(), a.normal(f)) - wide_of(a.offset(f))
+    });
     if sa > margin {
         return false;
     }
-    let (sb, fb) = face_query(&pb, &pa);
+    let (sb, fb) = face_query(b, a.balls(), bounds.ca_in_b, slack, low_b, |f| {
+        let (m, d) = pb.plane(f);
+        min_dot(a.vertices(), m) - wide_of(d)
+    });
     if sb > margin {
-        return false;
-    }
-    let edge = edge_query(&pa, &pb);
-    if let Some((se, ..)) = edge
-        && se > margin
-    {
         return false;
     }
     let (sf, b_ref) = if sb > sa + feature_tolerance(sa) {
@@ -553,14 +584,20 @@ pub(super) fn poly_poly<PA: Poly, PB: Poly>(
     } else {
         (sa, false)
     };
+    let edge = edge_query(a, &mut pb, &bounds, sf);
+    if let Some((se, ..)) = edge
+        && se > margin
+    {
+        return false;
+    }
     if let Some((se, ea, eb, axis)) = edge
         && se > sf + feature_tolerance(sf)
     {
         let [a0, a1] = a.edges()[ea];
         let [b0, b1] = b.edges()[eb];
         let (ca, cb) = closest_segments(
-            pa.verts[a0 as usize],
-            pa.verts[a1 as usize],
+            a.vertices()[a0 as usize],
+            a.vertices()[a1 as usize],
             pb.verts[b0 as usize],
             pb.verts[b1 as usize],
         );
@@ -573,11 +610,11 @@ pub(super) fn poly_poly<PA: Poly, PB: Poly>(
     }
     let mut cands = [Cand::default(); 4];
     let (n, normal) = if b_ref {
-        let n = clip_faces(&pb, fb, &pa, true, margin, &mut cands);
-        (n, -pb.normals[fb])
+        let n = clip_faces(&mut pb, fb, &mut pa, true, margin, &mut cands);
+        (n, -pb.plane(fb).0)
     } else {
-        let n = clip_faces(&pa, fa, &pb, false, margin, &mut cands);
-        (n, pa.normals[fa])
+        let n = clip_faces(&mut pa, fa, &mut pb, false, margin, &mut cands);
+        (n, a.normal(fa))
     };
     emit(out, pose_a, normal, &cands[..n])
 }

@@ -105,7 +105,7 @@ enum Sh {
     Sphere(Sphere),
     Capsule(Capsule),
     Box(Cuboid),
-    Hull(ConvexHull),
+    Hull(Box<ConvexHull>),
 }
 
 impl Sh {
@@ -140,7 +140,7 @@ impl Sh {
             }
             Sh::Box(x) => {
                 let h = ConvexHull::from_points(&x.corners()).unwrap();
-                return Sh::Hull(h).reference(pose);
+                return Sh::Hull(Box::new(h)).reference(pose);
             }
             Sh::Hull(h) => {
                 r.verts = h.vertices().iter().map(|v| world(pose, f(*v))).collect();
@@ -368,7 +368,7 @@ fn random_shape(rng: &mut Rng, kind: usize) -> Sh {
         ),
         _ => {
             let scale = rng.uniform(0.3, 2.0);
-            Sh::Hull(random_hull(rng, scale))
+            Sh::Hull(Box::new(random_hull(rng, scale)))
         }
     }
 }
@@ -379,14 +379,14 @@ fn dist_of(a: &Sh, pa: &Transform, b: &Sh, pb: &Transform) -> DistanceResult {
             Sh::Sphere(x) => distance(a, pa, x, pb),
             Sh::Capsule(x) => distance(a, pa, x, pb),
             Sh::Box(x) => distance(a, pa, x, pb),
-            Sh::Hull(x) => distance(a, pa, x, pb),
+            Sh::Hull(x) => distance(a, pa, &**x, pb),
         }
     }
     match a {
         Sh::Sphere(x) => inner(x, pa, b, pb),
         Sh::Capsule(x) => inner(x, pa, b, pb),
         Sh::Box(x) => inner(x, pa, b, pb),
-        Sh::Hull(x) => inner(x, pa, b, pb),
+        Sh::Hull(x) => inner(&**x, pa, b, pb),
     }
 }
 
@@ -401,14 +401,14 @@ fn pen_of(a: &Sh, pa: &Transform, b: &Sh, pb: &Transform) -> Option<Penetration>
             Sh::Sphere(x) => penetration(a, pa, x, pb),
             Sh::Capsule(x) => penetration(a, pa, x, pb),
             Sh::Box(x) => penetration(a, pa, x, pb),
-            Sh::Hull(x) => penetration(a, pa, x, pb),
+            Sh::Hull(x) => penetration(a, pa, &**x, pb),
         }
     }
     match a {
         Sh::Sphere(x) => inner(x, pa, b, pb),
         Sh::Capsule(x) => inner(x, pa, b, pb),
         Sh::Box(x) => inner(x, pa, b, pb),
-        Sh::Hull(x) => inner(x, pa, b, pb),
+        Sh::Hull(x) => inner(&**x, pa, b, pb),
     }
 }
 
@@ -1299,7 +1299,7 @@ fn hulls_beyond_the_sat_buffers_fall_back_to_one_gjk_epa_point() {
         &mut m
     ));
     assert_eq!(m.count, 1);
-    let sh = Sh::Hull(ball.clone());
+    let sh = Sh::Hull(Box::new(ball.clone()));
     let gap = core_distance(&sh.reference(&Transform::IDENTITY), &sh.reference(&near));
     assert!((0.005..0.006).contains(&gap), "{gap}");
     assert!(
@@ -1328,7 +1328,7 @@ fn extreme_sizes_keep_distances_accurate() {
             let Ok(h) = ConvexHull::from_points(&pts) else {
                 continue;
             };
-            let b = Sh::Hull(h);
+            let b = Sh::Hull(Box::new(h));
             let pa = rng.pose(spread);
             let pb = rng.pose(spread);
             let want = core_distance(&a.reference(&pa), &b.reference(&pb));

@@ -2,5 +2,5 @@
 //! brute force, determinism, allocation, timing.
 
 mod broad_phase;
-mod rng;
+pub(in crate::collision) mod rng;
 mod tree;
