@@ -57,6 +57,7 @@ use poly::{Fixed, Frame, Moved};
 
 use super::gjk::{ONE_Q62, Rel, cross_wide, fit, q62, unit_from_wide};
 use crate::collision::{ContactPoint, FeatureId, Manifold};
+use crate::math::elem::isqrt_u128;
 use crate::math::scalar::round_shift;
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::sat_features::{Balls, NO_FACE};
@@ -120,8 +121,7 @@ impl Bounds {
         let cb_in_a = rel.point(bb.center);
         let ca_in_b = rel.dir_in_b(ba.center - rel.t);
         let d = cb_in_a - ba.center;
-        let dist =
-            Scalar::from_bits(crate::math::elem::isqrt_u128(d.length_squared_wide()) as i64 + 1);
+        let dist = Scalar::from_bits(isqrt_u128(d.length_squared_wide()) as i64 + 1);
         let l1 = |v: Vec3| {
             v.x.to_bits().unsigned_abs() as i128
                 + v.y.to_bits().unsigned_abs() as i128
@@ -199,26 +199,44 @@ fn dot_sign(u: Vec3, v: Vec3) -> i64 {
     (t(u.x) * t(v.x) + t(u.y) * t(v.y) + t(u.z) * t(v.z)).signum()
 }
 
-/// The edges of `p` (own frame) whose cone bound can reach `floor`: `dir`
-/// is `c_B − c_A` seen from `p`'s side (A: `c_B − c_A`; B: `c_A − c_B`, as
-/// B's arcs hold `−u`), in `p`'s frame; `inner` is both inner radii.
-/// Writes their indices, ascending, to `out`; returns how many.
+/// The edges of `p` (own frame) whose cone bounds can reach `floor`:
+/// `dir` is `c_B − c_A` seen from `p`'s side (A: `c_B − c_A`; B: `c_A −
+/// c_B`, as B's arcs hold `−u`), in `p`'s frame; `inner` is both inner
+/// radii; `other` is the other shape's centre in `p`'s frame and
+/// `other_inner` its inner radius. Writes their indices, ascending, to
+/// `out`; returns how many.
+///
+/// Two bounds, the cheap one first. With `u` in the edge's cone, `p`'s
+/// extent along `u` is reached on the edge itself (at its vertex `q`),
+/// and the other shape reaches at least `inner` past its centre, so the
+/// separation is at most `u · (other − q) − other_inner`; before paying for
+/// `|other − q|`, the same with `p`'s inner ball in place of the edge.
+#[allow(clippy::too_many_arguments)]
 fn edge_candidates<P: Poly>(
     p: &P,
     dir: Vec3,
     bounds: &Bounds,
     inner: i128,
+    other: Vec3,
+    other_inner: Scalar,
     floor: i128,
     out: &mut [u16; MAX_SAT_EDGES],
 ) -> usize {
     let mut n = 0;
-    for e in 0..p.edges().len() {
+    let verts = p.vertices();
+    for (e, &[lo, _]) in p.edges().iter().enumerate() {
         let [f0, f1] = p.edge_faces(e);
         if f0 == NO_FACE || f1 == NO_FACE {
             continue;
         }
         let (axis, radius) = p.cone(e);
         let up = axis.dot_wide(dir) + radius.wide_mul(bounds.dist) - inner + bounds.slack;
+        if up < floor {
+            continue;
+        }
+        let w = other - verts[lo as usize];
+        let reach = Scalar::from_bits(isqrt_u128(w.length_squared_wide()) as i64 + 1);
+        let up = axis.dot_wide(w) + radius.wide_mul(reach) - wide_of(other_inner) + bounds.slack;
         if up >= floor {
             out[n] = e as u16;
             n += 1;
@@ -246,7 +264,16 @@ fn edge_query<PA: Poly, PB: Poly>(
     let inner = wide_of(ba.inner) + wide_of(bb.inner);
     let floor = wide_of(floor);
     let mut ca = [0u16; MAX_SAT_EDGES];
-    let na_count = edge_candidates(a, bounds.cb_in_a - ba.center, bounds, inner, floor, &mut ca);
+    let na_count = edge_candidates(
+        a,
+        bounds.cb_in_a - ba.center,
+        bounds,
+        inner,
+        bounds.cb_in_a,
+        bb.inner,
+        floor,
+        &mut ca,
+    );
     if na_count == 0 {
         return None;
     }
@@ -256,6 +283,8 @@ fn edge_query<PA: Poly, PB: Poly>(
         bounds.ca_in_b - bb.center,
         bounds,
         inner,
+        bounds.ca_in_b,
+        ba.inner,
         floor,
         &mut cb,
     );
