@@ -1,8 +1,13 @@
 //! Determinism: the same scene run twice gives the same hash every tick;
-//! snapshots restore exactly; hashes see every change.
+//! snapshots restore exactly; hashes see every change; an observed step is
+//! a plain step.
 
+use lockstep_core::math::FaultScope;
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
-use lockstep_core::{BodyDesc, ColliderDesc, Quat, Scalar, Transform, Vec3, World, WorldConfig};
+use lockstep_core::world::{Stage, StepObserver};
+use lockstep_core::{
+    BodyDesc, ColliderDesc, Faults, Quat, Scalar, Transform, Vec3, World, WorldConfig,
+};
 
 fn s(v: f64) -> Scalar {
     Scalar::from_f64_lossy(v)
@@ -191,4 +196,152 @@ fn body_hashes_name_the_body_that_changed() {
         .map(|(x, _)| x.0)
         .collect();
     assert_eq!(diff, vec![target]);
+}
+
+/// Records the stages it is told about (preallocated: an observer must not
+/// allocate), and raises an overflow fault at each one when `faulty`.
+struct Recorder {
+    stages: Vec<Stage>,
+    faulty: bool,
+}
+
+impl StepObserver for Recorder {
+    fn finished(&mut self, stage: Stage) {
+        self.stages.push(stage);
+        if self.faulty {
+            lockstep_core::math::faults::raise(Faults::OVERFLOW);
+        }
+    }
+}
+
+/// A unit box resting on a ground box, stepped with `substeps`.
+fn resting_box(substeps: u32) -> World {
+    let mut w = World::new(WorldConfig {
+        substeps,
+        ..WorldConfig::default()
+    })
+    .unwrap();
+    let ground = w
+        .create_body(&BodyDesc::fixed().position(Vec3::new(Scalar::ZERO, s(-1.0), Scalar::ZERO)))
+        .unwrap();
+    let cube = |h: f64| {
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: Vec3::new(s(h), s(1.0f64.min(h)), s(h)),
+        }))
+    };
+    w.add_collider(ground, cube(10.0)).unwrap();
+    let b = w
+        .create_body(&BodyDesc::dynamic().position(Vec3::new(Scalar::ZERO, s(0.5), Scalar::ZERO)))
+        .unwrap();
+    w.add_collider(b, cube(0.5)).unwrap();
+    w
+}
+
+#[test]
+fn an_observed_step_reports_the_documented_stages_in_order() {
+    use Stage::*;
+    for substeps in [1, 4] {
+        let mut w = resting_box(substeps);
+        let mut rec = Recorder {
+            stages: Vec::with_capacity(64),
+            faulty: false,
+        };
+        // The second step: the box touches the ground, the solver works.
+        w.step();
+        let r = w.step_observed(&mut rec);
+        assert!(r.contact_constraints == 1 && r.contact_points >= 4, "{r:?}");
+        let mut want = vec![
+            AwakeList,
+            KinematicTargets,
+            BroadPhase,
+            NarrowPhase,
+            WakeTouched,
+            PrepareContacts,
+            CcdBegin,
+        ];
+        for _ in 0..substeps {
+            want.extend([
+                IntegrateVelocities,
+                WarmStart,
+                Solve,
+                IntegratePositions,
+                Relax,
+            ]);
+        }
+        want.extend([
+            Restitution,
+            StoreImpulses,
+            FinishVelocities,
+            Ccd,
+            SnapKinematic,
+            ClearForces,
+            Sleep,
+            SyncProxies,
+        ]);
+        assert_eq!(rec.stages, want, "substeps {substeps}");
+        if substeps == 1 {
+            // `Stage::ALL` is the order of a one-substep step.
+            assert_eq!(rec.stages, Stage::ALL);
+        }
+    }
+    for (i, st) in Stage::ALL.iter().enumerate() {
+        assert_eq!(st.index(), i);
+        assert!(Stage::ALL[..i].iter().all(|o| o.name() != st.name()));
+        let in_loop = matches!(
+            st,
+            IntegrateVelocities | WarmStart | Solve | IntegratePositions | Relax
+        );
+        assert_eq!(st.per_substep(), in_loop, "{st:?}");
+    }
+}
+
+#[test]
+fn an_observed_step_gives_the_same_state_and_report_as_a_plain_one() {
+    let mut plain = build();
+    let mut observed = build();
+    let mut rec = Recorder {
+        stages: Vec::with_capacity(64),
+        faulty: false,
+    };
+    let mut contacts = 0;
+    for t in 0..400 {
+        drive(&mut plain, t);
+        drive(&mut observed, t);
+        let a = plain.step();
+        rec.stages.clear();
+        let b = observed.step_observed(&mut rec);
+        assert_eq!(a, b, "tick {t}");
+        assert_eq!(plain.state_hash(), observed.state_hash(), "tick {t}");
+        assert_eq!(rec.stages.len(), 7 + 5 * 4 + 8);
+        contacts += a.contact_points;
+    }
+    // The comparison covered steps with contacts, not only free flight.
+    assert!(contacts > 0);
+    assert_eq!(plain, observed);
+}
+
+#[test]
+fn faults_raised_by_the_observer_are_not_the_steps() {
+    let mut plain = build();
+    let mut observed = build();
+    let mut rec = Recorder {
+        stages: Vec::with_capacity(64),
+        faulty: true,
+    };
+    for t in 0..20 {
+        drive(&mut plain, t);
+        drive(&mut observed, t);
+        let a = plain.step();
+        rec.stages.clear();
+        let (b, outside) = FaultScope::run(|| observed.step_observed(&mut rec));
+        assert!(
+            b.faults.is_empty() && b.sticky_faults.is_empty(),
+            "tick {t}"
+        );
+        assert_eq!(a, b, "tick {t}");
+        assert!(observed.faults().is_empty());
+        // Nor the caller's: the observer's own scope swallowed them.
+        assert!(outside.is_empty(), "tick {t}: {outside}");
+    }
+    assert_eq!(plain.state_hash(), observed.state_hash());
 }

@@ -1,11 +1,13 @@
-//! `step()` allocates nothing once the world is warm: proven with a counting
-//! global allocator. It counts per thread (the test harness's own threads
-//! allocate at any time), and the world is stepped on the test's thread.
+//! `step()` (and `step_observed()`) allocates nothing once the world is
+//! warm: proven with a counting global allocator. It counts per thread (the
+//! test harness's own threads allocate at any time), and the world is
+//! stepped on the test's thread.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
+use lockstep_core::world::{Stage, StepObserver};
 use lockstep_core::{BodyDesc, ColliderDesc, Quat, Scalar, Transform, Vec3, World, WorldConfig};
 
 struct Counting;
@@ -106,4 +108,32 @@ fn step_does_not_allocate_once_warm() {
         "step() allocated {} times",
         after - before
     );
+    // An observed step adds no allocation of its own (the observer here
+    // counts into a fixed array, as an observer must).
+    let mut counts = StageCounts([0; Stage::ALL.len()]);
+    let before = allocations();
+    for _ in 0..50 {
+        let r = w.step_observed(&mut counts);
+        assert!(r.faults.is_empty());
+    }
+    let after = allocations();
+    assert_eq!(after - before, 0, "step_observed() allocated");
+    // Every stage was reported: once a step, the substep ones per substep.
+    for st in Stage::ALL {
+        let per_step = if st.per_substep() {
+            w.config().substeps
+        } else {
+            1
+        };
+        assert_eq!(counts.0[st.index()], 50 * per_step, "{st:?}");
+    }
+}
+
+/// Counts the calls per stage.
+struct StageCounts([u32; Stage::ALL.len()]);
+
+impl StepObserver for StageCounts {
+    fn finished(&mut self, stage: Stage) {
+        self.0[stage.index()] += 1;
+    }
 }

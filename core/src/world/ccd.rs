@@ -386,6 +386,7 @@ impl World {
     /// substeps move them): the start of the motion CCD sweeps. Only awake
     /// dynamic bodies are swept, so sleepers' entries are left as they are.
     /// Returns the buffer growths.
+    #[inline(never)]
     pub(crate) fn stage_ccd_begin(&mut self) -> u32 {
         let (hot, awake) = self.bodies.awake_slots_mut();
         let start = &mut self.ccd.start;
@@ -426,6 +427,7 @@ impl World {
     ///
     /// Determinism: must run in the same place of every step; candidates in
     /// handle order, non-bullets before bullets.
+    #[inline(never)]
     pub(crate) fn stage_ccd(&mut self) -> CcdStats {
         let mut stats = CcdStats::default();
         let dt = self.config.dt();

@@ -1,10 +1,10 @@
-//! The collision stage of `World::step`: broad-phase update, candidate
-//! pairs, narrow phase, persistent manifolds and events.
+//! The collision stages of `World::step`: broad-phase update and candidate
+//! pairs; narrow phase, persistent manifolds and events; waking.
 
 use crate::body::{BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::collider::ColliderHandle;
 use crate::collision::contacts::{Candidate, ContactStats, PairKind};
-use crate::collision::{ProxyKey, ProxyKind, narrow};
+use crate::collision::{PairStats, ProxyKey, ProxyKind, narrow};
 
 use super::World;
 
@@ -114,26 +114,23 @@ impl World {
         });
     }
 
-    /// The collision stage: find candidate pairs (the proxies were moved at
-    /// the end of the previous step), run the narrow phase on each and update
-    /// the persistent contact set and its events.
+    /// The broad-phase stage: proxy kinds follow the bodies' sleep states
+    /// (the game may wake or put bodies to sleep between steps; the proxies
+    /// were moved at the end of the previous step), then the candidate pairs
+    /// are found, filtered by body, category/mask/group and trigger rules,
+    /// and left in `self.candidates` for the narrow phase.
     ///
     /// Determinism: candidates come out of the broad phase sorted by collider
-    /// handle, and everything after follows that order.
-    pub(crate) fn stage_collide(&mut self) -> (ContactStats, u32) {
-        let margin = self.config.contact_margin;
-        let dt = self.config.dt();
+    /// handle.
+    #[inline(never)]
+    pub(crate) fn stage_broad_phase(&mut self) -> PairStats {
         self.sync_proxies(false);
         let World {
-            bodies,
             colliders,
             broad,
-            contacts,
             candidates,
             ..
         } = self;
-        // 2. Candidate pairs, filtered by body, category/mask/group and
-        //    trigger rules.
         let filter = |ka: ProxyKey, kb: ProxyKey| {
             let (Some(a), Some(b)) = (
                 colliders.get(collider_of(ka).0),
@@ -143,8 +140,25 @@ impl World {
             };
             a.body != b.body && !(a.is_trigger && b.is_trigger) && a.filter.allows(&b.filter)
         };
-        let pair_stats = broad.update_pairs(filter, candidates);
-        // 3. Narrow phase and the persistent contact set.
+        broad.update_pairs(filter, candidates)
+    }
+
+    /// The narrow-phase stage: the narrow phase on each candidate pair of
+    /// the broad phase, and the persistent contact set and its events.
+    ///
+    /// Determinism: the candidates are in collider-handle order and
+    /// everything here follows that order.
+    #[inline(never)]
+    pub(crate) fn stage_narrow_phase(&mut self) -> ContactStats {
+        let margin = self.config.contact_margin;
+        let dt = self.config.dt();
+        let World {
+            bodies,
+            colliders,
+            contacts,
+            candidates,
+            ..
+        } = self;
         let cands = candidates.iter().map(|&(ka, kb)| {
             let (a, b) = (collider_of(ka), collider_of(kb));
             let trigger = colliders.get(a.0).is_some_and(|c| c.is_trigger)
@@ -191,13 +205,12 @@ impl World {
                 ) | (Some(ProxyKind::Static), Some(ProxyKind::Sleeping))
             )
         };
-        let mut stats = contacts.update(cands, narrow_phase, resting);
-        stats.growths += pair_stats.buffer_growths;
+        let stats = contacts.update(cands, narrow_phase, resting);
         debug_assert!(
             self.active_pairs_cover_moving(),
             "active pair list misses a pair"
         );
-        (stats, pair_stats.reinsertions)
+        stats
     }
 
     /// Whether the contact set's active list is valid, ascending, and holds
@@ -237,10 +250,12 @@ impl World {
     /// a body that merely rests against a sleeper does not wake it, so two
     /// resting bodies cannot keep waking each other. Returns how many woke.
     /// Each pass wakes at least one body or ends the loop, so it runs at
-    /// most (sleeping bodies + 1) passes.
+    /// most (sleeping bodies + 1) passes. The awake list then includes the
+    /// woken.
     ///
     /// Determinism: pairs in handle order; each decision reads the state as
     /// left by the pairs before it.
+    #[inline(never)]
     pub(crate) fn stage_wake_touched(&mut self) -> u32 {
         // Repeat until a pass wakes nothing, so a woken body passes the wake
         // on through pairs that come before it in handle order: the whole
@@ -263,6 +278,9 @@ impl World {
         if all {
             // Sleepers woke: their resting pairs may be active now.
             self.rebuild_active_pairs();
+        }
+        if total > 0 {
+            self.bodies.refresh_awake();
         }
         total
     }

@@ -4,6 +4,7 @@ mod body_ref;
 mod ccd;
 mod collide;
 mod config;
+mod observe;
 mod query;
 mod state_hash;
 mod step;
@@ -13,6 +14,7 @@ pub use ccd::{CCD_MAX_ITERATIONS, CCD_TARGET_GAP, CCD_TOLERANCE};
 pub use config::{
     MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig, WorldError,
 };
+pub use observe::{Stage, StepObserver};
 pub use state_hash::STATE_HASH_VERSION;
 
 use serde::{Deserialize, Serialize};

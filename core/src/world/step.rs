@@ -1,35 +1,44 @@
 //! `World::step`: the named stages, in order.
+//!
+//! Every stage runs in its own `#[inline(never)]` function named `stage_`
+//! and the [`Stage::name`], so profilers attribute instructions to stages
+//! (see [`Stage`]); an observed step is told when each one ends.
 
-use crate::body::BodyKind;
+use crate::body::{BodyHot, BodyKind};
+use crate::collision::ContactPair;
 use crate::collision::contacts::PairKind;
 use crate::math::{Scalar, Vec3};
-use crate::solver::contact_solver::{PairInfo, Softness, SolverParams, SolverStats};
-use crate::solver::{integrate, sleep};
+use crate::solver::contact_solver::{ContactSolver, PairInfo, Softness, SolverParams, SolverStats};
+use crate::solver::integrate::{self, VelocityCounters};
+use crate::solver::sleep;
 
+use super::observe::{Guarded, Notify, Quiet, Stage, StepObserver};
 use super::{StepReport, World, rotation_delta};
 
 impl World {
     /// Advances the world by one tick (`1/tick_rate` seconds).
     ///
-    /// Stages, in order:
-    /// 1. `kinematic_targets`: kinematic bodies with a target pose get the
-    ///    velocities that reach it over the tick;
-    ///    then `collide`: candidate pairs from the broad phase (whose proxies
-    ///    follow the poses at the start of the tick), narrow phase,
-    ///    persistent manifolds and contact/trigger events (read them with
-    ///    [`World::contact_events`]); then `wake_touched`: sleeping bodies
-    ///    touched by a moving body wake;
+    /// Stages, in order ([`Stage::ALL`]):
+    /// 1. `awake_list`: the list of awake bodies catches up with the game's
+    ///    calls since the last step; `kinematic_targets`: kinematic bodies
+    ///    with a target pose get the velocities that reach it over the tick;
+    ///    then `broad_phase`: candidate pairs from the broad phase (whose
+    ///    proxies follow the poses at the start of the tick); `narrow_phase`:
+    ///    narrow phase, persistent manifolds and contact/trigger events
+    ///    (read them with [`World::contact_events`]); `wake_touched`:
+    ///    sleeping bodies touched by a moving body wake;
     /// 2. `prepare_contacts`: solver bodies and contact constraints from the
     ///    touching and speculative points (effective masses, anchors);
+    ///    `ccd_begin`: the start-of-tick poses are recorded;
     /// 3. per substep: `integrate_velocities` (gravity, forces, torques,
     ///    damping, the gyroscopic midpoint), `warm_start`, `solve` (soft,
     ///    with push-out), `integrate_positions`, `relax` (no push-out);
     /// 4. `restitution`, then `store_impulses` for warm starting next tick;
     /// 5. `finish_velocities`: end-of-tick angular velocities from momenta;
     ///    then `ccd`: fast dynamic bodies and bullets are swept from their
-    ///    start-of-tick poses (recorded before the substeps) to where the
-    ///    substeps left them, and stopped just short of what they would
-    ///    have passed through (see `world/ccd.rs`);
+    ///    start-of-tick poses to where the substeps left them, and stopped
+    ///    just short of what they would have passed through (see
+    ///    `world/ccd.rs`);
     /// 6. `snap_kinematic`: targeted kinematic bodies land exactly on their
     ///    targets and stop;
     /// 7. `clear_forces`;
@@ -44,13 +53,30 @@ impl World {
     /// faults are reported in the returned [`StepReport`] and kept in
     /// [`World::faults`].
     pub fn step(&mut self) -> StepReport {
-        let (mut report, faults) = self.with_fault_scope(|w| w.step_stages());
+        self.step_notifying(&mut Quiet)
+    }
+
+    /// [`World::step`], telling `observer` as each stage ends (the substep
+    /// stages once per substep), so a benchmark can time the stages with its
+    /// own clock.
+    ///
+    /// The observer cannot change the results: it sees only the stage, the
+    /// faults it raises are discarded rather than attributed to the step,
+    /// and the state after an observed step is the state after a plain one,
+    /// bit for bit. The plain step does not pay for the hook: it is compiled
+    /// without it.
+    pub fn step_observed(&mut self, observer: &mut dyn StepObserver) -> StepReport {
+        self.step_notifying(&mut Guarded(observer))
+    }
+
+    fn step_notifying<N: Notify>(&mut self, notify: &mut N) -> StepReport {
+        let (mut report, faults) = self.with_fault_scope(|w| w.step_stages(notify));
         report.faults = faults;
         report.sticky_faults = self.faults;
         report
     }
 
-    fn step_stages(&mut self) -> StepReport {
+    fn step_stages<N: Notify>(&mut self, n: &mut N) -> StepReport {
         let cfg = self.config;
         let h = cfg.substep_dt();
         let mut report = StepReport {
@@ -58,34 +84,34 @@ impl World {
             ..StepReport::default()
         };
 
-        // The per-body stages walk the awake slots only: sleeping and static
-        // bodies cost nothing (see `body/awake.rs`). Growths of the awake
-        // bookkeeping between steps (the game's calls) are not the step's.
-        self.bodies.take_awake_growths();
-        self.bodies.refresh_awake();
-
+        self.stage_awake_list();
+        n.finished(Stage::AwakeList);
         report.kinematic_bodies = self.stage_kinematic_targets();
+        n.finished(Stage::KinematicTargets);
 
-        let (contacts, reinserted) = self.stage_collide();
+        let pairs = self.stage_broad_phase();
+        n.finished(Stage::BroadPhase);
+        let contacts = self.stage_narrow_phase();
+        n.finished(Stage::NarrowPhase);
         report.woken_by_contact = self.stage_wake_touched();
-        if report.woken_by_contact > 0 {
-            self.bodies.refresh_awake();
-        }
+        n.finished(Stage::WakeTouched);
         report.candidate_pairs = contacts.candidates;
         report.narrow_tests = contacts.narrow_tests;
         report.touching_pairs = contacts.touching;
         report.contact_points = contacts.points;
         report.begin_events = contacts.begin_events;
         report.end_events = contacts.end_events;
-        report.proxies_reinserted = reinserted;
-        report.buffer_growths = contacts.growths;
+        report.proxies_reinserted = pairs.reinsertions;
+        report.buffer_growths = contacts.growths + pairs.buffer_growths;
 
         let params = self.solver_params();
         let prep = self.stage_prepare_contacts();
+        n.finished(Stage::PrepareContacts);
         report.contact_constraints = prep.constraints;
         report.buffer_growths += prep.growths;
 
         report.buffer_growths += self.stage_ccd_begin();
+        n.finished(Stage::CcdBegin);
         let World {
             bodies,
             solver,
@@ -93,68 +119,67 @@ impl World {
             ..
         } = self;
         let (hot, awake) = bodies.awake_slots_mut();
-        let solving = !solver.is_empty();
         for _ in 0..cfg.substeps {
-            let c = integrate::integrate_velocities(hot, awake, cfg.gravity, h);
+            let c = stage_integrate_velocities(hot, awake, cfg.gravity, h);
+            n.finished(Stage::IntegrateVelocities);
             report.awake_bodies = c.integrated;
             report.gyroscopic_solves += c.gyroscopic;
             report.spin_capped += c.clamped;
-            if solving {
-                // Poses are as the last full gather (or `prepare`) saw them.
-                solver.gather_velocities(hot);
-                solver.warm_start();
-                for _ in 0..cfg.solver_iterations {
-                    solver.solve(&params, true);
-                }
-                solver.scatter_velocities(hot);
-            }
-            integrate::integrate_positions(hot, awake, h);
-            if solving {
-                solver.gather(hot);
-                for _ in 0..cfg.relax_iterations {
-                    solver.solve(&params, false);
-                }
-                solver.scatter(hot);
-            }
+            // Poses are as the last full gather (or `prepare`) saw them.
+            stage_warm_start(solver, hot);
+            n.finished(Stage::WarmStart);
+            stage_solve(solver, &params, cfg.solver_iterations, hot);
+            n.finished(Stage::Solve);
+            stage_integrate_positions(hot, awake, h);
+            n.finished(Stage::IntegratePositions);
+            stage_relax(solver, &params, cfg.relax_iterations, hot);
+            n.finished(Stage::Relax);
         }
-        if solving {
-            solver.gather_velocities(hot);
-            solver.restitution(&params);
-            solver.scatter(hot);
-            solver.store_impulses(contacts.pairs_mut());
-        }
-        integrate::finish_angular_velocities(hot, awake);
+        stage_restitution(solver, &params, hot);
+        n.finished(Stage::Restitution);
+        stage_store_impulses(solver, contacts.pairs_mut());
+        n.finished(Stage::StoreImpulses);
+        stage_finish_velocities(hot, awake);
+        n.finished(Stage::FinishVelocities);
 
         let ccd = self.stage_ccd();
+        n.finished(Stage::Ccd);
         report.ccd_bodies = ccd.bodies;
         report.ccd_hits = ccd.hits;
         report.buffer_growths += ccd.growths;
 
         self.stage_snap_kinematic();
-        self.bodies.clear_forces();
+        n.finished(Stage::SnapKinematic);
+        self.stage_clear_forces();
+        n.finished(Stage::ClearForces);
         let slept = self.stage_sleep();
+        n.finished(Stage::Sleep);
         report.fell_asleep = slept.fell_asleep;
         report.islands = slept.islands;
         report.buffer_growths += u32::from(slept.grew);
-        if slept.fell_asleep > 0 {
-            self.bodies.note_fell_asleep();
-            self.bodies.refresh_awake();
-        }
         // A maintained count, not a scan of the slots.
         report.sleeping_bodies = self.bodies.sleeping_count();
 
-        // Broad phase: proxies follow this step's motion, so queries between
-        // steps see where the bodies are now.
-        self.sync_proxies(true);
-        report.buffer_growths += self.bodies.take_awake_growths();
+        report.buffer_growths += self.stage_sync_proxies();
+        n.finished(Stage::SyncProxies);
 
         self.tick += 1;
         report.tick = self.tick;
         report
     }
 
+    /// The per-body stages walk the awake slots only: sleeping and static
+    /// bodies cost nothing (see `body/awake.rs`). Growths of the awake
+    /// bookkeeping between steps (the game's calls) are not the step's.
+    #[inline(never)]
+    fn stage_awake_list(&mut self) {
+        self.bodies.take_awake_growths();
+        self.bodies.refresh_awake();
+    }
+
     /// Rest counters advance; islands of touching awake bodies that all
-    /// rested long enough fall asleep together.
+    /// rested long enough fall asleep together (and leave the awake list).
+    #[inline(never)]
     fn stage_sleep(&mut self) -> sleep::SleepStats {
         let World {
             bodies,
@@ -181,7 +206,28 @@ impl World {
                 Some(sleep::Link { a, b })
             });
         let (hot, awake) = bodies.awake_slots_mut();
-        sleep::update_sleep(hot, awake, links, &config.sleep, config.tick_rate, islands)
+        let slept =
+            sleep::update_sleep(hot, awake, links, &config.sleep, config.tick_rate, islands);
+        if slept.fell_asleep > 0 {
+            self.bodies.note_fell_asleep();
+            self.bodies.refresh_awake();
+        }
+        slept
+    }
+
+    /// Broad phase: proxies follow this step's motion, so queries between
+    /// steps see where the bodies are now. Returns the buffer growths of the
+    /// whole step's awake bookkeeping.
+    #[inline(never)]
+    fn stage_sync_proxies(&mut self) -> u32 {
+        self.sync_proxies(true);
+        self.bodies.take_awake_growths()
+    }
+
+    /// Forces and torques the game applied for this tick are used up.
+    #[inline(never)]
+    fn stage_clear_forces(&mut self) {
+        self.bodies.clear_forces();
     }
 
     /// The solver's settings for this world's substep.
@@ -204,6 +250,7 @@ impl World {
     /// the active ones (those with a moving body) when the contact set
     /// keeps that list, since pairs between sleeping or static bodies make
     /// no constraint.
+    #[inline(never)]
     fn stage_prepare_contacts(&mut self) -> SolverStats {
         let World {
             bodies,
@@ -229,6 +276,7 @@ impl World {
     /// Kinematic bodies with a target get the constant velocities that carry
     /// their centre and orientation there in one tick. Returns how many
     /// kinematic bodies will move.
+    #[inline(never)]
     fn stage_kinematic_targets(&mut self) -> u32 {
         let ticks_per_second = self.config.tick_rate as i64;
         let mut moving = 0;
@@ -251,6 +299,7 @@ impl World {
     }
 
     /// Targeted kinematic bodies land exactly on their targets and stop.
+    #[inline(never)]
     fn stage_snap_kinematic(&mut self) {
         self.bodies.for_each_awake_mut(|b, cold| {
             if b.kind != BodyKind::Kinematic {
@@ -264,4 +313,99 @@ impl World {
             }
         });
     }
+}
+
+// The substep and solver stages borrow the bodies and the solver apart, so
+// they are functions rather than methods. Each skips its solver work when
+// there is no constraint this tick (the stage is still reported, so the
+// sequence of stages is the same in every step).
+
+/// Gravity, forces, torques, damping and the gyroscopic midpoint for one
+/// substep.
+#[inline(never)]
+fn stage_integrate_velocities(
+    hot: &mut [BodyHot],
+    awake: &[u32],
+    gravity: Vec3,
+    h: Scalar,
+) -> VelocityCounters {
+    integrate::integrate_velocities(hot, awake, gravity, h)
+}
+
+/// The previous substep's (or tick's) impulses applied again.
+#[inline(never)]
+fn stage_warm_start(solver: &mut ContactSolver, hot: &[BodyHot]) {
+    if solver.is_empty() {
+        return;
+    }
+    solver.gather_velocities(hot);
+    solver.warm_start();
+}
+
+/// The soft solve passes with push-out, then the velocities go back to the
+/// bodies.
+#[inline(never)]
+fn stage_solve(
+    solver: &mut ContactSolver,
+    params: &SolverParams,
+    iterations: u32,
+    hot: &mut [BodyHot],
+) {
+    if solver.is_empty() {
+        return;
+    }
+    for _ in 0..iterations {
+        solver.solve(params, true);
+    }
+    solver.scatter_velocities(hot);
+}
+
+/// Positions and orientations advance by one substep.
+#[inline(never)]
+fn stage_integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar) {
+    integrate::integrate_positions(hot, awake, h);
+}
+
+/// The relax passes (no push-out) at the substep's new poses.
+#[inline(never)]
+fn stage_relax(
+    solver: &mut ContactSolver,
+    params: &SolverParams,
+    iterations: u32,
+    hot: &mut [BodyHot],
+) {
+    if solver.is_empty() {
+        return;
+    }
+    solver.gather(hot);
+    for _ in 0..iterations {
+        solver.solve(params, false);
+    }
+    solver.scatter(hot);
+}
+
+/// The restitution pass after the last substep.
+#[inline(never)]
+fn stage_restitution(solver: &mut ContactSolver, params: &SolverParams, hot: &mut [BodyHot]) {
+    if solver.is_empty() {
+        return;
+    }
+    solver.gather_velocities(hot);
+    solver.restitution(params);
+    solver.scatter(hot);
+}
+
+/// The accumulated impulses go into the pairs, for warm starting next tick.
+#[inline(never)]
+fn stage_store_impulses(solver: &ContactSolver, pairs: &mut [ContactPair]) {
+    if solver.is_empty() {
+        return;
+    }
+    solver.store_impulses(pairs);
+}
+
+/// End-of-tick angular velocities from the momenta.
+#[inline(never)]
+fn stage_finish_velocities(hot: &mut [BodyHot], awake: &[u32]) {
+    integrate::finish_angular_velocities(hot, awake);
 }
