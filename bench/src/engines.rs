@@ -24,14 +24,14 @@ use rapier3d::prelude::{
     SharedShape, Vector,
 };
 
-use crate::alloc;
 use crate::scenes::{self, BodyShape, Scene};
 use crate::{Options, SuiteOutput};
+use crate::{alloc, stages};
 
 /// Steps per second in both engines.
 const TICK_RATE: u32 = 60;
 /// Our substeps per step.
-const SUBSTEPS: u32 = 4;
+pub(crate) const SUBSTEPS: u32 = 4;
 
 /// Rapier's settings, chosen to match our 4 substeps: in Rapier 0.36 each
 /// "solver iteration" is a substep of its TGS-soft solver (integrate, one
@@ -146,13 +146,18 @@ pub fn build_ours(scene: &Scene, sleep: SleepConfig) -> (World, Vec<BodyHandle>)
     (world, bodies)
 }
 
+/// Sleep off: the suite compares engines stepping every body (Rapier's
+/// bodies are built with `can_sleep(false)`).
+pub(crate) fn sleep_off() -> SleepConfig {
+    SleepConfig {
+        enabled: false,
+        ..SleepConfig::default()
+    }
+}
+
 impl Ours {
     fn new(scene: &Scene) -> Ours {
-        let sleep = SleepConfig {
-            enabled: false,
-            ..SleepConfig::default()
-        };
-        let (world, bodies) = build_ours(scene, sleep);
+        let (world, bodies) = build_ours(scene, sleep_off());
         Ours {
             world,
             bodies,
@@ -184,8 +189,10 @@ impl Sim for Ours {
     }
 }
 
-struct Rapier {
-    world: PhysicsWorld,
+/// A scene in Rapier.
+pub(crate) struct Rapier {
+    /// The whole Rapier world (its counters are `physics_pipeline.counters`).
+    pub(crate) world: PhysicsWorld,
     bodies: Vec<RigidBodyHandle>,
 }
 
@@ -200,7 +207,8 @@ fn rv(p: [f64; 3]) -> Vector {
 }
 
 impl Rapier {
-    fn new(scene: &Scene) -> Rapier {
+    /// The scene built in Rapier with the suite's settings.
+    pub(crate) fn new(scene: &Scene) -> Rapier {
         let mut world = PhysicsWorld {
             gravity: Vector::new(0.0, -10.0, 0.0),
             integration_parameters: rapier_parameters(),
@@ -593,10 +601,12 @@ pub fn csv(results: &[SceneResult]) -> String {
     out
 }
 
-/// Runs the suite.
+/// Runs the suite (with `--stages`, the stage tables after the headline
+/// ones; the headline runs are the same either way).
 pub fn run(opts: &Options) -> SuiteOutput {
     let runs = opts.runs.unwrap_or(if opts.quick { 1 } else { 3 });
     let mut results = Vec::new();
+    let mut staged = Vec::new();
     let mut skipped = Vec::new();
     for (name, scene) in scene_list(opts.quick) {
         if let Some(filter) = &opts.scenes
@@ -615,16 +625,35 @@ pub fn run(opts: &Options) -> SuiteOutput {
                     scene.positions.len(),
                     scene.steps
                 );
-                results.push(run_scene(&scene, runs));
+                let result = run_scene(&scene, runs);
+                if opts.stages {
+                    eprintln!("engines --stages: {name}: stage runs, then instruction counts...");
+                    let headline = (result.ours.median_ms, result.rapier.median_ms);
+                    let count_steps = if opts.quick { 2 } else { stages::COUNT_STEPS };
+                    staged.push(stages::run_scene(
+                        &scene,
+                        runs,
+                        headline,
+                        count_steps,
+                        opts.callgrind_dir.as_deref(),
+                    ));
+                }
+                results.push(result);
             }
         }
     }
     let mut text = format!("{}\n\n", settings_text());
     text.push_str(&table(&results, &skipped));
-    SuiteOutput {
-        text,
-        csv: csv(&results),
+    let mut csv = csv(&results);
+    if opts.stages {
+        let _ = writeln!(text, "\n{}\n", stages::RAPIER_MAPPING);
+        let _ = writeln!(csv, "\n{}", stages::CSV_HEADER);
+        for r in &staged {
+            let _ = writeln!(text, "{}", stages::table(r));
+            csv.push_str(&stages::csv_lines(r));
+        }
     }
+    SuiteOutput { text, csv }
 }
 
 #[cfg(test)]

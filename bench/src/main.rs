@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release -p lockstep-bench -- math [--csv FILE] [--quick]
-//! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N] [--steps N]
+//! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N] [--steps N] [--stages [--callgrind-dir DIR]]
 //! cargo run --release -p lockstep-bench -- sleep [--quick] [--csv FILE]
 //! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N]
 //! ```
@@ -14,12 +14,14 @@
 //! executes, not as a measurement.
 
 mod alloc;
+mod callgrind;
 mod engines;
 mod harness;
 mod math;
 mod profile;
 mod scenes;
 mod sleep;
+mod stages;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -43,6 +45,10 @@ pub struct Options {
     pub runs: Option<usize>,
     /// Steps per run, if not the scene's own (`profile` suite).
     pub steps: Option<usize>,
+    /// Also the per-stage tables (`engines` suite).
+    pub stages: bool,
+    /// Where `engines --stages` keeps its callgrind files, if anywhere.
+    pub callgrind_dir: Option<PathBuf>,
 }
 
 /// What a suite produced: the printed table and the CSV text.
@@ -145,10 +151,35 @@ struct Cli {
     /// the scene's own count).
     #[arg(long, value_name = "N")]
     steps: Option<usize>,
+    /// `engines` suite: also per scene ms/step for each stage of ours beside
+    /// Rapier's own stage counters, and our instruction counts per stage
+    /// (callgrind, if valgrind is installed).
+    #[arg(long)]
+    stages: bool,
+    /// `engines --stages`: keep each scene's callgrind file as
+    /// DIR/SCENE.callgrind (for `callgrind_annotate`).
+    #[arg(long, value_name = "DIR")]
+    callgrind_dir: Option<PathBuf>,
+    /// Internal: the callgrind child of `engines --stages` (restore this
+    /// snapshot, step once, then count `--steps` steps).
+    #[arg(long, value_name = "FILE", hide = true)]
+    count_snapshot: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(snapshot) = &cli.count_snapshot {
+        return match callgrind::child(snapshot, cli.steps.unwrap_or(stages::COUNT_STEPS)) {
+            Ok(line) => {
+                println!("{line}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let Some(suite) = SUITES.iter().find(|s| s.name == cli.suite) else {
         eprintln!(
             "error: unknown suite `{}`; available suites:\n{}",
@@ -174,6 +205,8 @@ fn main() -> ExitCode {
         scenes: cli.scenes.clone(),
         runs: cli.runs,
         steps: cli.steps,
+        stages: cli.stages,
+        callgrind_dir: cli.callgrind_dir.clone(),
     };
     let out = (suite.run)(&opts);
     println!(
@@ -224,5 +257,9 @@ mod tests {
             Some(vec!["large_pyramid".to_owned(), "many_pyramids".to_owned()])
         );
         assert_eq!(cli.runs, Some(2));
+        assert!(!cli.stages);
+        let cli =
+            Cli::try_parse_from(["lockstep-bench", "engines", "--stages", "--quick"]).unwrap();
+        assert!(cli.stages && cli.quick && cli.count_snapshot.is_none());
     }
 }

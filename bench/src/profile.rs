@@ -8,9 +8,7 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use lockstep_core::solver::sleep::SleepConfig;
-
-use crate::engines::{build_ours, scene_list};
+use crate::engines::{build_ours, scene_list, sleep_off};
 use crate::{Options, SuiteOutput};
 
 /// Steps when `--steps` is not given.
@@ -32,11 +30,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
         if !wanted.iter().any(|w| w == name) {
             continue;
         }
-        let sleep = SleepConfig {
-            enabled: false,
-            ..SleepConfig::default()
-        };
-        let (mut world, bodies) = build_ours(&scene, sleep);
+        let (mut world, bodies) = build_ours(&scene, sleep_off());
         let mut total = 0.0;
         let mut points = 0;
         for i in 0..steps {
