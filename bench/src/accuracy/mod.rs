@@ -200,17 +200,20 @@ fn measure_point(case: &Case, settings: Settings, sweep: &Sweep, quick: bool) ->
 }
 
 /// Errors of 0 are drawn at this floor: a decade below the smallest
-/// positive error of the case (1e-12 if none is positive).
-pub fn floor_for(errors: impl IntoIterator<Item = f64>) -> f64 {
+/// positive error of the case, or the case's own floor if lower (1e-12 if
+/// neither exists).
+pub fn floor_for(errors: impl IntoIterator<Item = f64>, case_floor: Option<f64>) -> f64 {
     let min = errors
         .into_iter()
         .filter(|e| *e > 0.0 && e.is_finite())
         .fold(f64::INFINITY, f64::min);
-    if min.is_finite() {
+    let data = if min.is_finite() {
         10f64.powf(min.log10().floor() - 1.0)
     } else {
-        1e-12
-    }
+        f64::INFINITY
+    };
+    let floor = data.min(case_floor.unwrap_or(f64::INFINITY));
+    if floor.is_finite() { floor } else { 1e-12 }
 }
 
 /// NaN and infinite errors are drawn at this ceiling: the decade at or
@@ -305,7 +308,7 @@ struct CaseReport {
 }
 
 fn report_case(case: &'static Case, ms: &[Measurement], sweep: &Sweep) -> (CaseReport, String) {
-    let floor = floor_for(ms.iter().map(|m| m.error));
+    let floor = floor_for(ms.iter().map(|m| m.error), case.zero_floor);
     let ceiling = ceiling_for(ms.iter().map(|m| m.error), floor);
     let ours = frontier_points(ms, Engine::Ours, floor, ceiling);
     let verdicts = [Engine::RapierF32, Engine::RapierF64]
@@ -588,9 +591,11 @@ mod tests {
 
     #[test]
     fn floor_and_ceiling_are_decades_around_the_errors() {
-        let f = floor_for([0.0, 3e-5, 0.2, f64::NAN]);
+        let f = floor_for([0.0, 3e-5, 0.2, f64::NAN], None);
         assert!((f / 1e-6 - 1.0).abs() < 1e-9, "{f}");
-        assert_eq!(floor_for([0.0, f64::INFINITY]), 1e-12);
+        assert_eq!(floor_for([0.0, f64::INFINITY], None), 1e-12);
+        assert_eq!(floor_for([0.0, 0.5], Some(1e-3)), 1e-3);
+        assert!((floor_for([0.0, 5e-4], Some(1e-3)) / 1e-5 - 1.0).abs() < 1e-9);
         let c = ceiling_for([0.0, 3e-5, 0.2, f64::INFINITY], f);
         assert!((c - 1.0).abs() < 1e-12, "{c}");
         assert!((ceiling_for([0.0], 1e-12) - 1e-10).abs() < 1e-24);

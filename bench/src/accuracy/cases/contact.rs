@@ -46,6 +46,7 @@ pub const BOUNCE_05: Case = Case {
     title: "0.25 m ball dropped from 10 m, e = 0.5 (ball and ground), first two bounces",
     metric: "largest relative error of the two apex ratios",
     reference: "each apex is e² = 0.25 of the one before",
+    zero_floor: None,
     run: |r, _| bounce(r, 0.5),
 };
 
@@ -55,6 +56,7 @@ pub const BOUNCE_09: Case = Case {
     title: "0.25 m ball dropped from 10 m, e = 0.9 (ball and ground), first two bounces",
     metric: "largest relative error of the two apex ratios",
     reference: "each apex is e² = 0.81 of the one before",
+    zero_floor: None,
     run: |r, _| bounce(r, 0.9),
 };
 
@@ -64,6 +66,7 @@ pub const DROP_TIME: Case = Case {
     title: "0.25 m ball dropped from rest 5 m above the ground (e = 0), 2 s",
     metric: "relative error of the impact time",
     reference: "t = √(2h/g) = 1.0096 s (impact: the first step that slows the fall; its time is the previous step's plus the free fall left from there)",
+    zero_floor: None,
     run: |r, _| {
         let (rad, h) = (0.25, 5.0);
         let ball =
@@ -131,6 +134,7 @@ pub const SLIDE: Case = Case {
     title: "unit box launched at 5 m/s along x on a level floor, μ = 0.5 (settled 0.5 s first), 2.5 s",
     metric: "max of stop-distance relative error and sideways drift / distance",
     reference: "stops after v²/(2μg) = 2.548 m on its launch line",
+    zero_floor: None,
     run: |r, _| slide(r, [0.0; 3], 200.0, [1.0, 0.0, 0.0]),
 };
 
@@ -140,6 +144,7 @@ pub const SLIDE_45: Case = Case {
     title: "the sliding box launched at 45° to its faces (direction (1, 0, 1)/√2)",
     metric: "max of stop-distance relative error and sideways drift / distance",
     reference: "Coulomb friction is isotropic: v²/(2μg) = 2.548 m on its launch line (a per-axis clamp stops it at 1/√2 of that)",
+    zero_floor: None,
     run: |r, _| {
         let h = std::f64::consts::FRAC_1_SQRT_2;
         slide(r, [0.0; 3], 200.0, [h, 0.0, h])
@@ -152,6 +157,7 @@ pub const FAR_SLIDE: Case = Case {
     title: "the sliding box on a 40 m floor 10 km from the origin (x = z = 10,000 m)",
     metric: "max of stop-distance relative error and sideways drift / distance",
     reference: "v²/(2μg) = 2.548 m on its launch line",
+    zero_floor: None,
     run: |r, _| slide(r, [10_000.0, 0.0, 10_000.0], 20.0, [1.0, 0.0, 0.0]),
 };
 
@@ -173,6 +179,7 @@ pub const RAMP_STICK: Case = Case {
     title: "unit box released on a 30° slope, μ = 0.7 > tan 30° (gravity tilted instead of the ground), 2 s",
     metric: "creep along the slope, m",
     reference: "static friction holds it: 0 m",
+    zero_floor: None,
     run: |r, _| {
         let (d, v) = ramp(r, 0.7);
         Outcome::ok(d, format!("moved {d:.3e} m, speed {v:.2e} m/s"))
@@ -186,6 +193,7 @@ pub const RAMP_SLIDE: Case = Case {
     title: "unit box released on a 30° slope, μ = 0.3, 2 s",
     metric: "relative error of the acceleration (speed after 2 s / 2 s)",
     reference: "a = g(sin θ − μ cos θ) = 2.356 m/s²",
+    zero_floor: None,
     run: |r, _| {
         let (d, v) = ramp(r, 0.3);
         let a = v / 2.0;
@@ -203,6 +211,7 @@ pub const ROLL: Case = Case {
     title: "0.5 m ball released on a 20° slope, μ = 0.6 (rolls: μ > 2/7 tan θ), 2 s",
     metric: "relative error of the acceleration (speed after 2 s / 2 s)",
     reference: "a = 5/7 g sin θ = 2.397 m/s², rolling without slip (v = ωr)",
+    zero_floor: None,
     run: |r, _| {
         let (mu, rad) = (0.6, 0.5);
         let ball = BodySpec::dynamic(ShapeSpec::Sphere(rad), [0.0, rad, 0.0]).material(mu, 0.0);
@@ -227,6 +236,7 @@ pub const SLIDE_TO_ROLL: Case = Case {
     title: "0.5 m ball launched sliding at 5 m/s without spin on a level floor, μ = 0.3 (settled 0.25 s first), 2 s",
     metric: "max of relative errors of distance and speed after 2 s",
     reference: "slips until t* = 2v0/(7μg) = 0.485 s, then rolls at 5/7 v0 = 3.571 m/s",
+    zero_floor: None,
     run: |r, _| {
         let (mu, rad, v0) = (0.3, 0.5, 5.0);
         let ball = BodySpec::dynamic(ShapeSpec::Sphere(rad), [0.0, rad, 0.0]).material(mu, 0.0);

@@ -22,6 +22,9 @@ pub struct Case {
     pub metric: &'static str,
     /// The reference the error is measured against.
     pub reference: &'static str,
+    /// The lowest a zero error is drawn, for errors that come in steps (a
+    /// fraction of shots): `None` lets the data decide.
+    pub zero_floor: Option<f64>,
     /// Runs the case (`quick`: the smoke-run size).
     pub run: fn(&mut Runner, bool) -> Outcome,
 }

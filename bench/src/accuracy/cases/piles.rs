@@ -25,6 +25,7 @@ pub const STACK: Case = Case {
     title: "vertical stack of 20 unit boxes, μ = 0.5: settles 1 s, then 5 s (quick: 1 s) more",
     metric: "top box drift after settling, m",
     reference: "a stack at rest stays put: 0 m",
+    zero_floor: None,
     run: |r, quick| {
         let mut bodies = vec![ground(MU, 0.0)];
         bodies.extend((0..20).map(|i| unit_box([0.0, 0.5 + i as f64, 0.0], MU)));
@@ -53,6 +54,7 @@ pub const PYRAMID: Case = Case {
     title: "pyramid of base 20 (210 unit boxes), μ = 0.5: settles 1 s, then 3 s (quick: 0.5 s) more",
     metric: "largest movement of any box after settling, m",
     reference: "a pyramid at rest stays put: 0 m",
+    zero_floor: None,
     run: |r, quick| {
         let mut bodies = vec![ground(MU, 0.0)];
         for row in 0..20 {
@@ -90,6 +92,7 @@ pub const MASS_RATIO: Case = Case {
     title: "unit box of 1,000 kg on a unit box of 10 kg (1:100) on the ground, μ = 0.5, 5 s",
     metric: "worst penetration (box–box or light box–ground), m",
     reference: "rigid contact: 0 m",
+    zero_floor: None,
     run: |r, _| {
         let bodies = vec![
             ground(MU, 0.0),
@@ -120,6 +123,7 @@ pub const OVERLAP: Case = Case {
     title: "two unit boxes spawned overlapping by 0.5 m on the ground, μ = 0.5, 1 s",
     metric: "fastest speed of either box while separating, m/s",
     reference: "push-out should add no energy (no closed form: lower is better); separated within 1 s",
+    zero_floor: None,
     run: |r, _| {
         let bodies = vec![
             ground(MU, 0.0),
