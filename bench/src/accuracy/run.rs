@@ -36,12 +36,17 @@ impl Failure {
         }
     }
 
-    /// Whether the error is still a measurement (a run that exploded,
-    /// collapsed, tunnelled or missed the outcome measured something); a
-    /// faulted or non-finite run's error is not, and stays off the
-    /// frontier.
+    /// Whether the error still measures the run: a run that exploded,
+    /// collapsed or tunnelled shows it in its error (a large drift, a
+    /// fraction of shots through). A faulted or non-finite run's error is
+    /// not trusted, and a run that missed the case's outcome may have a
+    /// small error for the wrong reason (boxes that never separate move
+    /// slowly): those stay off the frontier.
     pub fn error_is_meaningful(self) -> bool {
-        !matches!(self, Failure::Faulted | Failure::NonFinite)
+        matches!(
+            self,
+            Failure::Exploded | Failure::Collapsed | Failure::Tunnelled
+        )
     }
 }
 

@@ -380,12 +380,15 @@ macro_rules! rapier_adapter {
                 [v.x as f64, v.y as f64, v.z as f64]
             }
 
+            /// A Rapier world of this precision and its bodies in spec
+            /// order.
             pub struct Rapier {
                 world: PhysicsWorld,
                 handles: Vec<RigidBodyHandle>,
             }
 
             impl Rapier {
+                /// Builds `spec` at `settings` (see [`rapier_parameters`]).
                 pub fn new(spec: &Spec, settings: Settings) -> Rapier {
                     let (dt, substeps, pgs, stabilization) = rapier_parameters(settings);
                     let mut world = PhysicsWorld {
