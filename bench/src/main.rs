@@ -6,6 +6,7 @@
 //! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N] [--steps N] [--stages [--callgrind-dir DIR]]
 //! cargo run --release -p lockstep-bench -- sleep [--quick] [--csv FILE]
 //! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N]
+//! cargo run --release -p lockstep-bench -- accuracy [--quick] [--csv FILE] [--scenes a,b] [--runs N]
 //! ```
 //!
 //! Each suite is a module with a `run(&Options) -> SuiteOutput` function and
@@ -13,6 +14,7 @@
 //! runs a tiny size: CI uses it as a smoke test that every benchmark still
 //! executes, not as a measurement.
 
+mod accuracy;
 mod alloc;
 mod callgrind;
 mod engines;
@@ -39,7 +41,8 @@ static ALLOCATOR: alloc::Counting = alloc::Counting;
 pub struct Options {
     /// A smoke-run size instead of a measurement.
     pub quick: bool,
-    /// Only these scenes (the `engines` suite), if given.
+    /// Only these scenes (`engines`, `profile`) or cases (`accuracy`), if
+    /// given.
     pub scenes: Option<Vec<String>>,
     /// Runs per measurement, if not the suite's default.
     pub runs: Option<usize>,
@@ -64,6 +67,12 @@ struct Suite {
     name: &'static str,
     about: &'static str,
     run: fn(&Options) -> SuiteOutput,
+    /// The names `--scenes` may give (empty: the suite takes none).
+    scenes: fn() -> Vec<&'static str>,
+}
+
+fn engine_scenes() -> Vec<&'static str> {
+    engines::SCENE_NAMES.to_vec()
 }
 
 /// The `math` suite behind the common interface.
@@ -95,21 +104,31 @@ const SUITES: &[Suite] = &[
         name: "math",
         about: "Q32.32 arithmetic and elementary functions vs f64, fixed and cordic",
         run: run_math,
+        scenes: Vec::new,
     },
     Suite {
         name: "engines",
         about: "SCENES.md performance scenes, ours vs rapier3d, alternating in one process",
         run: engines::run,
+        scenes: engine_scenes,
     },
     Suite {
         name: "sleep",
         about: "9,600 sleeping boxes + 1 awake vs the same scene awake",
         run: sleep::run,
+        scenes: Vec::new,
     },
     Suite {
         name: "profile",
         about: "steps only our engine on a scene (for perf/callgrind), prints ms/step",
         run: profile::run,
+        scenes: engine_scenes,
+    },
+    Suite {
+        name: "accuracy",
+        about: "work-precision: error vs CPU time on closed-form cases, ours vs Rapier f32 and f64",
+        run: accuracy::run,
+        scenes: accuracy::case_names,
     },
 ];
 
@@ -141,7 +160,8 @@ struct Cli {
     /// measurement.
     #[arg(long)]
     quick: bool,
-    /// Only these scenes, comma-separated (`engines` suite).
+    /// Only these scenes, comma-separated (`engines`, `profile`), or cases
+    /// (`accuracy`).
     #[arg(long, value_delimiter = ',', value_name = "A,B")]
     scenes: Option<Vec<String>>,
     /// Runs per measurement (default: the suite's own).
@@ -188,17 +208,20 @@ fn main() -> ExitCode {
         );
         return ExitCode::from(2);
     };
-    if let Some(bad) = cli
-        .scenes
-        .iter()
-        .flatten()
-        .find(|s| !engines::SCENE_NAMES.contains(&s.as_str()))
-    {
-        eprintln!(
-            "error: unknown scene `{bad}`; scenes: {}",
-            engines::SCENE_NAMES.join(", ")
-        );
-        return ExitCode::from(2);
+    if let Some(given) = &cli.scenes {
+        let known = (suite.scenes)();
+        if let Some(bad) = given.iter().find(|s| !known.contains(&s.as_str())) {
+            if known.is_empty() {
+                eprintln!("error: suite `{}` takes no --scenes", suite.name);
+            } else {
+                eprintln!(
+                    "error: unknown scene `{bad}` for `{}`; scenes: {}",
+                    suite.name,
+                    known.join(", ")
+                );
+            }
+            return ExitCode::from(2);
+        }
     }
     let opts = Options {
         quick: cli.quick,

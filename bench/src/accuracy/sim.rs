@@ -1,0 +1,474 @@
+//! One scene description, built in each engine of the `accuracy` suite.
+//!
+//! A [`Spec`] lists bodies in plain `f64`; [`build`] turns it into a running
+//! simulation of lockstep-core, Rapier f32 or Rapier f64 at given
+//! [`Settings`], and the [`Sim`] trait reads the state back in `f64`, so a
+//! case measures every engine with the same code. Inputs are rounded to
+//! Q32.32 first (as the `engines` suite does), so all engines start from
+//! the same numbers.
+
+use lockstep_core::shape::{Cuboid, Shape, Sphere};
+use lockstep_core::solver::sleep::SleepConfig;
+use lockstep_core::{
+    BodyDesc, BodyHandle, ColliderDesc, Material, Quat, Scalar, Vec3, World, WorldConfig,
+};
+
+/// The engines compared, in the order they are run and listed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Engine {
+    /// lockstep-core, Q32.32.
+    Ours,
+    /// rapier3d 0.36.1, f32.
+    RapierF32,
+    /// rapier3d-f64 0.36.1.
+    RapierF64,
+}
+
+impl Engine {
+    /// Every engine.
+    pub const ALL: [Engine; 3] = [Engine::Ours, Engine::RapierF32, Engine::RapierF64];
+
+    /// The name used in tables, CSV and legends.
+    pub fn name(self) -> &'static str {
+        match self {
+            Engine::Ours => "ours",
+            Engine::RapierF32 => "rapier-f32",
+            Engine::RapierF64 => "rapier-f64",
+        }
+    }
+}
+
+/// The step settings swept, the same meaning for every engine (see
+/// [`rapier_parameters`] for Rapier's side of the mapping).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Settings {
+    /// Steps per simulated second.
+    pub tick_rate: u32,
+    /// Substeps per step.
+    pub substeps: u32,
+    /// Contact solve passes per substep.
+    pub iterations: u32,
+}
+
+/// A collision shape, centred on its body's origin.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShapeSpec {
+    /// A sphere of this radius, m.
+    Sphere(f64),
+    /// A box of these half-extents, m.
+    Cuboid([f64; 3]),
+}
+
+/// One body of a scene with its single collider.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodySpec {
+    /// Static (never moves) or dynamic.
+    pub fixed: bool,
+    /// The collider.
+    pub shape: ShapeSpec,
+    /// Position of the centre, m.
+    pub pos: [f64; 3],
+    /// Orientation as a unit quaternion `[x, y, z, w]`.
+    pub rot: [f64; 4],
+    /// Initial linear velocity, m/s.
+    pub vel: [f64; 3],
+    /// Initial angular velocity (world axes), rad/s.
+    pub omega: [f64; 3],
+    /// Density, kg/m³.
+    pub density: f64,
+    /// Friction coefficient (every body of a scene uses the same, so each
+    /// engine's combine rule gives this value).
+    pub friction: f64,
+    /// Restitution (same remark).
+    pub restitution: f64,
+    /// A force applied at the centre in every step, N.
+    pub force: [f64; 3],
+}
+
+impl BodySpec {
+    /// A dynamic body at rest, density 1000, no friction or restitution.
+    pub fn dynamic(shape: ShapeSpec, pos: [f64; 3]) -> BodySpec {
+        BodySpec {
+            fixed: false,
+            shape,
+            pos,
+            rot: [0.0, 0.0, 0.0, 1.0],
+            vel: [0.0; 3],
+            omega: [0.0; 3],
+            density: 1000.0,
+            friction: 0.0,
+            restitution: 0.0,
+            force: [0.0; 3],
+        }
+    }
+
+    /// A static body.
+    pub fn fixed(shape: ShapeSpec, pos: [f64; 3]) -> BodySpec {
+        BodySpec {
+            fixed: true,
+            ..BodySpec::dynamic(shape, pos)
+        }
+    }
+
+    /// With this friction and restitution.
+    pub fn material(mut self, friction: f64, restitution: f64) -> BodySpec {
+        self.friction = friction;
+        self.restitution = restitution;
+        self
+    }
+
+    /// With this initial linear velocity.
+    pub fn vel(mut self, v: [f64; 3]) -> BodySpec {
+        self.vel = v;
+        self
+    }
+
+    /// With this initial angular velocity.
+    pub fn omega(mut self, w: [f64; 3]) -> BodySpec {
+        self.omega = w;
+        self
+    }
+
+    /// With this density.
+    pub fn density(mut self, d: f64) -> BodySpec {
+        self.density = d;
+        self
+    }
+
+    /// With this orientation.
+    pub fn rot(mut self, q: [f64; 4]) -> BodySpec {
+        self.rot = q;
+        self
+    }
+
+    /// With this constant force.
+    pub fn force(mut self, f: [f64; 3]) -> BodySpec {
+        self.force = f;
+        self
+    }
+
+    /// The mass from the closed-form volume (no engine involved), kg.
+    pub fn mass(&self) -> f64 {
+        self.density * crate::accuracy::closed::volume(self.shape)
+    }
+}
+
+/// A scene: gravity and bodies (indices into `bodies` name them).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spec {
+    /// Gravitational acceleration, m/s².
+    pub gravity: [f64; 3],
+    /// The bodies, static and dynamic.
+    pub bodies: Vec<BodySpec>,
+    /// Dynamic bodies that get continuous collision in Rapier (ours sweeps
+    /// every fast body by itself).
+    pub ccd: Vec<usize>,
+    /// A dynamic body faster than this, m/s, has exploded.
+    pub explode_speed: f64,
+}
+
+impl Spec {
+    /// A scene with this gravity and bodies, no CCD requests, exploding
+    /// above 100 m/s.
+    pub fn new(gravity: [f64; 3], bodies: Vec<BodySpec>) -> Spec {
+        Spec {
+            gravity,
+            bodies,
+            ccd: Vec::new(),
+            explode_speed: 100.0,
+        }
+    }
+}
+
+/// A body's state read back from an engine.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct State {
+    /// Centre, m.
+    pub pos: [f64; 3],
+    /// Orientation `[x, y, z, w]`.
+    pub rot: [f64; 4],
+    /// Linear velocity, m/s.
+    pub vel: [f64; 3],
+    /// Angular velocity, world axes, rad/s.
+    pub omega: [f64; 3],
+}
+
+impl State {
+    /// Whether every component is finite.
+    pub fn is_finite(&self) -> bool {
+        self.pos
+            .iter()
+            .chain(&self.rot)
+            .chain(&self.vel)
+            .chain(&self.omega)
+            .all(|x| x.is_finite())
+    }
+}
+
+/// A running simulation of one engine.
+pub trait Sim {
+    /// Advances one step (applying the scene's constant forces).
+    fn step(&mut self);
+    /// The state of body `i` of the spec.
+    fn state(&self, i: usize) -> State;
+    /// Sets body `i`'s linear velocity (a launch after settling).
+    fn set_linvel(&mut self, i: usize, v: [f64; 3]);
+    /// Whether the engine reported an arithmetic fault (ours only).
+    fn faulted(&self) -> bool;
+}
+
+/// A simulation of `spec` in `engine` at `settings`.
+pub fn build(engine: Engine, spec: &Spec, settings: Settings) -> Box<dyn Sim> {
+    match engine {
+        Engine::Ours => Box::new(Ours::new(spec, settings)),
+        Engine::RapierF32 => Box::new(rapier_f32::Rapier::new(spec, settings)),
+        Engine::RapierF64 => Box::new(rapier_f64::Rapier::new(spec, settings)),
+    }
+}
+
+fn s(v: f64) -> Scalar {
+    Scalar::from_f64_lossy(v)
+}
+
+fn v3(p: [f64; 3]) -> Vec3 {
+    Vec3::new(s(p[0]), s(p[1]), s(p[2]))
+}
+
+fn f3(v: Vec3) -> [f64; 3] {
+    [v.x.to_f64(), v.y.to_f64(), v.z.to_f64()]
+}
+
+/// A spec value as the engines receive it: rounded to Q32.32.
+fn q(v: f64) -> f64 {
+    s(v).to_f64()
+}
+
+/// lockstep-core.
+struct Ours {
+    world: World,
+    handles: Vec<BodyHandle>,
+    forces: Vec<(BodyHandle, Vec3)>,
+    faulted: bool,
+}
+
+impl Ours {
+    fn new(spec: &Spec, settings: Settings) -> Ours {
+        let mut world = World::new(WorldConfig {
+            gravity: v3(spec.gravity),
+            tick_rate: settings.tick_rate,
+            substeps: settings.substeps,
+            solver_iterations: settings.iterations,
+            relax_iterations: 1,
+            sleep: SleepConfig {
+                enabled: false,
+                ..SleepConfig::default()
+            },
+            ..WorldConfig::default()
+        })
+        .expect("valid world config");
+        let mut handles = Vec::new();
+        let mut forces = Vec::new();
+        for b in &spec.bodies {
+            let desc = if b.fixed {
+                BodyDesc::fixed()
+            } else {
+                BodyDesc::dynamic()
+                    .linear_velocity(v3(b.vel))
+                    .angular_velocity(v3(b.omega))
+            };
+            let [x, y, z, w] = b.rot;
+            let rot = Quat::from_xyzw(s(x), s(y), s(z), s(w));
+            let h = world
+                .create_body(&desc.position(v3(b.pos)).rotation(rot))
+                .expect("body");
+            let shape = match b.shape {
+                ShapeSpec::Sphere(r) => Shape::Sphere(Sphere::new(s(r)).expect("sphere")),
+                ShapeSpec::Cuboid(half) => Shape::Cuboid(Cuboid::new(v3(half)).expect("box")),
+            };
+            world
+                .add_collider(
+                    h,
+                    ColliderDesc::new(shape)
+                        .density(s(b.density))
+                        .material(Material::new(s(b.friction), s(b.restitution))),
+                )
+                .expect("collider");
+            if b.force != [0.0; 3] {
+                forces.push((h, v3(b.force)));
+            }
+            handles.push(h);
+        }
+        Ours {
+            world,
+            handles,
+            forces,
+            faulted: false,
+        }
+    }
+}
+
+impl Sim for Ours {
+    fn step(&mut self) {
+        // Our forces act for one step: apply them before each.
+        for &(h, f) in &self.forces {
+            self.world.apply_force(h, f).expect("live body");
+        }
+        let report = self.world.step();
+        self.faulted |= !report.faults.is_empty();
+    }
+
+    fn state(&self, i: usize) -> State {
+        let b = self.world.body(self.handles[i]).expect("live body");
+        let r = b.rotation();
+        State {
+            pos: f3(b.center_of_mass()),
+            rot: [r.x.to_f64(), r.y.to_f64(), r.z.to_f64(), r.w.to_f64()],
+            vel: f3(b.linear_velocity()),
+            omega: f3(b.angular_velocity()),
+        }
+    }
+
+    fn set_linvel(&mut self, i: usize, v: [f64; 3]) {
+        self.world
+            .set_linear_velocity(self.handles[i], v3(v))
+            .expect("live body");
+    }
+
+    fn faulted(&self) -> bool {
+        self.faulted
+    }
+}
+
+/// Rapier's integration parameters for our settings. In Rapier 0.36 each
+/// "solver iteration" is a substep of its TGS-soft solver (integrate, then
+/// `num_internal_pgs_iterations` solve passes with bias, then
+/// `num_internal_stabilization_iterations` relax passes without), which is
+/// what our substep does with `solver_iterations` solve passes and one
+/// relax pass; so `num_solver_iterations = substeps`,
+/// `num_internal_pgs_iterations = iterations`, one stabilization pass.
+pub fn rapier_parameters(settings: Settings) -> (f64, usize, usize, usize) {
+    (
+        1.0 / settings.tick_rate as f64,
+        settings.substeps as usize,
+        settings.iterations as usize,
+        1,
+    )
+}
+
+/// One adapter for both precisions of Rapier: the crates have the same API
+/// over a different `Real`, so the code is written once and instantiated
+/// for each.
+macro_rules! rapier_adapter {
+    ($module:ident, $krate:ident, $real:ty) => {
+        mod $module {
+            use $krate::prelude::{
+                ColliderBuilder, IntegrationParameters, PhysicsWorld, Pose, RigidBodyBuilder,
+                RigidBodyHandle, Rotation, Vector,
+            };
+
+            use super::{Settings, ShapeSpec, Sim, Spec, State, q, rapier_parameters};
+
+            fn r(v: f64) -> $real {
+                q(v) as $real
+            }
+
+            fn rv(p: [f64; 3]) -> Vector {
+                Vector::new(r(p[0]), r(p[1]), r(p[2]))
+            }
+
+            fn f3(v: Vector) -> [f64; 3] {
+                [v.x as f64, v.y as f64, v.z as f64]
+            }
+
+            /// A Rapier world of this precision and its bodies in spec
+            /// order.
+            pub struct Rapier {
+                world: PhysicsWorld,
+                handles: Vec<RigidBodyHandle>,
+            }
+
+            impl Rapier {
+                /// Builds `spec` at `settings` (see [`rapier_parameters`]).
+                pub fn new(spec: &Spec, settings: Settings) -> Rapier {
+                    let (dt, substeps, pgs, stabilization) = rapier_parameters(settings);
+                    let mut world = PhysicsWorld {
+                        gravity: rv(spec.gravity),
+                        integration_parameters: IntegrationParameters {
+                            dt: dt as $real,
+                            num_solver_iterations: substeps,
+                            num_internal_pgs_iterations: pgs,
+                            num_internal_stabilization_iterations: stabilization,
+                            ..IntegrationParameters::default()
+                        },
+                        ..PhysicsWorld::default()
+                    };
+                    let mut handles = Vec::new();
+                    for (i, b) in spec.bodies.iter().enumerate() {
+                        let [x, y, z, w] = b.rot;
+                        let pose = Pose::from_parts(
+                            rv(b.pos),
+                            Rotation::from_xyzw(r(x), r(y), r(z), r(w)).normalize(),
+                        );
+                        let body = if b.fixed {
+                            RigidBodyBuilder::fixed().pose(pose)
+                        } else {
+                            RigidBodyBuilder::dynamic()
+                                .pose(pose)
+                                .linvel(rv(b.vel))
+                                .angvel(rv(b.omega))
+                                .can_sleep(false)
+                                .ccd_enabled(spec.ccd.contains(&i))
+                        };
+                        let collider = match b.shape {
+                            ShapeSpec::Sphere(rad) => ColliderBuilder::ball(r(rad)),
+                            ShapeSpec::Cuboid([hx, hy, hz]) => {
+                                ColliderBuilder::cuboid(r(hx), r(hy), r(hz))
+                            }
+                        };
+                        let (h, _) = world.insert(
+                            body,
+                            collider
+                                .density(r(b.density))
+                                .friction(r(b.friction))
+                                .restitution(r(b.restitution)),
+                        );
+                        if b.force != [0.0; 3] {
+                            // Rapier's user forces persist until reset.
+                            world.bodies[h].add_force(rv(b.force), true);
+                        }
+                        handles.push(h);
+                    }
+                    Rapier { world, handles }
+                }
+            }
+
+            impl Sim for Rapier {
+                fn step(&mut self) {
+                    self.world.step();
+                }
+
+                fn state(&self, i: usize) -> State {
+                    let b = &self.world.bodies[self.handles[i]];
+                    let q = b.rotation();
+                    State {
+                        pos: f3(b.center_of_mass()),
+                        rot: [q.x as f64, q.y as f64, q.z as f64, q.w as f64],
+                        vel: f3(b.linvel()),
+                        omega: f3(b.angvel()),
+                    }
+                }
+
+                fn set_linvel(&mut self, i: usize, v: [f64; 3]) {
+                    self.world.bodies[self.handles[i]].set_linvel(rv(v), true);
+                }
+
+                fn faulted(&self) -> bool {
+                    false
+                }
+            }
+        }
+    };
+}
+
+rapier_adapter!(rapier_f32, rapier3d, f32);
+rapier_adapter!(rapier_f64, rapier3d_f64, f64);
