@@ -62,7 +62,7 @@
 mod patch;
 mod rows;
 
-use patch::{Patch, prepare_patch};
+use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
     along, angular_along, apply_linear, combine3, cross, effective, inverse_or_zero, linear_basis,
     load, mul, prefetch, push_angular, round_wide, scale, store, tangent_of, vel_or_zero,
@@ -198,6 +198,10 @@ struct Constraint {
     inv_mass_sum: Scalar,
     friction: Scalar,
     restitution: Scalar,
+    /// The manifold's total normal impulse at this substep's warm start
+    /// (the last substep's, or last tick's): what bounds friction through
+    /// the substep's passes.
+    warm_total: Scalar,
     /// The friction rows, acting at the centre of the patch.
     patch: Patch,
     count: usize,
@@ -605,6 +609,7 @@ impl ContactSolver {
                 total += ni;
                 push_angular(&mut va, &mut vb, c.a, c.b, ni, cp.ia_n, cp.ib_n);
             }
+            c.warm_total = total;
             let f = &mut c.patch;
             f.mark = [Scalar::ZERO; 3];
             let [i0, i1] = f.tangent_impulse;
@@ -657,43 +662,21 @@ impl ContactSolver {
                 if k >= count { k - count } else { k }
             };
             // Friction at the patch centre, bounded by μ times the
-            // manifold's current total normal impulse (the points are
-            // visited in the same rotated order as below, so the exact sum
-            // does not depend on it).
-            let mut total = Scalar::ZERO;
-            for cp in &c.points[..count] {
-                total += cp.normal_impulse;
-            }
-            let limit = mul(c.friction, total);
-            let f = &mut c.patch;
-            if !(limit.is_zero()
-                && f.tangent_impulse == [Scalar::ZERO; 2]
-                && f.twist_impulse.is_zero())
-            {
-                for j in 0..2 {
-                    let vt = u[1 + j] + angular_along(&va, &vb, f.ra_t[j], f.rb_t[j]);
-                    let lambda = -mul(f.tangent_mass[j], vt);
-                    let old = f.tangent_impulse[j];
-                    let new = (old + lambda).clamp(-limit, limit);
-                    let d = new - old;
-                    f.tangent_impulse[j] = new;
-                    if !d.is_zero() {
-                        u[1 + j] += mul(c.inv_mass_sum, d);
-                        applied[1 + j] += d;
-                        push_angular(&mut va, &mut vb, c.a, c.b, d, f.ia_t[j], f.ib_t[j]);
-                    }
+            // manifold's total normal impulse of the warm start, the one
+            // the last substep's relax pass settled (see [`solve_patch`]).
+            // A contact without one (new this substep) takes its current
+            // total: the points are visited in the same rotated order as
+            // below, so the exact sum does not depend on it.
+            let total = if c.warm_total.is_positive() {
+                c.warm_total
+            } else {
+                let mut total = Scalar::ZERO;
+                for cp in &c.points[..count] {
+                    total += cp.normal_impulse;
                 }
-                // Twist: the relative spin about the normal.
-                let twist_limit = mul(f.twist_reach, total);
-                let spin = angular_along(&va, &vb, n, n);
-                let old = f.twist_impulse;
-                let new = (old - mul(f.twist_mass, spin)).clamp(-twist_limit, twist_limit);
-                let d = new - old;
-                f.twist_impulse = new;
-                if !d.is_zero() {
-                    push_angular(&mut va, &mut vb, c.a, c.b, d, f.ia_w, f.ib_w);
-                }
-            }
+                total
+            };
+            solve_patch(c, &mut va, &mut vb, &u, &mut applied, total);
             // Non-penetration. The current separation of a point is its
             // adjusted separation plus `n·(Δp_B − Δp_A) + n·(ΔR_B r_B) −
             // n·(ΔR_A r_A)`, and `n·(ΔR r) = (ΔRᵀ n)·r`: two rotated normals

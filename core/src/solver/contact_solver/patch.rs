@@ -2,8 +2,10 @@
 //! constants of the two tangent rows and the twist row (the passes that
 //! solve them are in the parent module).
 
-use super::rows::{cross, effective, inverse_or_zero, mul, round_wide, scale};
-use super::{Constraint, NONE, SolverBody};
+use super::rows::{
+    angular_along, cross, effective, inverse_or_zero, mul, push_angular, round_wide, scale,
+};
+use super::{BodyVel, Constraint, NONE, SolverBody};
 use crate::collision::contacts::TOUCH_TOLERANCE;
 use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS};
 use crate::math::scalar::wide_sum;
@@ -118,4 +120,61 @@ pub(super) fn prepare_patch(
         n.dot_wide(f.ib_w),
     ])));
     f
+}
+
+/// One visit of constraint `c`'s friction rows, before its normal rows:
+/// `total` is the normal impulse that bounds them, `u` the linear relative
+/// velocity along (n, t₀, t₁) and `applied` the linear impulses of the
+/// visit (the tangent ones are added here).
+///
+/// Why the bound is the warm start's total and not the current one: the
+/// relax pass, whose impulses are the substep's, runs after the soft pass,
+/// whose normal impulse follows the contact spring and at a fine substep
+/// lags the weight the rigid relax ends up carrying for a long time (the
+/// spring settles at a rate of about ω²h). Bounded by it, a box launched at
+/// 5 m/s with μ = 0.5 slid 2.3% too far at 480 Hz × 4, 9% at 1,920 Hz × 4
+/// and 18% at 3,840 Hz × 4. The last relax pass's total is one substep old,
+/// an error that vanishes with the substep. (Solving the normal rows first
+/// and bounding by what they settle does the same, but friction as the
+/// last row of the soft pass, before the positions integrate, set a box
+/// under one 100 times heavier rocking, its speed growing past 0.2 m/s
+/// in 10 s.)
+#[inline(always)]
+pub(super) fn solve_patch(
+    c: &mut Constraint,
+    va: &mut BodyVel,
+    vb: &mut BodyVel,
+    u: &[Scalar; 3],
+    applied: &mut [Scalar; 3],
+    total: Scalar,
+) {
+    let limit = mul(c.friction, total);
+    let f = &mut c.patch;
+    if limit.is_zero() && f.tangent_impulse == [Scalar::ZERO; 2] && f.twist_impulse.is_zero() {
+        return;
+    }
+    // A tangent impulse changes the linear relative velocity along its own
+    // tangent only, and each row reads its own once: `u` needs no update.
+    for j in 0..2 {
+        let vt = u[1 + j] + angular_along(va, vb, f.ra_t[j], f.rb_t[j]);
+        let lambda = -mul(f.tangent_mass[j], vt);
+        let old = f.tangent_impulse[j];
+        let new = (old + lambda).clamp(-limit, limit);
+        let d = new - old;
+        f.tangent_impulse[j] = new;
+        if !d.is_zero() {
+            applied[1 + j] += d;
+            push_angular(va, vb, c.a, c.b, d, f.ia_t[j], f.ib_t[j]);
+        }
+    }
+    // Twist: the relative spin about the normal.
+    let twist_limit = mul(f.twist_reach, total);
+    let spin = angular_along(va, vb, c.normal, c.normal);
+    let old = f.twist_impulse;
+    let new = (old - mul(f.twist_mass, spin)).clamp(-twist_limit, twist_limit);
+    let d = new - old;
+    f.twist_impulse = new;
+    if !d.is_zero() {
+        push_angular(va, vb, c.a, c.b, d, f.ia_w, f.ib_w);
+    }
 }
