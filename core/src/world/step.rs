@@ -146,6 +146,7 @@ impl World {
         // Broad phase: proxies follow this step's motion, so queries between
         // steps see where the bodies are now.
         self.sync_proxies(true);
+        report.buffer_growths += self.broad.take_growths();
         report.buffer_growths += self.bodies.take_awake_growths();
 
         self.tick += 1;
