@@ -28,6 +28,9 @@
 //! at the start of the tick plus the relative displacement of its two
 //! anchors along the normal, from each body's change of position and
 //! orientation since the start of the tick: no narrow phase per substep.
+//! On a round shape (sphere, capsule) the anchor is the point of its core
+//! behind the contact, which a rolling body carries along, not the contact
+//! point, which rolls away from the contact.
 //!
 //! Friction acts at the centre of each manifold's contact patch (see
 //! [`Patch`]): two tangent rows and a twist row per manifold, where
@@ -151,9 +154,11 @@ impl SolverBody {
 /// iteration neither forms a cross product nor multiplies by an inertia.
 #[derive(Clone, Copy, Debug, Default)]
 struct ConstraintPoint {
-    /// Anchor on A, relative to A's centre at the start of the tick.
+    /// The point of A's core behind the contact (the contact point for a
+    /// flat-faced shape), relative to A's centre at the start of the tick:
+    /// what the separation is followed through. Zero for no body.
     ra: Vec3,
-    /// Anchor on B.
+    /// The same on B.
     rb: Vec3,
     /// `ra × n`, `rb × n`.
     ra_n: Vec3,
@@ -198,6 +203,9 @@ struct Constraint {
     inv_mass_sum: Scalar,
     friction: Scalar,
     restitution: Scalar,
+    /// How far A's and B's surfaces lie out from their cores (see
+    /// [`PairInfo::rounding`]); read by `prepare` only.
+    rounding: [Scalar; 2],
     /// The manifold's total normal impulse at this substep's warm start
     /// (the last substep's, or last tick's): what bounds friction through
     /// the substep's passes.
@@ -334,6 +342,9 @@ pub(crate) struct PairInfo {
     pub friction: Scalar,
     /// Combined restitution.
     pub restitution: Scalar,
+    /// [`Shape::rounding`](crate::shape::Shape::rounding) of collider A's
+    /// and B's shapes.
+    pub rounding: [Scalar; 2],
 }
 
 impl ContactSolver {
@@ -418,6 +429,7 @@ impl ContactSolver {
             c.b = if mb { pi.slot_b } else { NONE };
             c.friction = pi.friction;
             c.restitution = pi.restitution;
+            c.rounding = pi.rounding;
             used += 1;
         }
         self.constraints.truncate(used);
@@ -503,9 +515,27 @@ impl ContactSolver {
                 } else {
                     mp.point - bb.center0
                 };
-                cp.ra = ra;
-                cp.rb = rb;
-                cp.adjusted_separation = -mp.depth - n.dot(rb - ra);
+                // The separation is followed through the point of each
+                // shape's core behind the contact (one rounding radius in
+                // from it, see `Shape::rounding`), a point of the body: the
+                // contact point itself moves over a round surface, and as a
+                // sphere rolled by θ in a tick its old contact point rose
+                // by r(1 − cos θ), so the solver let it fall through the
+                // second half of every tick (it rolled 2 mm deep, at
+                // −g·dt/2 at each tick's end) and the friction of the
+                // substeps that pushed it back up overshot μmg.
+                let [round_a, round_b] = c.rounding;
+                cp.ra = if c.a == NONE {
+                    Vec3::ZERO
+                } else {
+                    ra - scale(n, round_a)
+                };
+                cp.rb = if c.b == NONE {
+                    Vec3::ZERO
+                } else {
+                    rb + scale(n, round_b)
+                };
+                cp.adjusted_separation = -mp.depth - n.dot(cp.rb - cp.ra);
                 cp.ra_n = cross(ra, n);
                 cp.rb_n = cross(rb, n);
                 cp.ia_n = ba.inv_inertia_mul(cp.ra_n);

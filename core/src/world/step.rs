@@ -223,6 +223,7 @@ impl World {
                 slot_b: cb.body.0.index,
                 friction: m.friction,
                 restitution: m.restitution,
+                rounding: [ca.shape.rounding(), cb.shape.rounding()],
             })
         })
     }
