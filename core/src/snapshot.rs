@@ -57,7 +57,7 @@ impl World {
             .strip_prefix(&SNAPSHOT_MAGIC[..])
             .ok_or(SnapshotError::BadMagic)?;
         let config = bincode::config::standard().with_limit::<MAX_SNAPSHOT_BYTES>();
-        let (world, used): (World, usize) = bincode::serde::decode_from_slice(payload, config)
+        let (mut world, used): (World, usize) = bincode::serde::decode_from_slice(payload, config)
             .map_err(|e| SnapshotError::Corrupt(e.to_string()))?;
         if used != payload.len() {
             return Err(SnapshotError::TrailingBytes(payload.len() - used));
@@ -67,6 +67,7 @@ impl World {
             .validate()
             .map_err(|e| SnapshotError::Invalid(e.to_string()))?;
         world.check_invariants().map_err(SnapshotError::Invalid)?;
+        world.rebuild_derived();
         Ok(world)
     }
 }

@@ -144,18 +144,18 @@ fn box_rides_a_platform(drive: Drive) -> (f64, f64, f64) {
 fn a_box_rides_a_platform_moving_at_2_m_per_s_for_5_s() {
     for drive in [Drive::Velocity, Drive::Target] {
         let (drift, lift, end) = box_rides_a_platform(drive);
-        eprintln!("{drive:?}: drift {drift:.5} m, lift {lift:.5} m, platform at {end:.3} m");
+        eprintln!("{drive:?}: drift {drift:.2e} m, lift {lift:.2e} m, platform at {end:.3} m");
         // The platform went 61/60 m in the ramp (Σ 2k/60 · 1/60, k = 1..60)
         // and 10 m in 5 s at 2 m/s.
         assert!(
             (end - (10.0 + 61.0 / 60.0)).abs() < 1e-4,
             "{drive:?}: platform at {end}"
         );
-        // The box follows within 5 mm (measured 1.3 mm with the velocity
-        // drive, most of it the soft contacts' give while the ramp
-        // accelerates the box; sliding off the 4 m platform would take
-        // 1.5 m) and stays on top.
-        assert!(drift < 0.005, "{drive:?}: box drifted {drift} m");
+        // The ramp's 2 m/s² is under μg, so the box sticks: it follows
+        // within 0.5 mm (the soft contacts' give while the ramp accelerates
+        // it; sliding off the 4 m platform would take 1.5 m) and stays on
+        // top.
+        assert!(drift < 5e-4, "{drive:?}: box drifted {drift} m");
         assert!(lift < 0.01, "{drive:?}: box moved {lift} m vertically");
     }
 }

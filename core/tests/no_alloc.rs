@@ -8,7 +8,10 @@ use std::cell::Cell;
 
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
 use lockstep_core::world::{Stage, StepObserver};
-use lockstep_core::{BodyDesc, ColliderDesc, Quat, Scalar, Transform, Vec3, World, WorldConfig};
+use lockstep_core::{
+    BodyDesc, BodyHandle, ColliderDesc, Quat, Scalar, StepReport, Transform, Vec3, World,
+    WorldConfig,
+};
 
 struct Counting;
 
@@ -47,9 +50,12 @@ fn s(v: f64) -> Scalar {
     Scalar::from_f64_lossy(v)
 }
 
-#[test]
-fn step_does_not_allocate_once_warm() {
-    let mut w = World::new(WorldConfig::default()).unwrap();
+/// Fifty spinning boxes and spheres dropped just onto a floor, and a
+/// kinematic body.
+fn scene(sleep: bool) -> (World, BodyHandle) {
+    let mut cfg = WorldConfig::default();
+    cfg.sleep.enabled = sleep;
+    let mut w = World::new(cfg).unwrap();
     for i in 0..50 {
         let f = i as f64;
         let b = w
@@ -68,20 +74,49 @@ fn step_does_not_allocate_once_warm() {
         };
         w.add_collider(b, ColliderDesc::new(shape)).unwrap();
     }
+    // A floor just under them, so contacts exist through the whole run
+    // (spinning boxes tumble and settle, spinning spheres roll on): without
+    // it the bodies only brushed against each other, and whether a pair
+    // still touched after the warm-up was luck.
+    let floor = w
+        .create_body(&BodyDesc::fixed().position(Vec3::new(s(24.5), s(9.0), Scalar::ZERO)))
+        .unwrap();
+    w.add_collider(
+        floor,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: Vec3::new(s(40.0), s(0.5), s(40.0)),
+        })),
+    )
+    .unwrap();
     let k = w.create_body(&BodyDesc::kinematic()).unwrap();
+    (w, k)
+}
+
+/// Steps `w` once and checks that it allocated only if its report says a
+/// buffer grew (an exceeded capacity is reported, never hidden); returns
+/// the report.
+fn checked_step(w: &mut World, t: u32) -> StepReport {
+    let before = allocations();
+    let r = w.step();
+    let allocated = allocations() - before;
+    assert!(
+        allocated == 0 || r.buffer_growths > 0,
+        "step {t} allocated {allocated} times without reporting a growth"
+    );
+    r
+}
+
+/// Without sleeping the scene reaches a state where no buffer grows, and
+/// from then on steps allocate nothing.
+#[test]
+fn step_does_not_allocate_once_warm() {
+    let (mut w, k) = scene(false);
     // While warming up, buffers grow as contact pairs appear: every step that
     // allocates must say so in its report (an exceeded capacity is reported,
     // never hidden).
     let mut growth_steps = 0;
     for t in 0..60 {
-        let before = allocations();
-        let r = w.step();
-        let allocated = allocations() - before;
-        assert!(
-            allocated == 0 || r.buffer_growths > 0,
-            "step {t} allocated {allocated} times without reporting a growth"
-        );
-        growth_steps += (r.buffer_growths > 0) as u32;
+        growth_steps += (checked_step(&mut w, t).buffer_growths > 0) as u32;
     }
     assert!(
         growth_steps > 0,
@@ -100,6 +135,7 @@ fn step_does_not_allocate_once_warm() {
         w.set_kinematic_target(k, target).unwrap();
         let r = w.step();
         assert!(r.faults.is_empty());
+        assert!(r.contact_constraints > 0, "step {t} solved no contact");
     }
     let after = allocations();
     assert_eq!(
@@ -136,4 +172,17 @@ impl StepObserver for StageCounts {
     fn finished(&mut self, stage: Stage) {
         self.0[stage.index()] += 1;
     }
+}
+
+/// With sleeping, bodies falling asleep move to the broad phase's static
+/// tree, whose node pool grows: the step that did it reports the growth
+/// (it used to show only in the next step's report).
+#[test]
+fn a_step_that_allocates_says_so_as_bodies_fall_asleep() {
+    let (mut w, _) = scene(true);
+    let mut fell_asleep = 0;
+    for t in 0..300 {
+        fell_asleep += checked_step(&mut w, t).fell_asleep;
+    }
+    assert!(fell_asleep > 0, "some bodies fell asleep");
 }

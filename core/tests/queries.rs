@@ -634,8 +634,8 @@ fn box_capsule_and_hull_sweeps_land_on_the_ground_face() {
             "{:?}: {short}",
             shape.kind()
         );
-        // The normal comes from GJK witness points about 3e-5 m apart:
-        // good to ~1e-5 (measured 5.4e-6 for the hull).
+        // The normal comes from GJK witness points about 3e-5 m apart
+        // (the gap the sweep aims for), so it is good to ~1e-5.
         assert!(near_v(h.normal, [0.0, 1.0, 0.0], 2e-5), "{:?}", h.normal);
         assert!(near(h.point.y, 0.0, 1e-6));
     }

@@ -431,3 +431,36 @@ fn sleeping_and_awake_counts_stay_exact_as_bodies_come_and_go() {
     assert_eq!((r.awake_bodies, r.sleeping_bodies), (1, 13));
     assert!(!asleep(&w, b) && asleep(&w, a));
 }
+
+/// Sleeping dynamic bodies by a scan of every body.
+fn sleepers(w: &World) -> u32 {
+    w.body_handles().filter(|&h| asleep(w, h)).count() as u32
+}
+
+/// `bodies().sleeping_count()` is exact at any time, not only after a step:
+/// in a new world, after the game wakes or puts bodies to sleep, and in a
+/// restored world (it read 0 there until the first step, although every
+/// body's own flag was right).
+#[test]
+fn the_sleeping_count_is_exact_between_steps_and_after_a_restore() {
+    let mut w = world();
+    let held = w
+        .create_body(
+            &BodyDesc::dynamic()
+                .position(v(30.0, 10.0, 0.0))
+                .asleep(true),
+        )
+        .unwrap();
+    assert_eq!(w.bodies().sleeping_count(), 1, "created asleep");
+    w.remove_body(held).unwrap();
+    assert_eq!(w.bodies().sleeping_count(), 0, "removed");
+    let boxes = sleeping_piles(&mut w);
+    assert_eq!(w.bodies().sleeping_count(), 12);
+    w.wake_body(boxes[3]).unwrap();
+    assert_eq!(w.bodies().sleeping_count(), sleepers(&w));
+    assert_eq!(sleepers(&w), 11);
+    let r = World::restore(&w.snapshot()).unwrap();
+    assert_eq!(r.bodies().sleeping_count(), 11, "restored");
+    w.sleep_body(boxes[3]).unwrap();
+    assert_eq!(w.bodies().sleeping_count(), 12, "put to sleep");
+}

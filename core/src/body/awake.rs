@@ -4,7 +4,8 @@
 //! per-body stages walk a list of the *awake* slots (live dynamic bodies
 //! that do not sleep, and kinematic bodies) instead of every slot. The list
 //! is derived data: it is neither serialized nor compared, and it is rebuilt
-//! by one scan of all slots when it is missing (a new or restored world).
+//! by one scan of all slots when it is missing (a new or restored world,
+//! before either is handed out).
 //!
 //! Between scans it is kept up to date by the transitions themselves: a body
 //! that wakes or is inserted is queued in `joined`; a body that falls asleep
@@ -28,8 +29,9 @@ pub(crate) fn moves(live: bool, b: &BodyHot) -> bool {
 /// module docs). Equality ignores it: it is derived from the bodies.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct AwakeIndex {
-    /// Whether `slots` and the counters describe the bodies (false in a new
-    /// or decoded set until the first refresh).
+    /// Whether `slots` and the counters describe the bodies (false in a
+    /// default or decoded set until the first refresh; `World::new` and
+    /// `World::restore` refresh at once).
     pub valid: bool,
     /// Awake slots, ascending.
     pub slots: Vec<u32>,
@@ -51,7 +53,10 @@ pub(crate) struct AwakeIndex {
     pub forced_sleepers: Vec<u32>,
     /// Live dynamic bodies.
     pub dynamic: u32,
-    /// Awake dynamic bodies (those in `slots`).
+    /// Awake dynamic bodies: kept current by every transition between
+    /// refreshes (the sleep stage, which writes the flags itself, leaves it
+    /// to the refresh that follows), so `slots` may lag it but the count
+    /// does not.
     pub awake_dynamic: u32,
     /// Times one of these buffers had to grow since the last
     /// [`take_growths`](AwakeIndex::take_growths).

@@ -36,6 +36,7 @@ impl BodySet {
         if self.awake.valid {
             if hot.kind == BodyKind::Dynamic {
                 self.awake.dynamic += 1;
+                self.awake.awake_dynamic += u32::from(hot.is_moving());
             }
             if hot.is_moving() {
                 self.awake.joined.push(h.index);
@@ -58,6 +59,7 @@ impl BodySet {
         if self.awake.valid {
             if self.hot[i].kind == BodyKind::Dynamic {
                 self.awake.dynamic -= 1;
+                self.awake.awake_dynamic -= u32::from(self.hot[i].is_moving());
             }
             if self.hot[i].is_moving() {
                 self.awake.left = true;
@@ -164,11 +166,13 @@ impl BodySet {
         let a = &mut self.awake;
         push_counted(&mut a.changed, slot, &mut a.growths);
         if sleeping {
+            a.awake_dynamic -= 1;
             a.left = true;
             if !b.force.is_zero() || !b.torque.is_zero() {
                 push_counted(&mut a.forced_sleepers, slot, &mut a.growths);
             }
         } else {
+            a.awake_dynamic += 1;
             push_counted(&mut a.joined, slot, &mut a.growths);
         }
         true
@@ -182,7 +186,7 @@ impl BodySet {
     }
 
     /// Brings the awake list up to date (one scan of all slots if it is
-    /// missing, otherwise work in proportion to the awake bodies and the
+    /// missing, as in a decoded set, otherwise work in proportion to the awake bodies and the
     /// transitions since the last refresh).
     pub(crate) fn refresh_awake(&mut self) {
         self.awake.refresh(&self.hot, &self.live);
@@ -227,8 +231,11 @@ impl BodySet {
         })
     }
 
-    /// Sleeping dynamic bodies, as of the last refresh (a maintained count:
-    /// no scan).
+    /// Sleeping dynamic bodies: a maintained count (no scan), exact between
+    /// steps too (inserting, removing, waking or putting a body to sleep
+    /// adjusts it at once) and in a restored world (`World::restore`
+    /// rebuilds the index before returning; it used to wait for the first
+    /// step and report 0 until then).
     pub fn sleeping_count(&self) -> u32 {
         self.awake.dynamic - self.awake.awake_dynamic
     }

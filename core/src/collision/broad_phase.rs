@@ -229,6 +229,16 @@ impl BroadPhase {
         self.moving_tree.margin()
     }
 
+    /// Returns and clears the count of buffer growths since the last call or
+    /// [`update_pairs`](Self::update_pairs), which otherwise reports them.
+    ///
+    /// Why: a step moves proxies after its pair update (a body that fell
+    /// asleep switches to the static tree, whose node pool may grow), and
+    /// that growth is the step's, not the next one's.
+    pub fn take_growths(&mut self) -> u32 {
+        std::mem::take(&mut self.growths)
+    }
+
     /// The counters of the last [`update_pairs`](Self::update_pairs).
     pub fn last_stats(&self) -> PairStats {
         self.last

@@ -290,6 +290,24 @@ impl Shape {
         }
     }
 
+    /// How far the surface lies out from the shape's core: the radius of a
+    /// sphere (whose core is its centre) or a capsule (its segment), zero
+    /// for the flat-faced shapes.
+    ///
+    /// Why: the point of a round surface that touches something is not a
+    /// point of the body (it moves over the surface as the body rolls), but
+    /// the point of the core behind it, one radius in from the contact, is;
+    /// the contact solver follows a contact's separation through it.
+    pub fn rounding(&self) -> Scalar {
+        match self {
+            Shape::Sphere(s) => s.radius,
+            Shape::Capsule(c) => c.radius,
+            Shape::Cuboid(_) | Shape::ConvexHull(_) | Shape::TriMesh(_) | Shape::HeightField(_) => {
+                Scalar::ZERO
+            }
+        }
+    }
+
     /// Whether only static bodies may carry this shape (triangle meshes and
     /// height fields: they enclose no volume, so they have no mass).
     pub fn is_static_only(&self) -> bool {

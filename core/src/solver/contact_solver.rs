@@ -28,6 +28,9 @@
 //! at the start of the tick plus the relative displacement of its two
 //! anchors along the normal, from each body's change of position and
 //! orientation since the start of the tick: no narrow phase per substep.
+//! On a round shape (sphere, capsule) the anchor is the point of its core
+//! behind the contact, which a rolling body carries along, not the contact
+//! point, which rolls away from the contact.
 //!
 //! Friction acts at the centre of each manifold's contact patch (see
 //! [`Patch`]): two tangent rows and a twist row per manifold, where
@@ -62,7 +65,7 @@
 mod patch;
 mod rows;
 
-use patch::{Patch, prepare_patch};
+use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
     along, angular_along, apply_linear, combine3, cross, effective, inverse_or_zero, linear_basis,
     load, mul, prefetch, push_angular, round_wide, scale, store, tangent_of, vel_or_zero,
@@ -151,9 +154,11 @@ impl SolverBody {
 /// iteration neither forms a cross product nor multiplies by an inertia.
 #[derive(Clone, Copy, Debug, Default)]
 struct ConstraintPoint {
-    /// Anchor on A, relative to A's centre at the start of the tick.
+    /// The point of A's core behind the contact (the contact point for a
+    /// flat-faced shape), relative to A's centre at the start of the tick:
+    /// what the separation is followed through. Zero for no body.
     ra: Vec3,
-    /// Anchor on B.
+    /// The same on B.
     rb: Vec3,
     /// `ra × n`, `rb × n`.
     ra_n: Vec3,
@@ -198,6 +203,13 @@ struct Constraint {
     inv_mass_sum: Scalar,
     friction: Scalar,
     restitution: Scalar,
+    /// How far A's and B's surfaces lie out from their cores (see
+    /// [`PairInfo::rounding`]); read by `prepare` only.
+    rounding: [Scalar; 2],
+    /// The manifold's total normal impulse at this substep's warm start
+    /// (the last substep's, or last tick's): what bounds friction through
+    /// the substep's passes.
+    warm_total: Scalar,
     /// The friction rows, acting at the centre of the patch.
     patch: Patch,
     count: usize,
@@ -330,6 +342,9 @@ pub(crate) struct PairInfo {
     pub friction: Scalar,
     /// Combined restitution.
     pub restitution: Scalar,
+    /// [`Shape::rounding`](crate::shape::Shape::rounding) of collider A's
+    /// and B's shapes.
+    pub rounding: [Scalar; 2],
 }
 
 impl ContactSolver {
@@ -414,6 +429,7 @@ impl ContactSolver {
             c.b = if mb { pi.slot_b } else { NONE };
             c.friction = pi.friction;
             c.restitution = pi.restitution;
+            c.rounding = pi.rounding;
             used += 1;
         }
         self.constraints.truncate(used);
@@ -499,9 +515,27 @@ impl ContactSolver {
                 } else {
                     mp.point - bb.center0
                 };
-                cp.ra = ra;
-                cp.rb = rb;
-                cp.adjusted_separation = -mp.depth - n.dot(rb - ra);
+                // The separation is followed through the point of each
+                // shape's core behind the contact (one rounding radius in
+                // from it, see `Shape::rounding`), a point of the body: the
+                // contact point itself moves over a round surface, and as a
+                // sphere rolled by θ in a tick its old contact point rose
+                // by r(1 − cos θ), so the solver let it fall through the
+                // second half of every tick (it rolled 2 mm deep, at
+                // −g·dt/2 at each tick's end) and the friction of the
+                // substeps that pushed it back up overshot μmg.
+                let [round_a, round_b] = c.rounding;
+                cp.ra = if c.a == NONE {
+                    Vec3::ZERO
+                } else {
+                    ra - scale(n, round_a)
+                };
+                cp.rb = if c.b == NONE {
+                    Vec3::ZERO
+                } else {
+                    rb + scale(n, round_b)
+                };
+                cp.adjusted_separation = -mp.depth - n.dot(cp.rb - cp.ra);
                 cp.ra_n = cross(ra, n);
                 cp.rb_n = cross(rb, n);
                 cp.ia_n = ba.inv_inertia_mul(cp.ra_n);
@@ -605,6 +639,7 @@ impl ContactSolver {
                 total += ni;
                 push_angular(&mut va, &mut vb, c.a, c.b, ni, cp.ia_n, cp.ib_n);
             }
+            c.warm_total = total;
             let f = &mut c.patch;
             f.mark = [Scalar::ZERO; 3];
             let [i0, i1] = f.tangent_impulse;
@@ -657,43 +692,21 @@ impl ContactSolver {
                 if k >= count { k - count } else { k }
             };
             // Friction at the patch centre, bounded by μ times the
-            // manifold's current total normal impulse (the points are
-            // visited in the same rotated order as below, so the exact sum
-            // does not depend on it).
-            let mut total = Scalar::ZERO;
-            for cp in &c.points[..count] {
-                total += cp.normal_impulse;
-            }
-            let limit = mul(c.friction, total);
-            let f = &mut c.patch;
-            if !(limit.is_zero()
-                && f.tangent_impulse == [Scalar::ZERO; 2]
-                && f.twist_impulse.is_zero())
-            {
-                for j in 0..2 {
-                    let vt = u[1 + j] + angular_along(&va, &vb, f.ra_t[j], f.rb_t[j]);
-                    let lambda = -mul(f.tangent_mass[j], vt);
-                    let old = f.tangent_impulse[j];
-                    let new = (old + lambda).clamp(-limit, limit);
-                    let d = new - old;
-                    f.tangent_impulse[j] = new;
-                    if !d.is_zero() {
-                        u[1 + j] += mul(c.inv_mass_sum, d);
-                        applied[1 + j] += d;
-                        push_angular(&mut va, &mut vb, c.a, c.b, d, f.ia_t[j], f.ib_t[j]);
-                    }
+            // manifold's total normal impulse of the warm start, the one
+            // the last substep's relax pass settled (see [`solve_patch`]).
+            // A contact without one (new this substep) takes its current
+            // total: the points are visited in the same rotated order as
+            // below, so the exact sum does not depend on it.
+            let total = if c.warm_total.is_positive() {
+                c.warm_total
+            } else {
+                let mut total = Scalar::ZERO;
+                for cp in &c.points[..count] {
+                    total += cp.normal_impulse;
                 }
-                // Twist: the relative spin about the normal.
-                let twist_limit = mul(f.twist_reach, total);
-                let spin = angular_along(&va, &vb, n, n);
-                let old = f.twist_impulse;
-                let new = (old - mul(f.twist_mass, spin)).clamp(-twist_limit, twist_limit);
-                let d = new - old;
-                f.twist_impulse = new;
-                if !d.is_zero() {
-                    push_angular(&mut va, &mut vb, c.a, c.b, d, f.ia_w, f.ib_w);
-                }
-            }
+                total
+            };
+            solve_patch(c, &mut va, &mut vb, &u, &mut applied, total);
             // Non-penetration. The current separation of a point is its
             // adjusted separation plus `n·(Δp_B − Δp_A) + n·(ΔR_B r_B) −
             // n·(ΔR_A r_A)`, and `n·(ΔR r) = (ΔRᵀ n)·r`: two rotated normals

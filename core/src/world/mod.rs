@@ -78,10 +78,14 @@ impl World {
     /// [`WorldError::InvalidConfig`] if a setting is out of range.
     pub fn new(config: WorldConfig) -> Result<World, WorldError> {
         config.validate()?;
+        let mut bodies = BodySet::default();
+        // An index that describes the (empty) set from the start, so counts
+        // are exact before the first step.
+        bodies.refresh_awake();
         Ok(World {
             config,
             tick: 0,
-            bodies: BodySet::default(),
+            bodies,
             colliders: Arena::default(),
             broad: BroadPhase::new(config.broad_phase_margin),
             contacts: ContactSet::default(),
@@ -776,6 +780,13 @@ pub(crate) fn rotation_delta(from: Quat, to: Quat) -> Vec3 {
 }
 
 impl World {
+    /// Rebuilds what a snapshot does not carry and the public counts read
+    /// (the awake index: [`BodySet::sleeping_count`] read 0 in a restored
+    /// world until its first step).
+    pub(crate) fn rebuild_derived(&mut self) {
+        self.bodies.refresh_awake();
+    }
+
     /// Checks the cross-references a decoded snapshot must satisfy: every
     /// collider's body exists and lists it, and every listed collider exists.
     pub(crate) fn check_invariants(&self) -> Result<(), String> {

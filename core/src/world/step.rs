@@ -221,7 +221,9 @@ impl World {
     #[inline(never)]
     fn stage_sync_proxies(&mut self) -> u32 {
         self.sync_proxies(true);
-        self.bodies.take_awake_growths()
+        // The growth of the broad phase here (bodies that fell asleep
+        // this step moved to the static tree) is this step's.
+        self.broad.take_growths() + self.bodies.take_awake_growths()
     }
 
     /// Forces and torques the game applied for this tick are used up.
@@ -269,6 +271,7 @@ impl World {
                 slot_b: cb.body.0.index,
                 friction: m.friction,
                 restitution: m.restitution,
+                rounding: [ca.shape.rounding(), cb.shape.rounding()],
             })
         })
     }
