@@ -525,13 +525,13 @@ impl ContactSolver {
                 // −g·dt/2 at each tick's end) and the friction of the
                 // substeps that pushed it back up overshot μmg.
                 let [round_a, round_b] = c.rounding;
-                cp.ra = if c.a == NONE {
-                    Vec3::ZERO
+                cp.ra = if c.a == NONE || round_a.is_zero() {
+                    ra
                 } else {
                     ra - scale(n, round_a)
                 };
-                cp.rb = if c.b == NONE {
-                    Vec3::ZERO
+                cp.rb = if c.b == NONE || round_b.is_zero() {
+                    rb
                 } else {
                     rb + scale(n, round_b)
                 };

@@ -157,11 +157,14 @@ pub(super) fn solve_patch(
     }
     // Both tangent rows from the same velocities, then the pair held in
     // the disc.
+    // (No `array::map` here or below: its closures were not inlined.)
     let old = f.tangent_impulse;
-    let want = [0, 1].map(|j| {
-        let vt = u[1 + j] + angular_along(va, vb, f.ra_t[j], f.rb_t[j]);
-        old[j] - mul(f.tangent_mass[j], vt)
-    });
+    let vt0 = u[1] + angular_along(va, vb, f.ra_t[0], f.rb_t[0]);
+    let vt1 = u[2] + angular_along(va, vb, f.ra_t[1], f.rb_t[1]);
+    let want = [
+        old[0] - mul(f.tangent_mass[0], vt0),
+        old[1] - mul(f.tangent_mass[1], vt1),
+    ];
     let new = clamp_to_disc(want, limit);
     f.tangent_impulse = new;
     for j in 0..2 {
@@ -194,7 +197,10 @@ pub(super) fn solve_patch(
 /// length is at most `limit`. A `limit` of zero gives zero.
 #[inline(always)]
 pub(super) fn clamp_to_disc(p: [Scalar; 2], limit: Scalar) -> [Scalar; 2] {
-    let [x, y] = p.map(|c| c.to_bits().unsigned_abs() as u128);
+    let (x, y) = (
+        p[0].to_bits().unsigned_abs() as u128,
+        p[1].to_bits().unsigned_abs() as u128,
+    );
     // Each square is below 2¹²⁶ + 1, so the sum fits.
     let len2 = x * x + y * y;
     let lim = limit.to_bits().max(0) as u128;
@@ -208,10 +214,11 @@ pub(super) fn clamp_to_disc(p: [Scalar; 2], limit: Scalar) -> [Scalar; 2] {
     // is below 2⁶³·2⁶⁴. With the rounded-up length, each component ends at
     // most a few ulps below its exact `c·limit/|p|`.
     let factor = (lim << 64) / len;
-    p.map(|c| {
-        let m = ((c.to_bits().unsigned_abs() as u128 * factor) >> 64) as i64;
+    let scaled = |m: u128, c: Scalar| {
+        let m = ((m * factor) >> 64) as i64;
         Scalar::from_bits(if c.is_negative() { -m } else { m })
-    })
+    };
+    [scaled(x, p[0]), scaled(y, p[1])]
 }
 
 #[cfg(test)]
