@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{Rng, f, s, v};
+use common::{Rng, f, ground, s, v};
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
 use lockstep_core::{BodyDesc, ColliderDesc, Material, World, WorldConfig};
 
@@ -25,21 +25,6 @@ fn world(tick_rate: u32, substeps: u32) -> World {
     };
     cfg.sleep.enabled = false;
     World::new(cfg).unwrap()
-}
-
-/// A static ground whose top face is y = 0.
-fn ground(w: &mut World, m: Material) {
-    let g = w
-        .create_body(&BodyDesc::fixed().position(v(0.0, -1.0, 0.0)))
-        .unwrap();
-    w.add_collider(
-        g,
-        ColliderDesc::new(Shape::Cuboid(Cuboid {
-            half_extents: v(200.0, 1.0, 200.0),
-        }))
-        .material(m),
-    )
-    .unwrap();
 }
 
 fn step(w: &mut World) {

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{f, s, v};
+use common::{f, ground, s, v};
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
 use lockstep_core::{BodyDesc, BodyHandle, ColliderDesc, Material, Vec3, World, WorldConfig};
 
@@ -24,22 +24,6 @@ fn world_with(gravity: Vec3, sleep: bool) -> World {
     };
     cfg.sleep.enabled = sleep;
     World::new(cfg).unwrap()
-}
-
-/// A static ground whose top face is y = 0.
-fn ground(w: &mut World, m: Material) -> BodyHandle {
-    let g = w
-        .create_body(&BodyDesc::fixed().name("ground").position(v(0.0, -1.0, 0.0)))
-        .unwrap();
-    w.add_collider(
-        g,
-        ColliderDesc::new(Shape::Cuboid(Cuboid {
-            half_extents: v(200.0, 1.0, 200.0),
-        }))
-        .material(m),
-    )
-    .unwrap();
-    g
 }
 
 fn cube(w: &mut World, at: Vec3, half: f64, density: f64, m: Material) -> BodyHandle {

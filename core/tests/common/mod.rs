@@ -8,7 +8,10 @@
 
 #![allow(dead_code)]
 
-use lockstep_core::{Scalar, Vec3, World, WorldConfig};
+use lockstep_core::shape::{Cuboid, Shape};
+use lockstep_core::{
+    BodyDesc, BodyHandle, ColliderDesc, Material, Scalar, Vec3, World, WorldConfig,
+};
 
 /// SplitMix64, seeded by its field: a tiny deterministic generator (no
 /// `rand` dependency), so every run of a randomised test draws the same
@@ -49,4 +52,21 @@ pub fn zero_g() -> World {
         ..WorldConfig::default()
     })
     .unwrap()
+}
+
+/// A static ground 400 m × 400 m whose top face is y = 0, of material `m`:
+/// the floor of the closed-form solver and friction tests.
+pub fn ground(w: &mut World, m: Material) -> BodyHandle {
+    let g = w
+        .create_body(&BodyDesc::fixed().name("ground").position(v(0.0, -1.0, 0.0)))
+        .unwrap();
+    w.add_collider(
+        g,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(200.0, 1.0, 200.0),
+        }))
+        .material(m),
+    )
+    .unwrap();
+    g
 }
