@@ -29,6 +29,7 @@ use crate::collider::ColliderHandle;
 use crate::math::Scalar;
 
 use super::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
+use super::reuse::ReuseCache;
 
 /// How far a contact point may move between steps and still inherit an old
 /// point's impulses when its feature id changed, m.
@@ -92,6 +93,9 @@ pub struct ContactPair {
     pub impulses: [PointImpulse; MAX_MANIFOLD_POINTS],
     /// Accumulated friction of the whole manifold.
     pub friction: PatchFriction,
+    /// What the last full narrow-phase test left for reuse (see
+    /// [`super::reuse`]); never valid for triggers.
+    pub reuse: ReuseCache,
 }
 
 impl ContactPair {
@@ -105,6 +109,7 @@ impl ContactPair {
             manifold: Manifold::EMPTY,
             impulses: [PointImpulse::default(); MAX_MANIFOLD_POINTS],
             friction: PatchFriction::default(),
+            reuse: ReuseCache::EMPTY,
         }
     }
 
@@ -218,8 +223,11 @@ impl ContactEvent {
 pub struct ContactStats {
     /// Candidate pairs from the broad phase.
     pub candidates: u32,
-    /// Narrow-phase calls.
+    /// Narrow-phase calls (full tests and reuses).
     pub narrow_tests: u32,
+    /// Of those, the pairs that reused their manifold's features instead
+    /// of running the full test.
+    pub reused: u32,
     /// Pairs touching after the update.
     pub touching: u32,
     /// Contact points in all manifolds.
@@ -315,8 +323,11 @@ impl ContactSet {
 
     /// Merges the sorted `candidates` with the current pairs.
     ///
-    /// - `narrow(a, b, manifold)` fills the manifold of a candidate (called
-    ///   once per candidate, in pair order);
+    /// - `narrow(a, b, reuse, manifold)` fills the manifold of a candidate
+    ///   (called once per candidate, in pair order). For a solid pair
+    ///   `reuse` holds the pair's current manifold and its reuse cache: the
+    ///   closure may rebuild the manifold from the cache (returning true) or
+    ///   run the full test and record the cache anew (returning false);
     /// - `keep_asleep(pair)` says whether a pair that is no longer a
     ///   candidate rests between sleeping (or sleeping and static) bodies and
     ///   must be kept as it is.
@@ -333,7 +344,12 @@ impl ContactSet {
     pub fn update(
         &mut self,
         candidates: impl Iterator<Item = Candidate>,
-        narrow: impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
+        narrow: impl FnMut(
+            ColliderHandle,
+            ColliderHandle,
+            Option<(&Manifold, &mut ReuseCache)>,
+            &mut Manifold,
+        ) -> bool,
         keep_asleep: impl FnMut(&ContactPair) -> bool,
     ) -> ContactStats {
         if self.active.valid {
@@ -348,7 +364,12 @@ impl ContactSet {
     fn update_all(
         &mut self,
         candidates: impl Iterator<Item = Candidate>,
-        mut narrow: impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
+        mut narrow: impl FnMut(
+            ColliderHandle,
+            ColliderHandle,
+            Option<(&Manifold, &mut ReuseCache)>,
+            &mut Manifold,
+        ) -> bool,
         mut keep_asleep: impl FnMut(&ContactPair) -> bool,
     ) -> ContactStats {
         let mut stats = ContactStats::default();
@@ -417,16 +438,28 @@ impl ContactSet {
         &mut self,
         pair: &mut ContactPair,
         c: &Candidate,
-        narrow: &mut impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
+        narrow: &mut impl FnMut(
+            ColliderHandle,
+            ColliderHandle,
+            Option<(&Manifold, &mut ReuseCache)>,
+            &mut Manifold,
+        ) -> bool,
         scratch: &mut Manifold,
         stats: &mut ContactStats,
     ) {
         pair.kind = c.kind;
         let was_touching = pair.touching;
         scratch.clear();
-        narrow(c.a, c.b, scratch);
+        let reuse = match c.kind {
+            PairKind::Solid => Some((&pair.manifold, &mut pair.reuse)),
+            PairKind::Trigger => None,
+        };
+        if narrow(c.a, c.b, reuse, scratch) {
+            stats.reused += 1;
+        }
         stats.narrow_tests += 1;
         if c.kind == PairKind::Trigger {
+            pair.reuse = ReuseCache::EMPTY;
             pair.touching = scratch.points().iter().any(|p| !p.depth.is_negative());
             pair.manifold = Manifold::EMPTY;
         } else {
@@ -450,7 +483,12 @@ impl ContactSet {
     fn update_active(
         &mut self,
         candidates: impl Iterator<Item = Candidate>,
-        mut narrow: impl FnMut(ColliderHandle, ColliderHandle, &mut Manifold),
+        mut narrow: impl FnMut(
+            ColliderHandle,
+            ColliderHandle,
+            Option<(&Manifold, &mut ReuseCache)>,
+            &mut Manifold,
+        ) -> bool,
         mut keep_asleep: impl FnMut(&ContactPair) -> bool,
     ) -> ContactStats {
         let mut stats = ContactStats::default();
@@ -688,6 +726,7 @@ impl ContactSet {
             h.scalar(p.friction.tangent[0]);
             h.scalar(p.friction.tangent[1]);
             h.scalar(p.friction.twist);
+            p.reuse.hash_into(h, p.manifold.points().len());
         }
     }
 }

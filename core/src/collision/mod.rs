@@ -8,6 +8,7 @@ pub mod contacts;
 pub mod dynamic_tree;
 pub mod manifold;
 pub mod narrow;
+pub mod reuse;
 
 pub use broad_phase::{BroadPhase, BroadPhaseError, PairStats, ProxyId, ProxyKey, ProxyKind};
 pub use contacts::{
@@ -16,6 +17,7 @@ pub use contacts::{
 };
 pub use dynamic_tree::{DynamicTree, LeafId, TreeError};
 pub use manifold::{ContactPoint, FeatureId, MAX_MANIFOLD_POINTS, Manifold};
+pub use reuse::ReuseCache;
 
 #[cfg(test)]
 mod tests;

@@ -4,7 +4,8 @@
 use crate::body::{BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::collider::ColliderHandle;
 use crate::collision::contacts::{Candidate, ContactStats, PairKind};
-use crate::collision::{PairStats, ProxyKey, ProxyKind, narrow};
+use crate::collision::reuse::{RelativePose, ReuseCache};
+use crate::collision::{Manifold, PairStats, ProxyKey, ProxyKind, narrow};
 
 use super::World;
 
@@ -187,13 +188,32 @@ impl World {
         // close in one tick, so a fast body gets its contact point before it
         // passes the surface, and the solver stops it exactly there (no
         // overlap to push out, and a bounce from the right height).
-        let narrow_phase =
-            |a: ColliderHandle, b: ColliderHandle, out: &mut crate::collision::Manifold| {
-                if let (Some((ca, pa, va)), Some((cb, pb, vb))) = (pose_of(a), pose_of(b)) {
-                    let reach = margin + (vb - va).length() * dt;
-                    narrow::contact(&ca.shape, &pa, &cb.shape, &pb, reach, out);
-                }
+        //
+        // A solid pair whose relative pose has barely changed since its
+        // manifold was built rebuilds it from the cached anchors instead
+        // (see `collision::reuse`).
+        let narrow_phase = |a: ColliderHandle,
+                            b: ColliderHandle,
+                            reuse: Option<(&Manifold, &mut ReuseCache)>,
+                            out: &mut Manifold| {
+            let (Some((ca, pa, va)), Some((cb, pb, vb))) = (pose_of(a), pose_of(b)) else {
+                return false;
             };
+            let Some((prev, cache)) = reuse else {
+                let reach = margin + (vb - va).length() * dt;
+                narrow::contact(&ca.shape, &pa, &cb.shape, &pb, reach, out);
+                return false;
+            };
+            let rel = RelativePose::between(&pa, &pb);
+            if !prev.is_empty() && cache.holds_for(&rel) {
+                cache.rebuild(&pa, &pb, prev, out);
+                return true;
+            }
+            let reach = margin + (vb - va).length() * dt;
+            narrow::contact(&ca.shape, &pa, &cb.shape, &pb, reach, out);
+            cache.record(&pa, &pb, &rel, out);
+            false
+        };
         let resting = |p: &crate::collision::ContactPair| {
             let kind =
                 |ch: ColliderHandle| colliders.get(ch.0).map(|c| proxy_kind_of(bodies, c.body));

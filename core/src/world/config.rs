@@ -171,8 +171,12 @@ pub struct StepReport {
     pub islands: u32,
     /// Candidate pairs from the broad phase (fat boxes overlap).
     pub candidate_pairs: u32,
-    /// Narrow-phase tests run.
+    /// Narrow-phase tests run (full tests plus reuses).
     pub narrow_tests: u32,
+    /// Of those, pairs that had barely moved relative to each other and
+    /// rebuilt their manifold from its cached features instead of a full
+    /// test.
+    pub reused_manifolds: u32,
     /// Pairs touching after the collision stage.
     pub touching_pairs: u32,
     /// Contact points in all manifolds.

@@ -10,7 +10,7 @@ use super::World;
 /// Version of the hashed layout; bumped whenever the list of hashed words
 /// changes, so hashes from different layouts never compare equal by
 /// accident.
-pub const STATE_HASH_VERSION: u64 = 6;
+pub const STATE_HASH_VERSION: u64 = 7;
 
 impl World {
     /// The canonical hash of everything that influences later steps: the

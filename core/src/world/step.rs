@@ -97,6 +97,7 @@ impl World {
         n.finished(Stage::WakeTouched);
         report.candidate_pairs = contacts.candidates;
         report.narrow_tests = contacts.narrow_tests;
+        report.reused_manifolds = contacts.reused;
         report.touching_pairs = contacts.touching;
         report.contact_points = contacts.points;
         report.begin_events = contacts.begin_events;

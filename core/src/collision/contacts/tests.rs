@@ -99,13 +99,14 @@ fn begin_and_end_events_follow_touching_in_pair_order() {
             .collect();
         set.update(
             cands.into_iter(),
-            |a, b, m| {
+            |a, b, _, m| {
                 let d = pairs
                     .iter()
                     .find(|p| p.0 == a.index() && p.1 == b.index())
                     .unwrap()
                     .2;
                 *m = manifold(&[(1, d)]);
+                false
             },
             |_| false,
         );
@@ -144,11 +145,14 @@ fn sleeping_pairs_are_kept_without_events() {
             kind: PairKind::Solid,
         }]
         .into_iter(),
-        |_, _, m| *m = manifold(&[(1, 1)]),
+        |_, _, _, m| {
+            *m = manifold(&[(1, 1)]);
+            false
+        },
         |_| false,
     );
     assert_eq!(set.events().len(), 1);
-    set.update(std::iter::empty(), |_, _, _| {}, |_| true);
+    set.update(std::iter::empty(), |_, _, _, _| false, |_| true);
     assert!(set.events().is_empty());
     assert_eq!(set.pairs().len(), 1);
     assert!(set.pairs()[0].touching);
