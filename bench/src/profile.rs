@@ -1,7 +1,8 @@
 //! The `profile` suite: steps only lockstep-core on the chosen scenes (by
 //! default `large_pyramid`) for a few steps, so `perf record` or
 //! `valgrind --tool=callgrind` see our engine alone, and prints ms/step
-//! (first step excluded) with the scene's contact points, top-box drop and
+//! (first step excluded) with the scene's contact points, the last step's
+//! narrow-phase tests and how many of them reused a manifold, top-box drop and
 //! final state hash (so a change meant to keep results can be checked bit
 //! for bit).
 
@@ -21,10 +22,12 @@ pub fn run(opts: &Options) -> SuiteOutput {
         .scenes
         .clone()
         .unwrap_or_else(|| vec!["large_pyramid".to_owned()]);
-    let mut text =
-        String::from("scene           bodies  steps   ms/step  contacts  top dy m  state hash\n");
-    let mut csv =
-        String::from("suite,scene,bodies,steps,ms_per_step,contact_points,top_dy_m,state_hash\n");
+    let mut text = String::from(
+        "scene           bodies  steps   ms/step  contacts    tests  reused  top dy m  state hash\n",
+    );
+    let mut csv = String::from(
+        "suite,scene,bodies,steps,ms_per_step,contact_points,narrow_tests,reused_manifolds,top_dy_m,state_hash\n",
+    );
     for (name, scene) in scene_list(opts.quick) {
         let Some(scene) = scene else { continue };
         if !wanted.iter().any(|w| w == name) {
@@ -32,14 +35,14 @@ pub fn run(opts: &Options) -> SuiteOutput {
         }
         let (mut world, bodies) = build_ours(&scene, sleep_off());
         let mut total = 0.0;
-        let mut points = 0;
+        let (mut points, mut tests, mut reused) = (0, 0, 0);
         for i in 0..steps {
             let t = Instant::now();
             let r = world.step();
             if i > 0 {
                 total += t.elapsed().as_secs_f64();
             }
-            points = r.contact_points;
+            (points, tests, reused) = (r.contact_points, r.narrow_tests, r.reused_manifolds);
         }
         // The final state hash: optimisations that must not change results
         // are checked by comparing it before and after.
@@ -57,12 +60,12 @@ pub fn run(opts: &Options) -> SuiteOutput {
             .fold(0.0, f64::max);
         let _ = writeln!(
             text,
-            "{name:<14} {:>7} {steps:>6} {ms:>9.3} {points:>9} {top_dy:>9.4}  {hash:016x}",
+            "{name:<14} {:>7} {steps:>6} {ms:>9.3} {points:>9} {tests:>8} {reused:>7} {top_dy:>9.4}  {hash:016x}",
             scene.positions.len()
         );
         let _ = writeln!(
             csv,
-            "profile,{name},{},{steps},{ms:.4},{points},{top_dy:.6},{hash:016x}",
+            "profile,{name},{},{steps},{ms:.4},{points},{tests},{reused},{top_dy:.6},{hash:016x}",
             scene.positions.len()
         );
     }

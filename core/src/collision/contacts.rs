@@ -268,9 +268,11 @@ struct ActivePairs {
     /// Scratch: the merged pair array after a fast update that created or
     /// dropped pairs.
     merged: Vec<ContactPair>,
-    /// For each pair in `ContactSet::next` during a fast update: whether it
-    /// was a candidate (otherwise a retired pair kept asleep).
-    next_is_candidate: Vec<bool>,
+    /// The pairs a fast update leaves active or asleep, in key order: an
+    /// old pair updated in place (its index in the pair array) or a new
+    /// one (its index in `ContactSet::next`, tagged with [`NEW_PAIR`]), and
+    /// whether it was a candidate (otherwise a retired pair kept asleep).
+    order: Vec<(u32, bool)>,
     /// Touching pairs in the whole array.
     touching: u32,
     /// Contact points of the touching pairs in the whole array.
@@ -285,6 +287,9 @@ impl PartialEq for ActivePairs {
 }
 
 impl Eq for ActivePairs {}
+
+/// Tag of an entry of [`ActivePairs::order`] that indexes the new pairs.
+const NEW_PAIR: u32 = 1 << 31;
 
 /// What a pair adds to the touching and point counters.
 fn counts(p: &ContactPair) -> (u32, u32) {
@@ -347,7 +352,7 @@ impl ContactSet {
         narrow: impl FnMut(
             ColliderHandle,
             ColliderHandle,
-            Option<(&Manifold, &mut ReuseCache)>,
+            Option<(&mut Manifold, &mut ReuseCache)>,
             &mut Manifold,
         ) -> bool,
         keep_asleep: impl FnMut(&ContactPair) -> bool,
@@ -367,7 +372,7 @@ impl ContactSet {
         mut narrow: impl FnMut(
             ColliderHandle,
             ColliderHandle,
-            Option<(&Manifold, &mut ReuseCache)>,
+            Option<(&mut Manifold, &mut ReuseCache)>,
             &mut Manifold,
         ) -> bool,
         mut keep_asleep: impl FnMut(&ContactPair) -> bool,
@@ -405,7 +410,14 @@ impl ContactSet {
                 ContactPair::new(c.a, c.b, c.kind)
             };
             self.active.index.push(self.next.len() as u32);
-            self.refresh_pair(&mut pair, &c, &mut narrow, &mut scratch, &mut stats);
+            Self::refresh_pair(
+                &mut self.events,
+                &mut pair,
+                &c,
+                &mut narrow,
+                &mut scratch,
+                &mut stats,
+            );
             self.next.push(pair);
         }
         while old < self.pairs.len() {
@@ -433,15 +445,17 @@ impl ContactSet {
     }
 
     /// Runs the narrow phase on one candidate and installs its manifold,
-    /// with the begin/end event its touching change calls for.
+    /// with the begin/end event its touching change calls for. A reused
+    /// manifold is rebuilt in place: its features, and so its impulses,
+    /// are the ones it had.
     fn refresh_pair(
-        &mut self,
+        events: &mut Vec<ContactEvent>,
         pair: &mut ContactPair,
         c: &Candidate,
         narrow: &mut impl FnMut(
             ColliderHandle,
             ColliderHandle,
-            Option<(&Manifold, &mut ReuseCache)>,
+            Option<(&mut Manifold, &mut ReuseCache)>,
             &mut Manifold,
         ) -> bool,
         scratch: &mut Manifold,
@@ -450,43 +464,54 @@ impl ContactSet {
         pair.kind = c.kind;
         let was_touching = pair.touching;
         scratch.clear();
-        let reuse = match c.kind {
-            PairKind::Solid => Some((&pair.manifold, &mut pair.reuse)),
-            PairKind::Trigger => None,
-        };
-        if narrow(c.a, c.b, reuse, scratch) {
-            stats.reused += 1;
-        }
         stats.narrow_tests += 1;
-        if c.kind == PairKind::Trigger {
-            pair.reuse = ReuseCache::EMPTY;
-            pair.touching = scratch.points().iter().any(|p| !p.depth.is_negative());
-            pair.manifold = Manifold::EMPTY;
-        } else {
-            pair.update_manifold(scratch);
+        match c.kind {
+            PairKind::Trigger => {
+                narrow(c.a, c.b, None, scratch);
+                pair.reuse = ReuseCache::EMPTY;
+                pair.touching = scratch.points().iter().any(|p| !p.depth.is_negative());
+                pair.manifold = Manifold::EMPTY;
+            }
+            PairKind::Solid => {
+                if narrow(
+                    c.a,
+                    c.b,
+                    Some((&mut pair.manifold, &mut pair.reuse)),
+                    scratch,
+                ) {
+                    stats.reused += 1;
+                    pair.touching = pair
+                        .manifold
+                        .points()
+                        .iter()
+                        .any(|p| p.depth >= -TOUCH_TOLERANCE);
+                } else {
+                    pair.update_manifold(scratch);
+                }
+            }
         }
         if pair.touching != was_touching {
             if pair.touching {
-                self.events.push(ContactEvent::begin(pair));
+                events.push(ContactEvent::begin(pair));
                 stats.begin_events += 1;
             } else {
-                self.events.push(ContactEvent::end(pair));
+                events.push(ContactEvent::end(pair));
                 stats.end_events += 1;
             }
         }
     }
 
     /// [`update`](Self::update) over the active pairs only: the same merge
-    /// as [`update_all`](Self::update_all), restricted to them, then the
-    /// results go back in place (or, if pairs were created or dropped, one
-    /// merge with the untouched resting pairs).
+    /// as [`update_all`](Self::update_all), restricted to them. Pairs that
+    /// stay are updated in place; if pairs were created or dropped, one
+    /// merge with the untouched resting pairs follows.
     fn update_active(
         &mut self,
         candidates: impl Iterator<Item = Candidate>,
         mut narrow: impl FnMut(
             ColliderHandle,
             ColliderHandle,
-            Option<(&Manifold, &mut ReuseCache)>,
+            Option<(&mut Manifold, &mut ReuseCache)>,
             &mut Manifold,
         ) -> bool,
         mut keep_asleep: impl FnMut(&ContactPair) -> bool,
@@ -498,7 +523,7 @@ impl ContactSet {
             [
                 s.next.capacity(),
                 s.events.capacity(),
-                s.active.next_is_candidate.capacity(),
+                s.active.order.capacity(),
                 s.active.index.capacity() + s.active.next_index.capacity(),
                 s.pairs.capacity() + s.active.merged.capacity(),
             ]
@@ -506,10 +531,17 @@ impl ContactSet {
         let caps = capacities(self);
         self.next.clear();
         self.events.clear();
-        self.active.next_is_candidate.clear();
+        self.active.order.clear();
+        // The active pairs' counts leave the totals now (they are updated
+        // in place below); what the update leaves comes back at the end.
+        let (mut touching, mut points) = (self.active.touching, self.active.points);
+        for &i in &self.active.index {
+            let (t, n) = counts(&self.pairs[i as usize]);
+            touching -= t;
+            points -= n;
+        }
         // Whether a pair was created or dropped (the array changes shape).
         let mut reshaped = false;
-        let (mut touching, mut points) = (self.active.touching, self.active.points);
         let mut k = 0usize;
         let mut scratch = Manifold::EMPTY;
         let n_active = self.active.index.len();
@@ -520,28 +552,42 @@ impl ContactSet {
                 reshaped |= !self.retire_active(k, &mut keep_asleep, &mut stats);
                 k += 1;
             }
-            let mut pair = match self.active.index.get(k).map(|&i| self.pairs[i as usize]) {
-                Some(old) if old.key() == key && old.a == c.a && old.b == c.b => {
+            let old = self.active.index.get(k).map(|&i| i as usize);
+            let pair = match old.map(|i| &self.pairs[i]) {
+                Some(p) if p.key() == key && p.a == c.a && p.b == c.b => {
                     k += 1;
-                    old
+                    let i = old.unwrap_or_default();
+                    self.active.order.push((i as u32, true));
+                    &mut self.pairs[i]
                 }
-                Some(old) if old.key() == key => {
-                    // Same slots, other generations: the old pair's
-                    // colliders were removed.
-                    let i = self.active.index[k] as usize;
-                    self.retire(i, &mut |_| false, &mut stats);
-                    k += 1;
+                found => {
+                    if found.is_some_and(|p| p.key() == key) {
+                        // Same slots, other generations: the old pair's
+                        // colliders were removed.
+                        let p = self.pairs[self.active.index[k] as usize];
+                        if p.touching {
+                            self.events.push(ContactEvent::end(&p));
+                            stats.end_events += 1;
+                        }
+                        k += 1;
+                    }
                     reshaped = true;
-                    ContactPair::new(c.a, c.b, c.kind)
-                }
-                _ => {
-                    reshaped = true;
-                    ContactPair::new(c.a, c.b, c.kind)
+                    self.active
+                        .order
+                        .push((NEW_PAIR | self.next.len() as u32, true));
+                    self.next.push(ContactPair::new(c.a, c.b, c.kind));
+                    let last = self.next.len() - 1;
+                    &mut self.next[last]
                 }
             };
-            self.refresh_pair(&mut pair, &c, &mut narrow, &mut scratch, &mut stats);
-            self.next.push(pair);
-            self.active.next_is_candidate.push(true);
+            Self::refresh_pair(
+                &mut self.events,
+                pair,
+                &c,
+                &mut narrow,
+                &mut scratch,
+                &mut stats,
+            );
         }
         while k < n_active {
             reshaped |= !self.retire_active(k, &mut keep_asleep, &mut stats);
@@ -549,27 +595,28 @@ impl ContactSet {
         }
         // The resting pairs outside the active list were kept as they are.
         stats.kept_asleep += (self.pairs.len() - n_active) as u32;
-        for &i in &self.active.index {
-            let (t, n) = counts(&self.pairs[i as usize]);
-            touching -= t;
-            points -= n;
-        }
-        for p in &self.next {
-            let (t, n) = counts(p);
+        let a = &mut self.active;
+        let entry = |(j, _): (u32, bool)| -> &ContactPair {
+            if j & NEW_PAIR != 0 {
+                &self.next[(j & !NEW_PAIR) as usize]
+            } else {
+                &self.pairs[j as usize]
+            }
+        };
+        for &e in &a.order {
+            let (t, n) = counts(entry(e));
             touching += t;
             points += n;
         }
-        self.active.touching = touching;
-        self.active.points = points;
+        a.touching = touching;
+        a.points = points;
         stats.touching = touching;
         stats.points = points;
-        let a = &mut self.active;
         a.next_index.clear();
         if !reshaped {
-            // Same pairs in the same places: write the results back.
-            debug_assert_eq!(a.index.len(), self.next.len());
-            for ((&i, p), &cand) in a.index.iter().zip(&self.next).zip(&a.next_is_candidate) {
-                self.pairs[i as usize] = *p;
+            // Same pairs in the same places, already updated.
+            debug_assert!(a.order.iter().map(|e| e.0).eq(a.index.iter().copied()));
+            for &(i, cand) in &a.order {
                 if cand {
                     a.next_index.push(i);
                 }
@@ -586,21 +633,21 @@ impl ContactSet {
                     rest.next();
                     continue;
                 }
-                while j < self.next.len() && self.next[j].key() < p.key() {
-                    if a.next_is_candidate[j] {
+                while j < a.order.len() && entry(a.order[j]).key() < p.key() {
+                    if a.order[j].1 {
                         a.next_index.push(a.merged.len() as u32);
                     }
-                    a.merged.push(self.next[j]);
+                    a.merged.push(*entry(a.order[j]));
                     j += 1;
                 }
-                debug_assert!(j >= self.next.len() || self.next[j].key() != p.key());
+                debug_assert!(j >= a.order.len() || entry(a.order[j]).key() != p.key());
                 a.merged.push(*p);
             }
-            while j < self.next.len() {
-                if a.next_is_candidate[j] {
+            while j < a.order.len() {
+                if a.order[j].1 {
                     a.next_index.push(a.merged.len() as u32);
                 }
-                a.merged.push(self.next[j]);
+                a.merged.push(*entry(a.order[j]));
                 j += 1;
             }
             std::mem::swap(&mut self.pairs, &mut a.merged);
@@ -613,7 +660,8 @@ impl ContactSet {
     }
 
     /// An active pair (the `k`-th) that is no longer a candidate, in a fast
-    /// update: kept in `next` if asleep; returns whether it was kept.
+    /// update: kept in place if asleep, else dropped with an end event if
+    /// it was touching; returns whether it was kept.
     fn retire_active(
         &mut self,
         k: usize,
@@ -621,13 +669,18 @@ impl ContactSet {
         stats: &mut ContactStats,
     ) -> bool {
         let i = self.active.index[k] as usize;
-        let before = self.next.len();
-        self.retire(i, keep_asleep, stats);
-        let kept = self.next.len() > before;
-        if kept {
-            self.active.next_is_candidate.push(false);
+        let p = &self.pairs[i];
+        if keep_asleep(p) {
+            self.active.order.push((i as u32, false));
+            stats.kept_asleep += 1;
+            true
+        } else {
+            if p.touching {
+                self.events.push(ContactEvent::end(p));
+                stats.end_events += 1;
+            }
+            false
         }
-        kept
     }
 
     /// Forgets the active list: the next update walks every pair. Called

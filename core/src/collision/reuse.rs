@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::math::{Mat3, Quat, Scalar, Transform, Vec3};
 
-use super::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
+use super::manifold::{MAX_MANIFOLD_POINTS, Manifold};
 
 /// How far B's origin may have moved in A's frame since the manifold was
 /// built, m (2⁻¹⁰ m ≈ 1 mm, Jolt's body-pair cache default).
@@ -133,24 +133,23 @@ impl ReuseCache {
         }
     }
 
-    /// The manifold of `prev`'s features for colliders now at `a` and `b`:
-    /// the recorded normal turned with A, and per point its anchors moved
-    /// with their bodies, the depth their distance along the normal, the
-    /// point their midpoint. Ids are `prev`'s.
-    pub fn rebuild(&self, a: &Transform, b: &Transform, prev: &Manifold, out: &mut Manifold) {
+    /// Rebuilds `m`, the manifold this cache was recorded from (same
+    /// features, same point count), for colliders now at `a` and `b`: the
+    /// recorded normal turned with A, and per point its anchors moved with
+    /// their bodies, the depth their distance along the normal, the point
+    /// their midpoint. Ids stay.
+    pub fn rebuild(&self, a: &Transform, b: &Transform, m: &mut Manifold) {
         let ra = Mat3::from_quat(a.rotation);
         let rb = Mat3::from_quat(b.rotation);
         let ab = b.translation - a.translation;
-        out.clear();
-        out.normal = ra.mul_vec(self.normal);
-        for (anchors, p) in self.anchors.iter().zip(prev.points()) {
+        let n = ra.mul_vec(self.normal);
+        m.normal = n;
+        let count = m.points().len();
+        for (anchors, p) in self.anchors.iter().zip(&mut m.points[..count]) {
             let sa = ra.mul_vec(anchors[0]);
             let sb = rb.mul_vec(anchors[1]) + ab;
-            out.push(ContactPoint {
-                point: a.translation + (sa + sb).half(),
-                depth: (sa - sb).dot(out.normal),
-                id: p.id,
-            });
+            p.point = a.translation + (sa + sb).half();
+            p.depth = (sa - sb).dot(n);
         }
     }
 
@@ -176,7 +175,7 @@ impl ReuseCache {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::collision::manifold::FeatureId;
+    use crate::collision::manifold::{ContactPoint, FeatureId};
 
     fn s(v: f64) -> Scalar {
         Scalar::from_f64_lossy(v)
@@ -214,8 +213,8 @@ mod tests {
         let mut c = ReuseCache::EMPTY;
         c.record(&a, &b, &rel, &m);
         assert!(c.holds_for(&rel));
-        let mut out = Manifold::EMPTY;
-        c.rebuild(&a, &b, &m, &mut out);
+        let mut out = m;
+        c.rebuild(&a, &b, &mut out);
         assert_eq!(out.count, m.count);
         let ulps = |x: Scalar, y: Scalar| (x.to_bits() - y.to_bits()).abs();
         for (p, q) in out.points().iter().zip(m.points()) {
@@ -240,8 +239,8 @@ mod tests {
         // B rises 0.5 mm: every point is 0.5 mm deep.
         let b2 = Transform::from_translation(v(0.0, 0.9995, 0.0));
         assert!(c.holds_for(&RelativePose::between(&a, &b2)));
-        let mut out = Manifold::EMPTY;
-        c.rebuild(&a, &b2, &m, &mut out);
+        let mut out = m;
+        c.rebuild(&a, &b2, &mut out);
         for p in out.points() {
             assert!((p.depth.to_f64() - 0.0005).abs() < 1e-8, "{}", p.depth);
         }
@@ -253,8 +252,8 @@ mod tests {
         let b3 = Transform::new(off + q.rotate(b2.translation), q);
         let rel3 = RelativePose::between(&a3, &b3);
         assert!(c.holds_for(&rel3));
-        let mut out3 = Manifold::EMPTY;
-        c.rebuild(&a3, &b3, &m, &mut out3);
+        let mut out3 = m;
+        c.rebuild(&a3, &b3, &mut out3);
         for (p, p0) in out3.points().iter().zip(out.points()) {
             assert!((p.depth - p0.depth).abs().to_f64() < 1e-8);
             let want = a3.transform_point(p0.point);
@@ -276,9 +275,9 @@ mod tests {
             RelativePose::between(&a, &b),
             RelativePose::between(&a2, &b2)
         );
-        let (mut o1, mut o2) = (Manifold::EMPTY, Manifold::EMPTY);
-        c.rebuild(&a, &b, &m, &mut o1);
-        c.rebuild(&a2, &b2, &m, &mut o2);
+        let (mut o1, mut o2) = (m, m);
+        c.rebuild(&a, &b, &mut o1);
+        c.rebuild(&a2, &b2, &mut o2);
         assert_eq!(o1.normal, o2.normal);
         for (p, q) in o1.points().iter().zip(o2.points()) {
             assert_eq!(p.depth, q.depth);

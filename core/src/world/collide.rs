@@ -194,7 +194,7 @@ impl World {
         // (see `collision::reuse`).
         let narrow_phase = |a: ColliderHandle,
                             b: ColliderHandle,
-                            reuse: Option<(&Manifold, &mut ReuseCache)>,
+                            reuse: Option<(&mut Manifold, &mut ReuseCache)>,
                             out: &mut Manifold| {
             let (Some((ca, pa, va)), Some((cb, pb, vb))) = (pose_of(a), pose_of(b)) else {
                 return false;
@@ -206,7 +206,7 @@ impl World {
             };
             let rel = RelativePose::between(&pa, &pb);
             if !prev.is_empty() && cache.holds_for(&rel) {
-                cache.rebuild(&pa, &pb, prev, out);
+                cache.rebuild(&pa, &pb, prev);
                 return true;
             }
             let reach = margin + (vb - va).length() * dt;
