@@ -648,21 +648,45 @@ pub fn run_tune(opts: &TuneOptions, out: &mut impl Write) -> Result<TuneReport, 
 /// machine); the work count breaks it.
 pub const CPU_TIE: f64 = 0.05;
 
-/// The cheapest passing trial. By work: least work, then run order (the
-/// coarser settings). By CPU time: among the passing trials within
-/// [`CPU_TIE`] of the fastest, the same.
+/// Whether `a` asks for no more than `b` in every setting.
+fn no_finer(a: Settings, b: Settings) -> bool {
+    a.tick_rate <= b.tick_rate
+        && a.substeps <= b.substeps
+        && a.solver_iterations <= b.solver_iterations
+        && a.relax_iterations <= b.relax_iterations
+}
+
+/// The cheapest passing trial. A passing trial is first set aside if
+/// another passing one does no more work with settings no finer in any
+/// respect (extra iterations with no contacts to solve cost nothing but
+/// noise). By work: the least work, then run order (the coarser settings).
+/// By CPU time: among the rest within [`CPU_TIE`] of the fastest, the same.
 pub fn choose(trials: &[Trial], basis: CostBasis) -> Option<usize> {
-    let passing = || trials.iter().enumerate().filter(|(_, t)| t.pass);
+    let dominated = |t: &Trial| {
+        trials.iter().any(|u| {
+            u.pass
+                && u.settings != t.settings
+                && u.work_per_s <= t.work_per_s
+                && no_finer(u.settings, t.settings)
+        })
+    };
+    let candidates: Vec<(usize, &Trial)> = trials
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| t.pass && !dominated(t))
+        .collect();
     let limit = match basis {
         CostBasis::Work => f64::INFINITY,
         CostBasis::Cpu => {
-            passing()
+            candidates
+                .iter()
                 .map(|(_, t)| t.cpu_ms_per_s)
                 .fold(f64::INFINITY, f64::min)
                 * (1.0 + CPU_TIE)
         }
     };
-    passing()
+    candidates
+        .into_iter()
         .filter(|(_, t)| t.cpu_ms_per_s <= limit)
         .min_by(|(i, a), (j, b)| a.work_per_s.cmp(&b.work_per_s).then(i.cmp(j)))
         .map(|(i, _)| i)
@@ -769,6 +793,60 @@ mod tests {
         let flip = [0.0, 0.0, 0.0, 1.0]; // π about z
         assert!(
             (rotation_between(flip, [1.0, 0.0, 0.0, 0.0]) - std::f64::consts::PI).abs() < 1e-12
+        );
+    }
+
+    fn trial(tick_rate: u32, solve: u32, error: Option<f64>, ms: f64, work: u64) -> Trial {
+        let settings = Settings {
+            tick_rate,
+            substeps: 1,
+            solver_iterations: solve,
+            relax_iterations: 1,
+        };
+        let deviation = error.map(|error| Deviation {
+            error,
+            ..Deviation::default()
+        });
+        Trial {
+            settings,
+            deviation,
+            fault: error.is_none().then_some(RunFault {
+                tick: 7,
+                faults: Faults::OVERFLOW,
+            }),
+            cpu_ms_per_s: ms,
+            work_per_s: work,
+            pass: error.is_some_and(|e| e <= 1e-3),
+        }
+    }
+
+    #[test]
+    fn the_choice_skips_faults_and_failures_and_breaks_ties_by_work() {
+        let trials = [
+            // Cheapest of all, but it faulted: a failure, shown as such.
+            trial(30, 1, None, 0.1, 10),
+            // Outside the bound.
+            trial(30, 2, Some(2e-3), 0.2, 20),
+            // Within: the fastest, and one within 5% of it with less work.
+            trial(60, 1, Some(5e-4), 1.0, 50),
+            trial(60, 2, Some(4e-4), 1.04, 40),
+            trial(120, 1, Some(1e-4), 3.0, 90),
+        ];
+        assert_eq!(choose(&trials, CostBasis::Cpu), Some(3));
+        assert_eq!(choose(&trials, CostBasis::Work), Some(3));
+        let row = report::table_row(&trials[0], trials[4].settings);
+        assert!(row.contains("FAIL: fault at tick 7 (overflow)"), "{row}");
+        assert!(!trials[0].pass);
+        // Equal work, one asks for more iterations: the coarser one, even
+        // when the clock says the other was faster.
+        let tie = [
+            trial(60, 2, Some(1e-4), 1.0, 40),
+            trial(60, 1, Some(1e-4), 1.2, 40),
+        ];
+        assert_eq!(choose(&tie, CostBasis::Cpu), Some(1));
+        assert_eq!(
+            choose(&[trials[0].clone(), trials[1].clone()], CostBasis::Cpu),
+            None
         );
     }
 

@@ -254,11 +254,12 @@ where
     ))?;
     area.draw(&Text::new(
         format!(
-            "reference {}; {} s, compared every 1/{} s; {} dynamic bodies",
+            "reference {}; {} s, compared every 1/{} s; {} dynamic bod{}",
             r.reference,
             r.plan.seconds(),
             r.plan.sample_hz,
-            r.dynamic_bodies
+            r.dynamic_bodies,
+            if r.dynamic_bodies == 1 { "y" } else { "ies" }
         ),
         (x_mid, 30),
         centred(13),
