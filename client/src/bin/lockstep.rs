@@ -63,7 +63,7 @@ enum Command {
         #[arg(long, default_value = "out/tune", value_name = "DIR")]
         out: PathBuf,
         /// Timed runs per combination after the measuring run (the minimum is kept).
-        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
+        #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100))]
         repeats: u32,
         /// What the choice minimises: measured CPU time, or the deterministic work count.
         #[arg(long, value_enum, default_value_t = Cost::Cpu)]
