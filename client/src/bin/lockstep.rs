@@ -4,7 +4,8 @@ use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
+use lockstep_client::offline::tune::{self, Candidates, CostBasis, TuneOptions};
 use lockstep_client::offline::{ReplayVerifyError, SimOptions, run_sim, verify_replay_file};
 
 /// lockstep: deterministic lockstep physics, offline tools.
@@ -40,6 +41,55 @@ enum Command {
         /// The replay file (written by lockstep-server).
         file: PathBuf,
     },
+    /// Find the cheapest settings whose trajectory stays within an error of a
+    /// fine-step reference (see docs/tune.md).
+    ///
+    /// Runs the scene as it is (no game inputs) at the reference settings and
+    /// at every combination of tick rate, substeps and solver/relax
+    /// iterations; prints each one's error, cost and pass/fail, then the
+    /// cheapest that passes, and draws the work-precision plot. Exits with
+    /// status 1 if no combination passes, 2 on an error.
+    Tune {
+        /// The scene file (TOML, see docs/scene-format.md).
+        #[arg(long)]
+        scene: PathBuf,
+        /// The largest error accepted: a length with m, cm or mm.
+        #[arg(long, default_value = "1mm", value_name = "LENGTH", value_parser = tune::parse_length)]
+        max_error: f64,
+        /// How long to run, in the scene's own ticks [default: 2 s of them].
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        ticks: Option<u64>,
+        /// Where to write the plot (SCENE.svg) and the table (SCENE.csv).
+        #[arg(long, default_value = "out/tune", value_name = "DIR")]
+        out: PathBuf,
+        /// Timed runs per combination after the measuring run (the minimum is kept).
+        #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100))]
+        repeats: u32,
+        /// What the choice minimises: measured CPU time, or the deterministic work count.
+        #[arg(long, value_enum, default_value_t = Cost::Cpu)]
+        cost: Cost,
+        /// Tick rates to try, Hz (the scene's own is added).
+        #[arg(long, value_delimiter = ',', value_name = "LIST", default_values_t = tune::DEFAULT_TICK_RATES)]
+        tick_rates: Vec<u32>,
+        /// Substep counts to try (the scene's own is added).
+        #[arg(long, value_delimiter = ',', value_name = "LIST", default_values_t = tune::DEFAULT_SUBSTEPS)]
+        substeps: Vec<u32>,
+        /// Solver (push-out) iteration counts to try.
+        #[arg(long, value_delimiter = ',', value_name = "LIST", default_values_t = tune::DEFAULT_SOLVER_ITERATIONS)]
+        iterations: Vec<u32>,
+        /// Relax iteration counts to try.
+        #[arg(long, value_delimiter = ',', value_name = "LIST", default_values_t = tune::DEFAULT_RELAX_ITERATIONS)]
+        relax: Vec<u32>,
+    },
+}
+
+/// `--cost`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Cost {
+    /// CPU time per simulated second (minimum of the timed runs).
+    Cpu,
+    /// The deterministic work count per simulated second.
+    Work,
 }
 
 fn main() -> ExitCode {
@@ -77,6 +127,46 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
+        Command::Tune {
+            scene,
+            max_error,
+            ticks,
+            out,
+            repeats,
+            cost,
+            tick_rates,
+            substeps,
+            iterations,
+            relax,
+        } => {
+            let opts = TuneOptions {
+                scene,
+                max_error,
+                ticks,
+                repeats,
+                cost: match cost {
+                    Cost::Cpu => CostBasis::Cpu,
+                    Cost::Work => CostBasis::Work,
+                },
+                candidates: Candidates {
+                    tick_rates,
+                    substeps,
+                    solver_iterations: iterations,
+                    relax_iterations: relax,
+                },
+                out: Some(out),
+            };
+            let stdout = std::io::stdout();
+            let mut w = stdout.lock();
+            match tune::run_tune(&opts, &mut w) {
+                Ok(report) if report.chosen.is_some() => ExitCode::SUCCESS,
+                Ok(_) => ExitCode::from(1),
+                Err(e) => {
+                    eprintln!("lockstep tune: error: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         Command::Sim {
             scene,
             ticks,

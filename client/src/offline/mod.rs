@@ -1,8 +1,10 @@
-//! Offline tools: run a scene file without a server, verify a replay.
+//! Offline tools: run a scene file without a server, verify a replay, tune
+//! a scene's settings.
 
 mod dump;
 mod replay;
 mod sim;
+pub mod tune;
 
 pub use dump::{BodyDump, StateDump, dump_state};
 pub use replay::{ReplayCheck, ReplayVerifyError, apply_bundle, verify_replay, verify_replay_file};

@@ -37,6 +37,22 @@ pub fn build_world(desc: &SceneDesc, file_name: &str) -> Result<World, SceneErro
         substeps: desc.world.substeps,
         ..WorldConfig::default()
     };
+    build_world_with_config(desc, config, file_name)
+}
+
+/// Builds the bodies a scene describes into a world with other settings:
+/// `config` replaces everything the scene's `[world]` table gives (gravity,
+/// tick rate, substeps). `lockstep tune` runs one scene at many tick rates,
+/// substep and solver iteration counts this way.
+///
+/// # Errors
+/// As [`build_world`]; also an `OutOfRange` error (line 1) if `config` is
+/// invalid.
+pub fn build_world_with_config(
+    desc: &SceneDesc,
+    config: WorldConfig,
+    file_name: &str,
+) -> Result<World, SceneError> {
     let at = |line: u32, kind: SceneErrorKind, message: String| SceneError {
         file: file_name.to_owned(),
         line,

@@ -19,7 +19,7 @@ mod shape;
 #[cfg(test)]
 mod tests;
 
-pub use build::{build_world, load_world};
+pub use build::{build_world, build_world_with_config, load_world};
 pub use desc::{
     BodyDesc, BodyKindDesc, DEFAULT_DENSITY, DEFAULT_FRICTION, DEFAULT_RESTITUTION, GeometryDesc,
     MassSpec, MaterialDesc, SceneDesc, ShapeDesc, WorldDesc,
