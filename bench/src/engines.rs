@@ -288,6 +288,28 @@ struct Run {
     max_displacement: f64,
     max_horizontal: f64,
     top_dy: f64,
+    /// The pile's shape at each quarter of the run (see [`Settle`]).
+    settle: [Settle; 4],
+}
+
+/// How far a scene has settled at one moment: the median height of the
+/// bodies and how many are still above the ground's top (y > −1 m; the
+/// scenes' ground tops are at y ≤ 0 and a body that slid off falls on).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Settle {
+    /// Median body height, m.
+    pub median_y: f64,
+    /// Bodies with y > −1 m.
+    pub on_ground: usize,
+}
+
+fn settle_of(positions: &[[f64; 3]]) -> Settle {
+    let mut ys: Vec<f64> = positions.iter().map(|p| p[1]).collect();
+    ys.sort_by(f64::total_cmp);
+    Settle {
+        median_y: ys.get(ys.len() / 2).copied().unwrap_or(f64::NAN),
+        on_ground: ys.iter().filter(|&&y| y > -1.0).count(),
+    }
 }
 
 fn measure<S: Sim>(scene: &Scene, build: impl FnOnce(&Scene) -> S) -> (Run, S) {
@@ -295,12 +317,19 @@ fn measure<S: Sim>(scene: &Scene, build: impl FnOnce(&Scene) -> S) -> (Run, S) {
     let base = alloc::reset_peak();
     let mut sim = build(scene);
     let mut total = 0.0;
+    let mut settle = [Settle::default(); 4];
     for i in 0..scene.steps {
         let t = Instant::now();
         sim.step();
         let dt = t.elapsed().as_secs_f64();
         if i > 0 {
             total += dt;
+        }
+        // After each quarter of the run (outside the timed step).
+        for (k, slot) in settle.iter_mut().enumerate() {
+            if i + 1 == ((k + 1) * scene.steps / 4).max(1) {
+                *slot = settle_of(&sim.positions());
+            }
         }
     }
     let peak_bytes = alloc::peak().saturating_sub(base);
@@ -332,6 +361,7 @@ fn measure<S: Sim>(scene: &Scene, build: impl FnOnce(&Scene) -> S) -> (Run, S) {
         max_displacement,
         max_horizontal,
         top_dy,
+        settle,
     };
     (run, sim)
 }
@@ -372,6 +402,8 @@ pub struct EngineResult {
     pub top_dy: f64,
     /// Whether our engine raised a fault flag (always false for Rapier).
     pub faulted: bool,
+    /// The scene's settling at each quarter of the run (last run).
+    pub settle: [Settle; 4],
 }
 
 impl EngineResult {
@@ -387,6 +419,7 @@ impl EngineResult {
             max_horizontal: last.max_horizontal,
             top_dy: if has_tops { last.top_dy } else { f64::NAN },
             faulted,
+            settle: last.settle,
         }
     }
 
@@ -567,6 +600,30 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
          max disp / max xz = largest total / horizontal distance of any body from its start; \
          stands = every pyramid's top box within 1 cm of its start height)"
     );
+    let _ = writeln!(
+        out,
+        "\nsettling: median body height m / bodies still above the ground (y > -1 m), after each quarter of the run"
+    );
+    let _ = writeln!(
+        out,
+        "{:<14} {:<7} {:>18} {:>18} {:>18} {:>18}",
+        "scene", "engine", "1/4", "1/2", "3/4", "end"
+    );
+    for r in results {
+        for (engine, e) in [("ours", &r.ours), ("rapier", &r.rapier)] {
+            let cell = |s: &Settle| format!("{:.3} / {}", s.median_y, s.on_ground);
+            let _ = writeln!(
+                out,
+                "{:<14} {:<7} {:>18} {:>18} {:>18} {:>18}",
+                r.name,
+                engine,
+                cell(&e.settle[0]),
+                cell(&e.settle[1]),
+                cell(&e.settle[2]),
+                cell(&e.settle[3])
+            );
+        }
+    }
     out
 }
 
@@ -686,6 +743,12 @@ mod tests {
             assert!(e.peak_bytes > 0);
             assert!(e.max_displacement.is_finite() && e.top_dy.is_finite());
             assert!(e.max_horizontal <= e.max_displacement);
+            // Six boxes, all still on the ground, the median one at least
+            // one box above the lowest layer's centre.
+            for q in &e.settle {
+                assert_eq!(q.on_ground, 6);
+                assert!(q.median_y > 0.5 && q.median_y < 10.0, "{q:?}");
+            }
         }
         // Rapier resolves the resting contacts: the 6 boxes touch.
         assert!(r.rapier.contact_points >= 4, "{}", r.rapier.contact_points);
@@ -708,6 +771,7 @@ mod tests {
             max_displacement: 0.0,
             max_horizontal: 0.0,
             top_dy: 0.0,
+            settle: [Settle::default(); 4],
         };
         assert_eq!(median_min(&[run(3.0), run(1.0), run(2.0)]), (2.0, 1.0));
         assert_eq!(median_min(&[run(4.0), run(1.0)]), (2.5, 1.0));
