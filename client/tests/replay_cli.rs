@@ -4,16 +4,21 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use lockstep_client::game::{DemoGame, bot_input};
+use lockstep_client::game::{Demo, DemoGame, RulesFactory, bot_input};
 use lockstep_client::offline::apply_bundle;
 use lockstep_proto::{
-    PROTOCOL_VERSION, PlayerId, PlayerInput, ReplayHeader, ReplayRecorder, RoomEvent, Slot,
-    TickBundle,
+    PROTOCOL_VERSION, PlayerId, PlayerInput, ReplayHeader, ReplayRecorder, RoomEvent, RulesId,
+    Slot, TickBundle,
 };
 
 /// Plays `ticks` ticks of the demo offline with two players and records
 /// them; `corrupt` makes both players report a wrong hash at that tick.
 fn record(ticks: u64, corrupt: Option<u64>) -> Vec<u8> {
+    record_with(ticks, corrupt, |_| {})
+}
+
+/// As [`record`], with the header changed by `tweak` before recording.
+fn record_with(ticks: u64, corrupt: Option<u64>, tweak: impl FnOnce(&mut ReplayHeader)) -> Vec<u8> {
     let mut world = DemoGame::world().expect("demo scene");
     let mut game = DemoGame::new(&world).expect("demo game");
     let header = ReplayHeader {
@@ -23,7 +28,12 @@ fn record(ticks: u64, corrupt: Option<u64>) -> Vec<u8> {
         input_delay: 4,
         scene_hash: world.state_hash(),
         scene: DemoGame::SCENE.as_bytes().to_vec(),
+        engine_version: lockstep_proto::ENGINE_VERSION.into(),
+        hash_layout: lockstep_core::world::STATE_HASH_VERSION,
+        rules: Demo.rules_id(),
     };
+    let mut header = header;
+    tweak(&mut header);
     let mut rec = ReplayRecorder::new(header, 120).expect("header");
     for s in 0..2u8 {
         rec.on_event(&RoomEvent::PlayerJoined {
@@ -98,4 +108,48 @@ fn a_file_that_is_not_a_replay_exits_two() {
     let (code, out) = run("garbage.replay", b"this is not a replay");
     assert_eq!(code, 2, "{out}");
     assert!(out.contains("not a lockstep replay"), "{out}");
+}
+
+#[test]
+fn a_replay_of_other_rules_says_so_and_exits_three() {
+    let bytes = record_with(10, None, |h| {
+        h.rules = RulesId::new("someone-elses-game", 4)
+    });
+    let (code, out) = run("other-rules.replay", &bytes);
+    assert_eq!(code, 3, "{out}");
+    assert!(
+        out.contains("recorded with rules someone-elses-game v4, this check uses lockstep-demo v1"),
+        "{out}"
+    );
+    let bytes = record_with(10, None, |h| h.rules.version = Demo::VERSION + 1);
+    let (code, out) = run("other-rules-version.replay", &bytes);
+    assert_eq!(code, 3, "{out}");
+}
+
+#[test]
+fn a_replay_of_another_hash_layout_says_so_and_exits_four() {
+    let layout = lockstep_core::world::STATE_HASH_VERSION;
+    let bytes = record_with(10, None, |h| h.hash_layout = layout - 1);
+    let (code, out) = run("other-layout.replay", &bytes);
+    assert_eq!(code, 4, "{out}");
+    assert!(
+        out.contains(&format!(
+            "state-hash layout {} (engine {}), this engine hashes with layout {layout}",
+            layout - 1,
+            lockstep_proto::ENGINE_VERSION
+        )),
+        "{out}"
+    );
+}
+
+#[test]
+fn a_version_1_replay_is_refused_with_a_clear_error() {
+    let mut bytes = record(10, None);
+    bytes[8..10].copy_from_slice(&1u16.to_le_bytes());
+    let (code, out) = run("v1.replay", &bytes);
+    assert_eq!(code, 2, "{out}");
+    assert!(
+        out.contains("replay format version 1") && out.contains("re-record"),
+        "{out}"
+    );
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use lockstep_client::game::Demo;
 use lockstep_client::offline::{ReplayVerifyError, SimOptions, run_sim, verify_replay_file};
 
 /// lockstep: deterministic lockstep physics, offline tools.
@@ -32,10 +33,13 @@ enum Command {
         #[arg(long, value_name = "OUT.json")]
         dump_state: Option<PathBuf>,
     },
-    /// Re-simulate a recorded match and check every tick's agreed hash.
+    /// Re-simulate a recorded match of the demo game and check every tick's
+    /// agreed hash.
     ///
-    /// Prints one OK line, or the first mismatch (tick, expected, got) and
-    /// exits with status 1; status 2 for a file that is not a valid replay.
+    /// Prints one OK line (status 0), or the first mismatch (tick, expected,
+    /// got, and the diverging bodies where the replay recorded body hashes)
+    /// with status 1. Status 2: not a valid replay; 3: recorded with other
+    /// rules (id or version); 4: recorded with another state-hash layout.
     Replay {
         /// The replay file (written by lockstep-server).
         file: PathBuf,
@@ -45,7 +49,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Replay { file } => match verify_replay_file(&file) {
+        Command::Replay { file } => match verify_replay_file(&file, &Demo) {
             Ok(c) => {
                 println!(
                     "OK: {} ticks re-simulated, {} hashes checked ({} without an agreed hash), \
@@ -68,13 +72,20 @@ fn main() -> ExitCode {
                 tick,
                 expected,
                 got,
+                bodies,
             }) => {
                 println!("MISMATCH at tick {tick}: expected {expected:016x}, got {got:016x}");
+                for b in bodies
+                    .iter()
+                    .flat_map(|at| at.bodies.iter().map(move |b| (at.tick, b)))
+                {
+                    println!("  at tick {}: {}", b.0, b.1);
+                }
                 ExitCode::from(1)
             }
             Err(e) => {
                 eprintln!("lockstep replay: error: {e}");
-                ExitCode::from(2)
+                ExitCode::from(e.exit_status())
             }
         },
         Command::Sim {

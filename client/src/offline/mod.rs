@@ -5,5 +5,8 @@ mod replay;
 mod sim;
 
 pub use dump::{BodyDump, StateDump, dump_state};
-pub use replay::{ReplayCheck, ReplayVerifyError, apply_bundle, verify_replay, verify_replay_file};
+pub use replay::{
+    BodiesAt, BodyDiff, ReplayCheck, ReplayVerifyError, apply_bundle, check_header, exit_status,
+    verify_replay, verify_replay_file,
+};
 pub use sim::{SimError, SimOptions, SimSummary, load_scene_file, run_sim};
