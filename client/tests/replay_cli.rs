@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use lockstep_client::game::{Demo, DemoGame, RulesFactory, bot_input};
+use lockstep_client::game::{Demo, DemoGame, DemoInput, RulesFactory, bot_input};
 use lockstep_client::offline::apply_bundle;
 use lockstep_proto::{
     PROTOCOL_VERSION, PlayerId, PlayerInput, ReplayHeader, ReplayRecorder, RoomEvent, RulesId,
@@ -19,6 +19,17 @@ fn record(ticks: u64, corrupt: Option<u64>) -> Vec<u8> {
 
 /// As [`record`], with the header changed by `tweak` before recording.
 fn record_with(ticks: u64, corrupt: Option<u64>, tweak: impl FnOnce(&mut ReplayHeader)) -> Vec<u8> {
+    record_lying(ticks, corrupt, None, tweak)
+}
+
+/// As [`record_with`]; `lie_at` writes another input for player 0 into the
+/// file at that tick than the one simulated (body hashes are recorded).
+fn record_lying(
+    ticks: u64,
+    corrupt: Option<u64>,
+    lie_at: Option<u64>,
+    tweak: impl FnOnce(&mut ReplayHeader),
+) -> Vec<u8> {
     let mut world = DemoGame::world().expect("demo scene");
     let mut game = DemoGame::new(&world).expect("demo game");
     let header = ReplayHeader {
@@ -56,10 +67,21 @@ fn record_with(ticks: u64, corrupt: Option<u64>, tweak: impl FnOnce(&mut ReplayH
                 .collect(),
         };
         apply_bundle(&mut world, &mut game, &bundle);
+        let mut bundle = bundle;
+        if lie_at == Some(tick) {
+            // The file says player 0 pressed something else than it did.
+            bundle.inputs[0].input = DemoInput {
+                move_x: 100,
+                move_z: 0,
+                jump: false,
+            }
+            .encode();
+        }
         rec.on_event(&RoomEvent::TickClosed(bundle));
         let hash = world.state_hash() ^ u64::from(corrupt == Some(tick));
         for s in 0..2u8 {
-            rec.on_hash(Slot(s), tick, hash);
+            let bodies: Vec<u64> = world.body_hashes().iter().map(|(_, h)| *h).collect();
+            rec.on_hash_with_bodies(Slot(s), tick, hash, Some(&bodies));
         }
     }
     rec.finish("test over");
@@ -152,4 +174,20 @@ fn a_version_1_replay_is_refused_with_a_clear_error() {
         out.contains("replay format version 1") && out.contains("re-record"),
         "{out}"
     );
+}
+
+#[test]
+fn a_changed_input_is_named_with_its_tick_and_the_player_s_ball() {
+    let (code, out) = run("lie.replay", &record_lying(120, None, Some(50), |_| {}));
+    assert_eq!(code, 1, "{out}");
+    let mut lines = out.lines();
+    assert!(
+        lines.next().unwrap().starts_with("MISMATCH at tick 50: "),
+        "{out}"
+    );
+    // Player 0's ball moved otherwise at once; nothing else yet.
+    let bodies: Vec<_> = lines.collect();
+    assert_eq!(bodies.len(), 1, "{out}");
+    assert!(bodies[0].starts_with("  at tick 50: body #"), "{out}");
+    assert!(bodies[0].contains("\"player0\": expected "), "{out}");
 }

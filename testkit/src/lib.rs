@@ -76,6 +76,13 @@ impl fmt::Display for KitFailure {
                     match e {
                         ReplayVerifyError::Mismatch {
                             bodies: Some(at), ..
+                        } if at.bodies.is_empty() => writeln!(
+                            f,
+                            "; every body's hash agrees at tick {} (the difference is elsewhere in the state: contacts or settings)",
+                            at.tick
+                        )?,
+                        ReplayVerifyError::Mismatch {
+                            bodies: Some(at), ..
                         } => {
                             writeln!(
                                 f,

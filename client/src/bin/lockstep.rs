@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use lockstep_client::game::Demo;
-use lockstep_client::offline::{ReplayVerifyError, SimOptions, run_sim, verify_replay_file};
+use lockstep_client::offline::{SimOptions, check_replay_command, run_sim};
 
 /// lockstep: deterministic lockstep physics, offline tools.
 #[derive(Parser, Debug)]
@@ -49,45 +49,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Replay { file } => match verify_replay_file(&file, &Demo) {
-            Ok(c) => {
-                println!(
-                    "OK: {} ticks re-simulated, {} hashes checked ({} without an agreed hash), \
-                     {} players, {} desync notices recorded, final hash {:016x}{}",
-                    c.ticks,
-                    c.checked,
-                    c.unchecked,
-                    c.players,
-                    c.desyncs_recorded,
-                    c.final_hash,
-                    if c.truncated {
-                        " (file cut short: checked up to the cut)"
-                    } else {
-                        ""
-                    }
-                );
-                ExitCode::SUCCESS
-            }
-            Err(ReplayVerifyError::Mismatch {
-                tick,
-                expected,
-                got,
-                bodies,
-            }) => {
-                println!("MISMATCH at tick {tick}: expected {expected:016x}, got {got:016x}");
-                for b in bodies
-                    .iter()
-                    .flat_map(|at| at.bodies.iter().map(move |b| (at.tick, b)))
-                {
-                    println!("  at tick {}: {}", b.0, b.1);
-                }
-                ExitCode::from(1)
-            }
-            Err(e) => {
-                eprintln!("lockstep replay: error: {e}");
-                ExitCode::from(e.exit_status())
-            }
-        },
+        Command::Replay { file } => ExitCode::from(check_replay_command(&file, &Demo)),
         Command::Sim {
             scene,
             ticks,

@@ -6,7 +6,7 @@ mod sim;
 
 pub use dump::{BodyDump, StateDump, dump_state};
 pub use replay::{
-    BodiesAt, BodyDiff, ReplayCheck, ReplayVerifyError, apply_bundle, check_header, exit_status,
-    verify_replay, verify_replay_file,
+    BodiesAt, BodyDiff, ReplayCheck, ReplayVerifyError, apply_bundle, check_header,
+    check_replay_command, exit_status, verify_replay, verify_replay_file,
 };
 pub use sim::{SimError, SimOptions, SimSummary, load_scene_file, run_sim};
