@@ -229,7 +229,10 @@ impl RoomTask {
                 .collect();
             let path = dir.join(format!("{safe}-{secs}-{seq}.replay"));
             let file = match File::create(&path) {
-                Ok(f) => Some(f),
+                Ok(f) => {
+                    crate::log!("room {name}: recording the replay to {}", path.display());
+                    Some(f)
+                }
                 Err(e) => {
                     crate::log!("room {name}: cannot create {}: {e}", path.display());
                     None
