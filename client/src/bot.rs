@@ -3,25 +3,26 @@
 //!
 //! Each bot is a full [`Client`]: it builds the world from the welcome,
 //! applies every bundle through the game rules, steps, and reports every
-//! tick's hash. Its input is [`bot_input`]`(seed, slot, tick)`, a pure
-//! function, so a match between bots is reproducible from the seed.
+//! tick's hash. It plays any game: its rules and its input come from a
+//! [`RulesFactory`] (input [`RulesFactory::bot_input`]`(seed, slot, tick)`,
+//! a pure function, so a match between bots is reproducible from the seed).
 
 use std::future::Future;
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::sync::Arc;
 
 use tokio::sync::watch;
 
-use crate::game::bot_input;
-use crate::net::{Client, ClientError, ClientEvent, ClientOptions, ClientReport};
+use crate::game::{Demo, RulesFactory};
+use crate::net::{Client, ClientError, ClientEvent, ClientOptions, ClientReport, TrustedCert};
 
 /// What a group of bots should do.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct BotOptions {
     /// The server's address.
     pub server: SocketAddr,
-    /// Certificate file to trust.
-    pub cert: PathBuf,
+    /// Certificate to trust.
+    pub cert: TrustedCert,
     /// Room to join.
     pub room: String,
     /// Number of bots (each its own QUIC connection and UDP socket).
@@ -30,21 +31,53 @@ pub struct BotOptions {
     pub seed: u64,
     /// Leave after this many ticks (`None`: until the server ends the match).
     pub ticks: Option<u64>,
-    /// Test hook: bot `index` (0-based, in connection order) diverges at
-    /// `tick` (see [`ClientOptions::diverge_at`]).
-    pub diverge: Option<(usize, u64)>,
+    /// The game every bot plays (rules and scripted input).
+    pub game: Arc<dyn RulesFactory>,
+    /// Bots that play with other rules than `game`: (bot index, 0-based in
+    /// connection order; its rules). A bot with wrong rules is how a test
+    /// makes one peer desync on purpose (see `testing::Diverge` with the
+    /// `test-hooks` feature).
+    pub game_of_bot: Vec<(usize, Arc<dyn RulesFactory>)>,
+    /// Body hashes with every K-th tick's report (0: never); see
+    /// [`ClientOptions::body_hashes_every`].
+    pub body_hashes_every: u64,
     /// Print desync notices and closes to stderr as they happen.
     pub verbose: bool,
 }
 
+impl std::fmt::Debug for BotOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BotOptions")
+            .field("server", &self.server)
+            .field("room", &self.room)
+            .field("count", &self.count)
+            .field("seed", &self.seed)
+            .field("ticks", &self.ticks)
+            .field("game", &self.game.rules_id())
+            .finish_non_exhaustive()
+    }
+}
+
 impl BotOptions {
-    /// `count` bots for `room` on `server`, trusting `cert`, seed 1, playing
-    /// until the match ends.
+    /// `count` bots playing the demo ([`Demo`]) in `room` on `server`,
+    /// trusting `cert`, seed 1, until the match ends.
     pub fn new(
         server: SocketAddr,
-        cert: impl Into<PathBuf>,
+        cert: impl Into<TrustedCert>,
         room: impl Into<String>,
         count: usize,
+    ) -> Self {
+        Self::for_game(server, cert, room, count, Arc::new(Demo))
+    }
+
+    /// `count` bots playing `game` in `room` on `server`, trusting `cert`,
+    /// seed 1, until the match ends.
+    pub fn for_game(
+        server: SocketAddr,
+        cert: impl Into<TrustedCert>,
+        room: impl Into<String>,
+        count: usize,
+        game: Arc<dyn RulesFactory>,
     ) -> Self {
         Self {
             server,
@@ -53,9 +86,19 @@ impl BotOptions {
             count,
             seed: 1,
             ticks: None,
-            diverge: None,
+            game,
+            game_of_bot: Vec::new(),
+            body_hashes_every: 0,
             verbose: false,
         }
+    }
+
+    /// The game bot `index` plays.
+    pub fn game_of(&self, index: usize) -> Arc<dyn RulesFactory> {
+        self.game_of_bot
+            .iter()
+            .find(|(i, _)| *i == index)
+            .map_or_else(|| self.game.clone(), |(_, g)| g.clone())
     }
 
     /// The client options of bot `index`.
@@ -67,30 +110,29 @@ impl BotOptions {
             format!("bot-{index}"),
         );
         o.max_ticks = self.ticks;
-        o.diverge_at = self
-            .diverge
-            .and_then(|(i, tick)| (i == index).then_some(tick));
+        o.body_hashes_every = self.body_hashes_every;
         o
     }
 }
 
-/// Connects one bot and plays with scripted input until the match ends, its
-/// tick budget is spent, or `stop` fires.
+/// Connects one bot playing `game` and plays with its scripted input until
+/// the match ends, its tick budget is spent, or `stop` fires.
 ///
 /// # Errors
 /// [`ClientError`] from connecting or playing.
 pub async fn run_bot(
     options: ClientOptions,
+    game: Arc<dyn RulesFactory>,
     seed: u64,
     verbose: bool,
     stop: impl Future<Output = ()> + Send,
 ) -> Result<ClientReport, ClientError> {
     let name = options.player_name.clone();
-    let client = Client::connect(options).await?;
+    let client = Client::connect(options, &*game).await?;
     let slot = client.slot().0;
     client
         .play(
-            move |tick| bot_input(seed, slot, tick).encode(),
+            move |tick| game.bot_input(seed, slot, tick),
             move |event| {
                 if verbose {
                     match event {
@@ -125,8 +167,9 @@ pub async fn run_bots(
         let client_options = options.client_options(index);
         let mut rx = stop_rx.clone();
         let (seed, verbose) = (options.seed, options.verbose);
+        let game = options.game_of(index);
         // Connect in order so bot i gets slot i in an empty room.
-        let client = Client::connect(client_options).await;
+        let client = Client::connect(client_options, &*game).await;
         tasks.push(tokio::spawn(async move {
             let client = client?;
             let slot = client.slot().0;
@@ -136,7 +179,7 @@ pub async fn run_bots(
             let name = format!("bot-{index}");
             client
                 .play(
-                    move |tick| bot_input(seed, slot, tick).encode(),
+                    move |tick| game.bot_input(seed, slot, tick),
                     move |event| {
                         if verbose {
                             eprintln!("{name} (slot {slot}): {event:?}");

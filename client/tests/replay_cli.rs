@@ -4,16 +4,32 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use lockstep_client::game::{DemoGame, bot_input};
+use lockstep_client::game::{Demo, DemoGame, DemoInput, RulesFactory, bot_input};
 use lockstep_client::offline::apply_bundle;
 use lockstep_proto::{
-    PROTOCOL_VERSION, PlayerId, PlayerInput, ReplayHeader, ReplayRecorder, RoomEvent, Slot,
-    TickBundle,
+    PROTOCOL_VERSION, PlayerId, PlayerInput, ReplayHeader, ReplayRecorder, RoomEvent, RulesId,
+    Slot, TickBundle,
 };
 
 /// Plays `ticks` ticks of the demo offline with two players and records
 /// them; `corrupt` makes both players report a wrong hash at that tick.
 fn record(ticks: u64, corrupt: Option<u64>) -> Vec<u8> {
+    record_with(ticks, corrupt, |_| {})
+}
+
+/// As [`record`], with the header changed by `tweak` before recording.
+fn record_with(ticks: u64, corrupt: Option<u64>, tweak: impl FnOnce(&mut ReplayHeader)) -> Vec<u8> {
+    record_lying(ticks, corrupt, None, tweak)
+}
+
+/// As [`record_with`]; `lie_at` writes another input for player 0 into the
+/// file at that tick than the one simulated (body hashes are recorded).
+fn record_lying(
+    ticks: u64,
+    corrupt: Option<u64>,
+    lie_at: Option<u64>,
+    tweak: impl FnOnce(&mut ReplayHeader),
+) -> Vec<u8> {
     let mut world = DemoGame::world().expect("demo scene");
     let mut game = DemoGame::new(&world).expect("demo game");
     let header = ReplayHeader {
@@ -23,7 +39,12 @@ fn record(ticks: u64, corrupt: Option<u64>) -> Vec<u8> {
         input_delay: 4,
         scene_hash: world.state_hash(),
         scene: DemoGame::SCENE.as_bytes().to_vec(),
+        engine_version: lockstep_proto::ENGINE_VERSION.into(),
+        hash_layout: lockstep_core::world::STATE_HASH_VERSION,
+        rules: Demo.rules_id(),
     };
+    let mut header = header;
+    tweak(&mut header);
     let mut rec = ReplayRecorder::new(header, 120).expect("header");
     for s in 0..2u8 {
         rec.on_event(&RoomEvent::PlayerJoined {
@@ -46,10 +67,21 @@ fn record(ticks: u64, corrupt: Option<u64>) -> Vec<u8> {
                 .collect(),
         };
         apply_bundle(&mut world, &mut game, &bundle);
+        let mut bundle = bundle;
+        if lie_at == Some(tick) {
+            // The file says player 0 pressed something else than it did.
+            bundle.inputs[0].input = DemoInput {
+                move_x: 100,
+                move_z: 0,
+                jump: false,
+            }
+            .encode();
+        }
         rec.on_event(&RoomEvent::TickClosed(bundle));
         let hash = world.state_hash() ^ u64::from(corrupt == Some(tick));
         for s in 0..2u8 {
-            rec.on_hash(Slot(s), tick, hash);
+            let bodies: Vec<u64> = world.body_hashes().iter().map(|(_, h)| *h).collect();
+            rec.on_hash_with_bodies(Slot(s), tick, hash, Some(&bodies));
         }
     }
     rec.finish("test over");
@@ -98,4 +130,64 @@ fn a_file_that_is_not_a_replay_exits_two() {
     let (code, out) = run("garbage.replay", b"this is not a replay");
     assert_eq!(code, 2, "{out}");
     assert!(out.contains("not a lockstep replay"), "{out}");
+}
+
+#[test]
+fn a_replay_of_other_rules_says_so_and_exits_three() {
+    let bytes = record_with(10, None, |h| {
+        h.rules = RulesId::new("someone-elses-game", 4)
+    });
+    let (code, out) = run("other-rules.replay", &bytes);
+    assert_eq!(code, 3, "{out}");
+    assert!(
+        out.contains("recorded with rules someone-elses-game v4, this check uses lockstep-demo v1"),
+        "{out}"
+    );
+    let bytes = record_with(10, None, |h| h.rules.version = Demo::VERSION + 1);
+    let (code, out) = run("other-rules-version.replay", &bytes);
+    assert_eq!(code, 3, "{out}");
+}
+
+#[test]
+fn a_replay_of_another_hash_layout_says_so_and_exits_four() {
+    let layout = lockstep_core::world::STATE_HASH_VERSION;
+    let bytes = record_with(10, None, |h| h.hash_layout = layout - 1);
+    let (code, out) = run("other-layout.replay", &bytes);
+    assert_eq!(code, 4, "{out}");
+    assert!(
+        out.contains(&format!(
+            "state-hash layout {} (engine {}), this engine hashes with layout {layout}",
+            layout - 1,
+            lockstep_proto::ENGINE_VERSION
+        )),
+        "{out}"
+    );
+}
+
+#[test]
+fn a_version_1_replay_is_refused_with_a_clear_error() {
+    let mut bytes = record(10, None);
+    bytes[8..10].copy_from_slice(&1u16.to_le_bytes());
+    let (code, out) = run("v1.replay", &bytes);
+    assert_eq!(code, 2, "{out}");
+    assert!(
+        out.contains("replay format version 1") && out.contains("re-record"),
+        "{out}"
+    );
+}
+
+#[test]
+fn a_changed_input_is_named_with_its_tick_and_the_player_s_ball() {
+    let (code, out) = run("lie.replay", &record_lying(120, None, Some(50), |_| {}));
+    assert_eq!(code, 1, "{out}");
+    let mut lines = out.lines();
+    assert!(
+        lines.next().unwrap().starts_with("MISMATCH at tick 50: "),
+        "{out}"
+    );
+    // Player 0's ball moved otherwise at once; nothing else yet.
+    let bodies: Vec<_> = lines.collect();
+    assert_eq!(bodies.len(), 1, "{out}");
+    assert!(bodies[0].starts_with("  at tick 50: body #"), "{out}");
+    assert!(bodies[0].contains("\"player0\": expected "), "{out}");
 }

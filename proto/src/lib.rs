@@ -36,7 +36,9 @@ pub use message::{
     InputDatagram, Join, Ping, PlayerHash, PlayerInput, Pong, ServerMessage, Slot, TickBundle,
     Verdict, Violation, Welcome,
 };
-pub use replay::{Replay, ReplayError, ReplayHeader, ReplayRecord, ReplayRecorder};
+pub use replay::{
+    ENGINE_VERSION, Replay, ReplayError, ReplayHeader, ReplayRecord, ReplayRecorder, RulesId,
+};
 pub use room::{
     AlreadyStarted, ConfigError, JoinError, LeaveReason, PlayerId, PlayerStats, Rejection, Room,
     RoomConfig, RoomEvent, RoomStats, Transmit,

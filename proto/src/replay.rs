@@ -36,7 +36,41 @@ use crate::room::RoomEvent;
 pub const REPLAY_MAGIC: [u8; 8] = *b"LSREPLAY";
 
 /// Version of the replay layout; bump on any change to [`ReplayRecord`].
-pub const REPLAY_FORMAT_VERSION: u16 = 1;
+///
+/// Version 2 added what made the replay to the header (engine version,
+/// state-hash layout, the rules' id and version) and per-body hash records.
+pub const REPLAY_FORMAT_VERSION: u16 = 2;
+
+/// The engine version recorded in new replays: the workspace version, which
+/// lockstep-core, lockstep-proto and the server share.
+pub const ENGINE_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// Which game rules a match was played with: the id names the game, the
+/// version changes whenever the rules turn the same inputs into different
+/// forces. A replay is only meaningful with the rules that recorded it.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct RulesId {
+    /// The game's name, e.g. `"lockstep-demo"`.
+    pub id: String,
+    /// The rules' version.
+    pub version: u32,
+}
+
+impl RulesId {
+    /// Rules `id` at `version`.
+    pub fn new(id: impl Into<String>, version: u32) -> Self {
+        Self {
+            id: id.into(),
+            version,
+        }
+    }
+}
+
+impl std::fmt::Display for RulesId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} v{}", self.id, self.version)
+    }
+}
 
 /// Bytes before the first record: the magic and the format version.
 pub const REPLAY_PREAMBLE_BYTES: usize = REPLAY_MAGIC.len() + 2;
@@ -65,6 +99,14 @@ pub struct ReplayHeader {
     pub scene_hash: u64,
     /// The scene, exactly as sent to the players.
     pub scene: Vec<u8>,
+    /// [`ENGINE_VERSION`] of the server that recorded it.
+    pub engine_version: String,
+    /// The state-hash layout (`lockstep_core::world::STATE_HASH_VERSION`)
+    /// the players' hashes were computed with: hashes of two layouts never
+    /// compare.
+    pub hash_layout: u64,
+    /// The game rules the match was played with.
+    pub rules: RulesId,
 }
 
 /// One entry of a replay file.
@@ -100,6 +142,15 @@ pub enum ReplayRecord {
         /// The agreed state hash after applying that tick's bundle.
         hash: u64,
     },
+    /// Every body's hash after `tick` (in body handle order), as reported by
+    /// a player whose state hash was the agreed one: lets a checker name the
+    /// bodies that diverge. Only for ticks where players sent body hashes.
+    BodyHashes {
+        /// The tick.
+        tick: u64,
+        /// One hash per body, as `World::body_hashes` lists them.
+        hashes: Vec<u64>,
+    },
     /// The room found a desync at this tick (the notice it sent).
     Desync(DesyncNotice),
     /// The match ended normally after `ticks` ticks.
@@ -128,8 +179,16 @@ pub enum ReplayError {
     /// The file does not start with [`REPLAY_MAGIC`].
     #[error("not a lockstep replay (bad magic)")]
     BadMagic,
-    /// Written by another version of the format.
-    #[error("replay format version {found}, this build reads {expected}")]
+    /// Written by another version of the format (version 1 replays predate
+    /// the header's engine, hash-layout and rules fields).
+    #[error(
+        "replay format version {found}, this build reads version {expected}{}",
+        if *found < *expected {
+            " (an older replay, recorded before replays said which engine, hash layout and rules made them: re-record it)"
+        } else {
+            " (a newer replay: check it with a newer build)"
+        }
+    )]
     WrongVersion {
         /// Version in the file.
         found: u16,
@@ -213,6 +272,8 @@ pub struct Replay {
     pub players: Vec<(Slot, String, u64)>,
     /// Departures: slot, first tick without them, reason.
     pub departures: Vec<(Slot, u64, String)>,
+    /// Recorded per-body hashes: tick and the hashes, in tick order.
+    pub body_hashes: Vec<(u64, Vec<u64>)>,
     /// Desync notices the room raised.
     pub desyncs: Vec<DesyncNotice>,
     /// Ticks played and the reason, if the match ended normally.
@@ -287,6 +348,7 @@ impl Replay {
             hashes: replay_parts.hashes,
             players: replay_parts.players,
             departures: replay_parts.departures,
+            body_hashes: replay_parts.body_hashes,
             desyncs: replay_parts.desyncs,
             end: replay_parts.end,
             truncated,
@@ -305,6 +367,7 @@ struct Parts {
     hashes: Vec<Option<u64>>,
     players: Vec<(Slot, String, u64)>,
     departures: Vec<(Slot, u64, String)>,
+    body_hashes: Vec<(u64, Vec<u64>)>,
     desyncs: Vec<DesyncNotice>,
     end: Option<(u64, String)>,
 }
@@ -344,6 +407,12 @@ impl Parts {
                 }
                 *slot = Some(hash);
             }
+            ReplayRecord::BodyHashes { tick, hashes } => {
+                if tick >= self.ticks.len() as u64 {
+                    return Err(ReplayError::BadHash(tick));
+                }
+                self.body_hashes.push((tick, hashes));
+            }
             ReplayRecord::Desync(n) => self.desyncs.push(n),
             ReplayRecord::End { ticks, reason } => self.end = Some((ticks, reason)),
         }
@@ -359,6 +428,8 @@ struct PendingTick {
     expected: u32,
     reported: u32,
     hashes: [u64; MAX_PLAYERS],
+    /// The first body-hash list received for each distinct state hash.
+    bodies: Vec<(u64, Vec<u64>)>,
 }
 
 impl PendingTick {
@@ -462,6 +533,7 @@ impl ReplayRecorder {
                     expected,
                     reported: 0,
                     hashes: [0; MAX_PLAYERS],
+                    bodies: Vec::new(),
                 });
                 self.decide(false);
             }
@@ -472,6 +544,19 @@ impl ReplayRecorder {
 
     /// Records a hash report the room accepted.
     pub fn on_hash(&mut self, slot: Slot, tick: u64, hash: u64) {
+        self.on_hash_with_bodies(slot, tick, hash, None);
+    }
+
+    /// Records a hash report the room accepted, with the per-body hashes
+    /// the player sent, if any: the agreed hash's body hashes are written
+    /// after it.
+    pub fn on_hash_with_bodies(
+        &mut self,
+        slot: Slot,
+        tick: u64,
+        hash: u64,
+        bodies: Option<&[u64]>,
+    ) {
         let bit = 1u32 << slot.0;
         if let Some(p) = self.pending.iter_mut().find(|p| p.tick == tick)
             && p.expected & bit != 0
@@ -479,6 +564,11 @@ impl ReplayRecorder {
         {
             p.reported |= bit;
             p.hashes[slot.index()] = hash;
+            if let Some(b) = bodies
+                && !p.bodies.iter().any(|(h, _)| *h == hash)
+            {
+                p.bodies.push((hash, b.to_vec()));
+            }
             self.decide(false);
         }
     }
@@ -496,10 +586,19 @@ impl ReplayRecorder {
             }
             if let Some(hash) = p.majority() {
                 records.push(ReplayRecord::Hash { tick: p.tick, hash });
+                if let Some((_, b)) = p.bodies.iter().find(|(h, _)| *h == hash) {
+                    records.push(ReplayRecord::BodyHashes {
+                        tick: p.tick,
+                        hashes: b.clone(),
+                    });
+                }
             }
             false
         });
-        self.hashed += records.len() as u64;
+        self.hashed += records
+            .iter()
+            .filter(|r| matches!(r, ReplayRecord::Hash { .. }))
+            .count() as u64;
         for r in &records {
             self.push(r);
         }
@@ -555,6 +654,9 @@ mod tests {
             input_delay: 4,
             scene_hash: 0xabc,
             scene: b"scene".to_vec(),
+            engine_version: ENGINE_VERSION.into(),
+            hash_layout: 6,
+            rules: RulesId::new("test", 1),
         }
     }
 
@@ -631,6 +733,44 @@ mod tests {
         let replay = Replay::parse(&r.take_bytes()).unwrap();
         assert_eq!(replay.hashes[..2], [Some(5), Some(6)]);
         assert_eq!(replay.departures, vec![(Slot(2), 1, "TimedOut".into())]);
+    }
+
+    #[test]
+    fn the_agreed_hash_carries_its_body_hashes_and_a_minority_s_are_dropped() {
+        let mut r = three_players();
+        r.on_event(&closed(0, &[0, 1, 2]));
+        r.on_hash_with_bodies(Slot(2), 0, 9, Some(&[90, 91]));
+        r.on_hash_with_bodies(Slot(0), 0, 7, Some(&[70, 71]));
+        r.on_hash_with_bodies(Slot(1), 0, 7, Some(&[72, 73]));
+        r.on_event(&closed(1, &[0, 1, 2]));
+        for s in 0..3 {
+            r.on_hash(Slot(s), 1, 8);
+        }
+        r.finish("done");
+        let replay = Replay::parse(&r.take_bytes()).unwrap();
+        assert_eq!(replay.hashes, vec![Some(7), Some(8)]);
+        assert_eq!(replay.body_hashes, vec![(0, vec![70, 71])]);
+        assert_eq!(replay.header.rules, RulesId::new("test", 1));
+        assert_eq!(replay.header.engine_version, ENGINE_VERSION);
+    }
+
+    #[test]
+    fn a_version_1_replay_is_refused_as_older_than_the_header_fields() {
+        let mut v = encode_preamble();
+        v[8] = 1;
+        let e = Replay::parse(&v).unwrap_err();
+        assert!(matches!(
+            e,
+            ReplayError::WrongVersion {
+                found: 1,
+                expected: 2
+            }
+        ));
+        let text = e.to_string();
+        assert!(
+            text.contains("version 1") && text.contains("re-record"),
+            "{text}"
+        );
     }
 
     #[test]

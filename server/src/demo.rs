@@ -1,22 +1,29 @@
 //! The main job: the server on loopback with the demo scene and in-process
 //! bots over real QUIC, a status line per second, and a summary at the end.
+//! The game is a parameter ([`DemoOptions::game`], with the server's scene
+//! and rules id): the demo game by default, any other game likewise.
 
 use std::future::Future;
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Duration;
 
 use lockstep_client::bot::{BotOptions, run_bots};
+use lockstep_client::game::{Demo, RulesFactory};
 use lockstep_client::offline::verify_replay_file;
 use tokio::sync::{mpsc, oneshot};
 
 use crate::{RoomReport, RoomStatus, ServerConfig, ServerError, ServerEvent, TlsSource, run};
 
 /// What the demo runs.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct DemoOptions {
-    /// Server settings; `events` is set by the demo.
+    /// Server settings; `events` is set by the demo. Its scene and rules id
+    /// must be `game`'s.
     pub server: ServerConfig,
+    /// The game the bots play and the replay is checked with.
+    pub game: Arc<dyn RulesFactory>,
     /// Number of bots.
     pub bots: usize,
     /// Seed of the bots' input.
@@ -32,10 +39,23 @@ impl DemoOptions {
         server.tls = TlsSource::dev("out/dev-cert.pem");
         Self {
             server,
+            game: Arc::new(Demo),
             bots: 4,
             seed: 1,
             duration: Duration::from_secs(20),
         }
+    }
+}
+
+impl std::fmt::Debug for DemoOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DemoOptions")
+            .field("server", &self.server)
+            .field("game", &self.game.rules_id())
+            .field("bots", &self.bots)
+            .field("seed", &self.seed)
+            .field("duration", &self.duration)
+            .finish()
     }
 }
 
@@ -138,7 +158,8 @@ pub async fn run_demo(
         ticks,
         options.duration.as_secs_f64()
     );
-    let mut bot_options = BotOptions::new(addr, cert, "demo", options.bots);
+    let mut bot_options =
+        BotOptions::for_game(addr, cert, "demo", options.bots, options.game.clone());
     bot_options.seed = options.seed;
     let bots = tokio::spawn(async move { run_bots(&bot_options, std::future::pending()).await });
     tokio::pin!(interrupt);
@@ -184,17 +205,15 @@ pub async fn run_demo(
     }
     let shortest = oks.iter().map(|r| r.hashes.len()).min().unwrap_or(0);
     let bots_agree = (0..shortest).all(|t| oks.iter().all(|r| r.hashes[t] == oks[0].hashes[t]));
-    let replay_check =
-        report
-            .as_ref()
-            .and_then(|r| r.replay.as_ref())
-            .map(|p| match verify_replay_file(p) {
-                Ok(c) => format!(
-                    "OK, {} ticks re-simulated, {} hashes checked",
-                    c.ticks, c.checked
-                ),
-                Err(e) => format!("FAILED: {e}"),
-            });
+    let replay_check = report.as_ref().and_then(|r| r.replay.as_ref()).map(|p| {
+        match verify_replay_file(p, &*options.game) {
+            Ok(c) => format!(
+                "OK, {} ticks re-simulated, {} hashes checked",
+                c.ticks, c.checked
+            ),
+            Err(e) => format!("FAILED: {e}"),
+        }
+    });
     let summary = DemoSummary {
         report,
         bots_ok: oks.len(),

@@ -36,6 +36,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+pub use lockstep_proto::RulesId;
 use lockstep_proto::{DesyncNotice, Slot};
 use thiserror::Error;
 use tokio::sync::{Semaphore, mpsc, watch};
@@ -93,6 +94,9 @@ pub struct ServerConfig {
     pub scene: String,
     /// Its name, for messages.
     pub scene_name: String,
+    /// The game rules the players run (the server never runs them): written
+    /// into every replay, so a replay is checked with the same rules.
+    pub rules: RulesId,
     /// Settings of each room.
     pub room: RoomSettings,
     /// Directory where replays are written (`None`: no replays).
@@ -107,14 +111,28 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
-    /// A server on `listen` with the demo scene, a dev certificate written
-    /// to `out/dev-cert.pem`, replays in `out/replays`, and default rooms.
+    /// A server on `listen` with the demo game (its scene and rules id), a
+    /// dev certificate written to `out/dev-cert.pem`, replays in
+    /// `out/replays`, and default rooms.
     pub fn new(listen: SocketAddr) -> Self {
+        use lockstep_client::game::{Demo, DemoGame, RulesFactory};
+        Self::for_game(listen, DemoGame::SCENE, "demo", Demo.rules_id())
+    }
+
+    /// A server on `listen` for a game: its scene text (and a name for
+    /// messages) and its rules' id, otherwise as [`ServerConfig::new`].
+    pub fn for_game(
+        listen: SocketAddr,
+        scene: impl Into<String>,
+        scene_name: impl Into<String>,
+        rules: RulesId,
+    ) -> Self {
         Self {
             listen,
             tls: TlsSource::dev("out/dev-cert.pem"),
-            scene: lockstep_client::game::DemoGame::SCENE.to_owned(),
-            scene_name: "demo".into(),
+            scene: scene.into(),
+            scene_name: scene_name.into(),
+            rules,
             room: RoomSettings::default(),
             replay_dir: Some(PathBuf::from("out/replays")),
             max_rooms: 16,

@@ -12,8 +12,10 @@ use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 use lockstep_client::bot::{BotOptions, run_bots};
+use lockstep_client::game::Demo;
 use lockstep_client::net::{ClientReport, client_config, load_certs, read_frame, write_frame};
 use lockstep_client::offline::verify_replay_file;
+use lockstep_client::testing::Diverge;
 use lockstep_proto::{
     ClientMessage, CloseReason, InputDatagram, Replay, ServerMessage, Session, Slot, Verdict,
 };
@@ -157,7 +159,7 @@ async fn four_bots_agree_on_every_tick_of_1200_and_the_replay_reverifies() {
     assert_eq!(report.matches.len(), 1);
     assert!(report.refused.is_empty(), "{:?}", report.refused);
     let path = ended.replay.expect("replay recorded");
-    let check = verify_replay_file(&path).expect("replay verifies");
+    let check = verify_replay_file(&path, &Demo).expect("replay verifies");
     assert_eq!((check.ticks, check.checked, check.players), (1200, 1200, 4));
     assert_eq!(check.final_hash, bots[0].hashes[1199]);
     // Figures for docs/protocol.md.
@@ -198,7 +200,13 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
     })
     .await;
     let mut options = BotOptions::new(server.addr, &server.cert, "diverge", 4);
-    options.diverge = Some((2, 300));
+    options.game_of_bot = vec![(
+        2,
+        std::sync::Arc::new(Diverge {
+            inner: std::sync::Arc::new(Demo),
+            tick: 300,
+        }),
+    )];
     let bots = bots_ok(run_bots(&options, std::future::pending()).await);
     let ended = server
         .wait_for(Duration::from_secs(10), |e| match e {
@@ -237,7 +245,7 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
         assert_eq!(n[0].tick, 300);
     }
     // The replay keeps the majority's hashes: it verifies.
-    let check = verify_replay_file(&ended.replay.expect("replay")).expect("replay verifies");
+    let check = verify_replay_file(&ended.replay.expect("replay"), &Demo).expect("replay verifies");
     assert_eq!(
         (check.ticks, check.checked, check.desyncs_recorded),
         (420, 420, 1)
@@ -526,7 +534,7 @@ async fn garbage_oversized_frames_foreign_or_far_inputs_and_silence_are_refused_
     assert!(reasons.iter().any(|r| r.contains("bad datagram")));
     assert!(reasons.iter().any(|r| r.contains("input for slot")));
     assert!(reasons.iter().any(|r| r.contains("bad frame")));
-    let check = verify_replay_file(&ended.replay.expect("replay")).expect("replay verifies");
+    let check = verify_replay_file(&ended.replay.expect("replay"), &Demo).expect("replay verifies");
     assert_eq!(check.ticks, 300);
 }
 
@@ -562,6 +570,6 @@ async fn graceful_shutdown_mid_match_finishes_the_tick_and_flushes_a_replay_that
     let replay = Replay::parse(&std::fs::read(&path).unwrap()).unwrap();
     assert!(!replay.truncated);
     assert_eq!(replay.end.as_ref().map(|e| e.0), Some(m.ticks));
-    let check = verify_replay_file(&path).expect("replay verifies");
+    let check = verify_replay_file(&path, &Demo).expect("replay verifies");
     assert_eq!((check.ticks, check.checked), (m.ticks, m.ticks));
 }

@@ -30,6 +30,10 @@ struct Cli {
     /// Room to join.
     #[arg(long, default_value = "demo")]
     room: String,
+    /// Send every body's hash with every K-th tick's report (0: never), so
+    /// the server's replay can name diverging bodies.
+    #[arg(long, default_value_t = 0, value_name = "K")]
+    body_hashes_every: u64,
 }
 
 #[tokio::main]
@@ -38,6 +42,7 @@ async fn main() -> ExitCode {
     let mut options = BotOptions::new(cli.server, cli.cert, cli.room, cli.count);
     options.seed = cli.seed;
     options.ticks = cli.ticks;
+    options.body_hashes_every = cli.body_hashes_every;
     options.verbose = true;
     let stop = async {
         let _ = tokio::signal::ctrl_c().await;

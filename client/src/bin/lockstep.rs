@@ -5,8 +5,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
+use lockstep_client::game::Demo;
 use lockstep_client::offline::tune::{self, Candidates, CostBasis, TuneOptions};
-use lockstep_client::offline::{ReplayVerifyError, SimOptions, run_sim, verify_replay_file};
+use lockstep_client::offline::{SimOptions, check_replay_command, run_sim};
 
 /// lockstep: deterministic lockstep physics, offline tools.
 #[derive(Parser, Debug)]
@@ -33,10 +34,13 @@ enum Command {
         #[arg(long, value_name = "OUT.json")]
         dump_state: Option<PathBuf>,
     },
-    /// Re-simulate a recorded match and check every tick's agreed hash.
+    /// Re-simulate a recorded match of the demo game and check every tick's
+    /// agreed hash.
     ///
-    /// Prints one OK line, or the first mismatch (tick, expected, got) and
-    /// exits with status 1; status 2 for a file that is not a valid replay.
+    /// Prints one OK line (status 0), or the first mismatch (tick, expected,
+    /// got, and the diverging bodies where the replay recorded body hashes)
+    /// with status 1. Status 2: not a valid replay; 3: recorded with other
+    /// rules (id or version); 4: recorded with another state-hash layout.
     Replay {
         /// The replay file (written by lockstep-server).
         file: PathBuf,
@@ -95,38 +99,7 @@ enum Cost {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Replay { file } => match verify_replay_file(&file) {
-            Ok(c) => {
-                println!(
-                    "OK: {} ticks re-simulated, {} hashes checked ({} without an agreed hash), \
-                     {} players, {} desync notices recorded, final hash {:016x}{}",
-                    c.ticks,
-                    c.checked,
-                    c.unchecked,
-                    c.players,
-                    c.desyncs_recorded,
-                    c.final_hash,
-                    if c.truncated {
-                        " (file cut short: checked up to the cut)"
-                    } else {
-                        ""
-                    }
-                );
-                ExitCode::SUCCESS
-            }
-            Err(ReplayVerifyError::Mismatch {
-                tick,
-                expected,
-                got,
-            }) => {
-                println!("MISMATCH at tick {tick}: expected {expected:016x}, got {got:016x}");
-                ExitCode::from(1)
-            }
-            Err(e) => {
-                eprintln!("lockstep replay: error: {e}");
-                ExitCode::from(2)
-            }
-        },
+        Command::Replay { file } => ExitCode::from(check_replay_command(&file, &Demo)),
         Command::Tune {
             scene,
             max_error,

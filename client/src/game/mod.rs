@@ -8,10 +8,17 @@
 //! no hash-map iteration, no clock, no randomness that is not a pure
 //! function of its arguments.
 //!
-//! The built-in game is the demo ([`DemoGame`]): each player drives a ball
-//! around a walled arena with piles of boxes ([`DemoGame::SCENE`], from
-//! `scenes/demo.toml`), with the 3-byte input [`DemoInput`]; [`bot_input`]
-//! scripts a bot's input for any tick.
+//! A game plugs in through [`RulesFactory`]: its [`RulesId`] (recorded in
+//! every replay), a constructor of fresh [`GameRules`] for each world (the
+//! client, each bot and each replay check build their own), and optionally
+//! a scripted bot input. The client ([`crate::net::Client::connect`]), the
+//! bots ([`crate::bot`]) and the replay check
+//! ([`crate::offline::verify_replay`]) all take one.
+//!
+//! The demo ([`Demo`], rules [`DemoGame`]) is one such game: each player
+//! drives a ball around a walled arena with piles of boxes
+//! ([`DemoGame::SCENE`], from `scenes/demo.toml`), with the 3-byte input
+//! [`DemoInput`]; [`bot_input`] scripts a bot's input for any tick.
 
 mod demo;
 mod input;
@@ -25,6 +32,9 @@ pub use demo::{
 };
 pub use input::{DemoInput, INPUT_LEN, bot_input};
 
+use std::sync::Arc;
+
+pub use lockstep_proto::RulesId;
 use thiserror::Error;
 
 /// The game layer: turns one tick's player inputs into forces and impulses
@@ -43,6 +53,69 @@ pub trait GameRules: Send {
     /// Determinism: must be called once per tick, before `world.step()`,
     /// with the entries in ascending slot order on every peer.
     fn apply_inputs(&mut self, world: &mut lockstep_core::World, tick: u64, inputs: &[(u8, &[u8])]);
+}
+
+/// A game, as the client, the bots and the replay check see it: which rules
+/// these are, and how to make a fresh instance of them for a world.
+///
+/// `new_rules` is called once per world (each client, each bot, each replay
+/// check), right after the world is built from the match's scene and before
+/// the first tick; it may look bodies up by name and keep their handles.
+pub trait RulesFactory: Send + Sync {
+    /// The rules' id and version, recorded in every replay; a replay is
+    /// checked only with rules of the same id and version.
+    fn rules_id(&self) -> RulesId;
+
+    /// Fresh rules for a world built from the match's scene.
+    ///
+    /// # Errors
+    /// [`GameError`] if the world is not the one the game expects.
+    fn new_rules(&self, world: &lockstep_core::World) -> Result<Box<dyn GameRules>, GameError>;
+
+    /// A headless bot's input for `tick` (pure function of its arguments
+    /// so that bot matches are reproducible). Default: no input (empty
+    /// bytes), which rules must accept.
+    fn bot_input(&self, seed: u64, slot: u8, tick: u64) -> Vec<u8> {
+        let _ = (seed, slot, tick);
+        Vec::new()
+    }
+}
+
+impl<T: RulesFactory + ?Sized> RulesFactory for Arc<T> {
+    fn rules_id(&self) -> RulesId {
+        (**self).rules_id()
+    }
+    fn new_rules(&self, world: &lockstep_core::World) -> Result<Box<dyn GameRules>, GameError> {
+        (**self).new_rules(world)
+    }
+    fn bot_input(&self, seed: u64, slot: u8, tick: u64) -> Vec<u8> {
+        (**self).bot_input(seed, slot, tick)
+    }
+}
+
+/// The demo game as a [`RulesFactory`]: [`DemoGame`] rules, [`bot_input`]
+/// bots, id [`Demo::ID`] at version [`Demo::VERSION`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Demo;
+
+impl Demo {
+    /// The demo's rules id.
+    pub const ID: &'static str = "lockstep-demo";
+    /// The demo rules' version: bump whenever [`DemoGame`] turns the same
+    /// inputs into different forces.
+    pub const VERSION: u32 = 1;
+}
+
+impl RulesFactory for Demo {
+    fn rules_id(&self) -> RulesId {
+        RulesId::new(Self::ID, Self::VERSION)
+    }
+    fn new_rules(&self, world: &lockstep_core::World) -> Result<Box<dyn GameRules>, GameError> {
+        Ok(Box::new(DemoGame::new(world)?))
+    }
+    fn bot_input(&self, seed: u64, slot: u8, tick: u64) -> Vec<u8> {
+        bot_input(seed, slot, tick).encode()
+    }
 }
 
 /// Why game rules could not be set up for a world: the world is not the

@@ -1,13 +1,13 @@
 //! One player's connection: join, build the world, then the lockstep loop.
 
+use std::collections::VecDeque;
 use std::future::Future;
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use bytes::Bytes;
-use lockstep_core::math::Scalar;
-use lockstep_core::{BodyKind, Faults, Vec3, World};
+use lockstep_core::{Faults, World};
 use lockstep_proto::{
     Channel, ClientMessage, Close, CloseReason, DecodeError, DesyncNotice, ServerMessage, Session,
     SessionError, SessionEvent, Slot, Welcome,
@@ -17,8 +17,50 @@ use tokio::sync::mpsc;
 
 use super::close_code;
 use super::frame::{FrameError, read_frame, write_frame};
-use super::tls::{TlsError, client_config, load_certs};
-use crate::game::{DemoGame, GameRules};
+use super::tls::{TlsError, client_config, load_certs, parse_certs};
+use crate::game::{GameRules, RulesFactory, RulesId};
+
+/// The certificate (or CA) a client trusts: a PEM file, or PEM text held in
+/// memory (a game that ships its server's certificate inside the binary).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum TrustedCert {
+    /// A PEM file: the dev certificate the server wrote, or a real one.
+    File(PathBuf),
+    /// PEM text.
+    Pem(Vec<u8>),
+}
+
+impl TrustedCert {
+    /// The certificates to trust.
+    ///
+    /// # Errors
+    /// [`TlsError::CertFile`] if the file cannot be read or no PEM
+    /// certificate is in it.
+    pub fn load(&self) -> Result<Vec<rustls::pki_types::CertificateDer<'static>>, TlsError> {
+        match self {
+            TrustedCert::File(path) => load_certs(path),
+            TrustedCert::Pem(bytes) => parse_certs(bytes, "PEM bytes"),
+        }
+    }
+}
+
+impl From<PathBuf> for TrustedCert {
+    fn from(p: PathBuf) -> Self {
+        TrustedCert::File(p)
+    }
+}
+
+impl From<&PathBuf> for TrustedCert {
+    fn from(p: &PathBuf) -> Self {
+        TrustedCert::File(p.clone())
+    }
+}
+
+impl From<&Path> for TrustedCert {
+    fn from(p: &Path) -> Self {
+        TrustedCert::File(p.to_path_buf())
+    }
+}
 
 /// How to reach the server and what to do there.
 #[derive(Clone, Debug)]
@@ -28,25 +70,21 @@ pub struct ClientOptions {
     /// The name the server's certificate is checked against (`localhost`
     /// for the dev certificate).
     pub server_name: String,
-    /// PEM file of the certificate (or CA) to trust: the dev certificate
-    /// the server wrote, or a real one.
-    pub cert: PathBuf,
+    /// The certificate (or CA) to trust, as a file or as PEM bytes.
+    pub cert: TrustedCert,
     /// Room to join.
     pub room: String,
     /// Display name.
     pub player_name: String,
     /// Leave after applying this many ticks (`None`: play until the server
-    /// closes the match or `stop` fires).
+    /// closes the match or the application leaves).
     pub max_ticks: Option<u64>,
-    /// Also send every body's hash with each tick's report. Off by default:
-    /// 8 bytes per body per tick (about 55 kB/s upstream for 100 bodies at
-    /// 60 Hz, twenty times the rest of the traffic) for data the room does
-    /// not compare yet; the state hash alone finds the tick of a desync.
-    pub body_hashes: bool,
-    /// Test hook: at this tick, before stepping, nudge the first dynamic
-    /// body's linear velocity by one ulp (`Scalar::DELTA` on x), so this
-    /// client diverges from the others exactly there.
-    pub diverge_at: Option<u64>,
+    /// Also send every body's hash with the report of every K-th tick
+    /// (0: never, the default). 8 bytes per body per report (about
+    /// 55 kB/s upstream for 100 bodies at 60 Hz with K = 1, twenty times the
+    /// rest of the traffic). The server writes the agreed body hashes into
+    /// the replay, so a replay check can name the bodies that diverge.
+    pub body_hashes_every: u64,
     /// How long connecting and joining may take.
     pub connect_timeout: Duration,
 }
@@ -56,7 +94,7 @@ impl ClientOptions {
     /// as `player_name`, with the defaults of each field.
     pub fn new(
         server: SocketAddr,
-        cert: impl Into<PathBuf>,
+        cert: impl Into<TrustedCert>,
         room: impl Into<String>,
         player_name: impl Into<String>,
     ) -> Self {
@@ -67,8 +105,7 @@ impl ClientOptions {
             room: room.into(),
             player_name: player_name.into(),
             max_ticks: None,
-            body_hashes: false,
-            diverge_at: None,
+            body_hashes_every: 0,
             connect_timeout: Duration::from_secs(10),
         }
     }
@@ -217,7 +254,10 @@ impl ClientReport {
     }
 }
 
-/// A joined client, ready to [`play`](Client::play).
+/// A joined client: the world is built, the match has not been played yet.
+/// Either [`play`](Client::play) it in a closed loop (bots, tools) or
+/// [`start`](Client::start) it as a [`LiveClient`] that a game's frame loop
+/// polls.
 pub struct Client {
     endpoint: quinn::Endpoint,
     connection: quinn::Connection,
@@ -225,9 +265,9 @@ pub struct Client {
     recv: quinn::RecvStream,
     session: Session,
     world: World,
-    game: Box<dyn GameRules>,
+    rules: Box<dyn GameRules>,
+    rules_id: RulesId,
     options: ClientOptions,
-    traffic: Traffic,
 }
 
 impl std::fmt::Debug for Client {
@@ -235,19 +275,24 @@ impl std::fmt::Debug for Client {
         f.debug_struct("Client")
             .field("slot", &self.session.slot())
             .field("remote", &self.connection.remote_address())
+            .field("rules", &self.rules_id)
             .finish_non_exhaustive()
     }
 }
 
 impl Client {
-    /// Connects, joins `options.room`, waits for the welcome, and builds the
-    /// world from its scene, checking the scene hash.
+    /// Connects, joins `options.room`, waits for the welcome, builds the
+    /// world from its scene (checking the scene hash), and makes the game's
+    /// rules for that world with `game`.
     ///
     /// # Errors
-    /// [`ClientError`]: certificate, connection, refusal, timeout, or a scene
-    /// that does not build or hash as announced.
-    pub async fn connect(options: ClientOptions) -> Result<Client, ClientError> {
-        let roots = load_certs(&options.cert)?;
+    /// [`ClientError`]: certificate, connection, refusal, timeout, a scene
+    /// that does not build or hash as announced, or rules that refuse it.
+    pub async fn connect(
+        options: ClientOptions,
+        game: &dyn RulesFactory,
+    ) -> Result<Client, ClientError> {
+        let roots = options.cert.load()?;
         let config = client_config(&roots)?;
         let bind: SocketAddr = if options.server.is_ipv6() {
             "[::]:0".parse().expect("literal address")
@@ -301,7 +346,13 @@ impl Client {
                 got,
             });
         }
-        let game = DemoGame::new(&world).map_err(|e| ClientError::Game(e.to_string()))?;
+        let rules = match game.new_rules(&world) {
+            Ok(r) => r,
+            Err(e) => {
+                connection.close(close_code::NORMAL.into(), b"rules refused the scene");
+                return Err(ClientError::Game(e.to_string()));
+            }
+        };
         Ok(Client {
             endpoint,
             connection,
@@ -309,9 +360,9 @@ impl Client {
             recv,
             session,
             world,
-            game: Box::new(game),
+            rules,
+            rules_id: game.rules_id(),
             options,
-            traffic: Traffic::default(),
         })
     }
 
@@ -320,7 +371,7 @@ impl Client {
         self.session.slot()
     }
 
-    /// The world as simulated so far.
+    /// The world as built from the welcome.
     pub fn world(&self) -> &World {
         &self.world
     }
@@ -330,26 +381,108 @@ impl Client {
         &self.session
     }
 
+    /// The rules this client plays with.
+    pub fn rules_id(&self) -> &RulesId {
+        &self.rules_id
+    }
+
+    /// Starts the network tasks and hands the match to the caller's loop:
+    /// call [`LiveClient::poll`] every frame, then read
+    /// [`LiveClient::world`] to render. Must be called inside a tokio
+    /// runtime (the tasks run on it).
+    pub fn start(self) -> LiveClient {
+        let (in_tx, incoming) = mpsc::unbounded_channel::<Incoming>();
+        let (outgoing, mut out_rx) = mpsc::unbounded_channel::<Outgoing>();
+        let mut recv = self.recv;
+        let frames_tx = in_tx.clone();
+        // The stream is read by its own task so that a frame is never cut
+        // in half; its end (or failure) comes after every frame before it,
+        // so a close message is always seen before the connection's loss.
+        let reader = tokio::spawn(async move {
+            loop {
+                match read_frame(&mut recv).await {
+                    Ok(Some(bytes)) => {
+                        if frames_tx.send(Incoming::Frame(bytes)).is_err() {
+                            break;
+                        }
+                    }
+                    Ok(None) => {
+                        let _ = frames_tx.send(Incoming::StreamEnded(None));
+                        break;
+                    }
+                    Err(e) => {
+                        let _ = frames_tx.send(Incoming::StreamEnded(Some(e)));
+                        break;
+                    }
+                }
+            }
+        });
+        let conn = self.connection.clone();
+        let datagrams = tokio::spawn(async move {
+            while let Ok(bytes) = conn.read_datagram().await {
+                if in_tx.send(Incoming::Datagram(bytes.to_vec())).is_err() {
+                    break;
+                }
+            }
+        });
+        let mut send = self.send;
+        let writer = tokio::spawn(async move {
+            while let Some(out) = out_rx.recv().await {
+                match out {
+                    Outgoing::Frame(bytes) => {
+                        write_frame(&mut send, &bytes).await?;
+                    }
+                    Outgoing::Finish => {
+                        let _ = send.finish();
+                        break;
+                    }
+                }
+            }
+            Ok(())
+        });
+        let start_tick = self.session.start_tick();
+        LiveClient {
+            endpoint: self.endpoint,
+            connection: self.connection,
+            session: self.session,
+            world: self.world,
+            rules: self.rules,
+            options: self.options,
+            base: Instant::now(),
+            incoming,
+            buffered: VecDeque::new(),
+            outgoing,
+            tasks: vec![reader, datagrams],
+            writer: Some(writer),
+            traffic: Traffic::default(),
+            ticks_applied: 0,
+            next_tick: start_tick,
+            stream_ended: None,
+            left: false,
+        }
+    }
+
     /// Plays until the server closes the session, `options.max_ticks` ticks
     /// were applied, or `stop` completes (then the client leaves). `input`
     /// gives the local input for a tick; `on_event` sees every event as it
     /// happens. The connection is closed and the endpoint drained before
-    /// returning.
+    /// returning. A closed loop over [`Client::start`] and
+    /// [`LiveClient::poll`].
     ///
     /// # Errors
     /// [`ClientError`] if the connection fails or the server sends garbage;
     /// a close by the server is not an error (it is in the report).
     pub async fn play(
-        mut self,
+        self,
         mut input: impl FnMut(u64) -> Vec<u8> + Send,
         mut on_event: impl FnMut(&ClientEvent) + Send,
         stop: impl Future<Output = ()> + Send,
     ) -> Result<ClientReport, ClientError> {
-        let base = Instant::now();
-        let started = base;
+        let started = Instant::now();
+        let mut live = self.start();
         let mut report = ClientReport {
-            slot: self.session.slot(),
-            start_tick: self.session.start_tick(),
+            slot: live.slot(),
+            start_tick: live.session.start_tick(),
             ticks_applied: 0,
             hashes: Vec::new(),
             delivered_at: Vec::new(),
@@ -360,111 +493,69 @@ impl Client {
             traffic: Traffic::default(),
             played_for: Duration::ZERO,
         };
-        // The stream is read by its own task so that a frame is never cut in
-        // half by the select below.
-        let (frames_tx, mut frames_rx) = mpsc::channel::<Result<Vec<u8>, FrameError>>(256);
-        let mut recv = self.recv;
-        let reader = tokio::spawn(async move {
-            loop {
-                let r = read_frame(&mut recv).await;
-                let end = !matches!(r, Ok(Some(_)));
-                let item = match r {
-                    Ok(Some(bytes)) => Ok(bytes),
-                    Ok(None) => Err(FrameError::Truncated),
-                    Err(e) => Err(e),
-                };
-                if frames_tx.send(item).await.is_err() || end {
-                    break;
-                }
-            }
-        });
-        let mut ctx = Loop {
-            session: self.session,
-            world: self.world,
-            game: self.game,
-            send: self.send,
-            connection: self.connection.clone(),
-            options: self.options,
-            traffic: &mut self.traffic,
-        };
         tokio::pin!(stop);
-        let mut result: Result<(), ClientError> = Ok(());
-        let mut leaving = false;
-        loop {
-            let now = base.elapsed();
-            if let Err(e) = ctx.step_all(now, &mut input, &mut report).await {
-                result = Err(e);
-                break;
+        let mut stopped = false;
+        let result = loop {
+            let polled = live.poll(&mut input);
+            let failed = match polled {
+                Ok(p) => {
+                    record(&mut report, &p, &mut on_event);
+                    None
+                }
+                Err(e) => Some(e),
+            };
+            if let Some(e) = failed {
+                break Err(e);
             }
-            drain_events(&mut ctx.session, &mut report, &mut on_event);
-            if ctx.session.is_closed() {
-                break;
+            if live.is_closed() || live.has_left() {
+                break Ok(());
             }
-            if let Some(max) = ctx.options.max_ticks
-                && report.ticks_applied >= max
-            {
-                leaving = true;
+            if stopped {
+                live.leave();
+                break Ok(());
             }
-            if leaving {
-                ctx.session.leave();
-                let _ = ctx.flush().await;
-                break;
-            }
-            let wake = ctx
-                .session
-                .poll_timeout()
-                .map_or(now + Duration::from_millis(100), |t| t);
-            let wake = tokio::time::Instant::from_std(base + wake);
             tokio::select! {
                 biased;
-                () = &mut stop => leaving = true,
-                frame = frames_rx.recv() => {
-                    let r = match frame {
-                        Some(Ok(bytes)) => ctx.on_bytes(base.elapsed(), &bytes, Channel::Reliable),
-                        Some(Err(FrameError::Truncated)) | None => {
-                            Err(ClientError::ConnectionLost(ctx.lost_reason()))
-                        }
-                        Some(Err(e)) => Err(e.into()),
-                    };
-                    if let Err(e) = r {
-                        result = Err(e);
-                        break;
-                    }
-                }
-                datagram = ctx.connection.read_datagram() => match datagram {
-                    Ok(bytes) => {
-                        if let Err(e) = ctx.on_bytes(base.elapsed(), &bytes, Channel::Datagram) {
-                            result = Err(e);
-                            break;
-                        }
-                    }
-                    Err(e) => {
-                        // The close message may still be queued in the
-                        // stream reader: give it a moment to arrive.
-                        result = ctx.drain_close(&mut frames_rx, base, e).await;
-                        break;
-                    }
-                },
-                () = tokio::time::sleep_until(wake) => ctx.session.handle_timeout(base.elapsed()),
+                () = &mut stop => stopped = true,
+                () = live.wait() => {}
             }
+        };
+        // The close may arrive as the last event.
+        if let Ok(p) = live.poll(|_| Vec::new()) {
+            record(&mut report, &p, &mut on_event);
         }
-        // Collect what the session said last (the close arrives as an event).
-        drain_events(&mut ctx.session, &mut report, &mut on_event);
-        if report.close.is_some() && matches!(result, Err(ClientError::ConnectionLost(_))) {
-            result = Ok(());
-        }
-        let stats = ctx.connection.stats();
-        report.rtt = ctx.connection.rtt();
-        ctx.traffic.udp_bytes_sent = stats.udp_tx.bytes;
-        ctx.traffic.udp_bytes_received = stats.udp_rx.bytes;
-        report.traffic = *ctx.traffic;
+        let result = match result {
+            Err(ClientError::ConnectionLost(_)) if report.close.is_some() => Ok(()),
+            r => r,
+        };
+        report.rtt = live.connection.rtt();
+        report.traffic = live.traffic();
         report.played_for = started.elapsed();
-        let _ = ctx.send.finish();
-        ctx.connection
-            .close(close_code::NORMAL.into(), b"client done");
-        reader.abort();
-        let _ = tokio::time::timeout(Duration::from_secs(2), self.endpoint.wait_idle()).await;
+        live.shutdown().await;
         result.map(|()| report)
+    }
+}
+
+/// Adds what one poll did to a closed loop's report.
+fn record(report: &mut ClientReport, p: &Polled, on_event: &mut impl FnMut(&ClientEvent)) {
+    for t in &p.ticks {
+        report.delivered_at.push(t.applied_at);
+        report.own_inputs_substituted += u64::from(t.own_input_substituted);
+        report.hashes.push(t.hash);
+        report.ticks_applied += 1;
+        if !t.faults.is_empty() {
+            report.events.push(ClientEvent::Fault {
+                tick: t.tick,
+                faults: t.faults,
+            });
+        }
+    }
+    for ev in &p.events {
+        if let ClientEvent::Closed(c) = ev {
+            report.close = Some(c.clone());
+        }
+        on_event(ev);
+        report.events.push(ev.clone());
     }
 }
 
@@ -484,49 +575,288 @@ async fn read_welcome(recv: &mut quinn::RecvStream) -> Result<Welcome, ClientErr
     }
 }
 
-/// The state of the play loop, apart from the report.
-struct Loop<'a> {
-    session: Session,
-    world: World,
-    game: Box<dyn GameRules>,
-    send: quinn::SendStream,
-    connection: quinn::Connection,
-    options: ClientOptions,
-    traffic: &'a mut Traffic,
+/// What the network tasks hand to the poll.
+enum Incoming {
+    Frame(Vec<u8>),
+    Datagram(Vec<u8>),
+    /// The stream ended cleanly (`None`) or failed.
+    StreamEnded(Option<FrameError>),
 }
 
-impl Loop<'_> {
-    fn lost_reason(&self) -> String {
-        match self.connection.close_reason() {
-            Some(r) => r.to_string(),
-            None => "the server ended the stream".into(),
+/// What the poll hands to the writer task.
+enum Outgoing {
+    Frame(Vec<u8>),
+    Finish,
+}
+
+/// One tick a poll applied.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AppliedTick {
+    /// The tick.
+    pub tick: u64,
+    /// The state hash after it (reported to the server).
+    pub hash: u64,
+    /// Whether the room substituted this client's own input.
+    pub own_input_substituted: bool,
+    /// Faults the step raised.
+    pub faults: Faults,
+    /// When it was applied.
+    pub applied_at: Instant,
+}
+
+/// What one [`LiveClient::poll`] did.
+#[derive(Clone, Debug, Default)]
+pub struct Polled {
+    /// The ticks applied, in order (none if no bundle was ready).
+    pub ticks: Vec<AppliedTick>,
+    /// Room events seen (desync notices, the close).
+    pub events: Vec<ClientEvent>,
+}
+
+/// A client in a match, driven by the caller's loop: [`poll`](Self::poll)
+/// does everything due now without blocking (reads what arrived, submits
+/// the local input, applies the ready bundles through the rules, steps,
+/// reports hashes) and returns; [`world`](Self::world) is then the world to
+/// render. Network I/O runs on tokio tasks started by [`Client::start`].
+pub struct LiveClient {
+    endpoint: quinn::Endpoint,
+    connection: quinn::Connection,
+    session: Session,
+    world: World,
+    rules: Box<dyn GameRules>,
+    options: ClientOptions,
+    base: Instant,
+    incoming: mpsc::UnboundedReceiver<Incoming>,
+    buffered: VecDeque<Incoming>,
+    outgoing: mpsc::UnboundedSender<Outgoing>,
+    tasks: Vec<tokio::task::JoinHandle<()>>,
+    writer: Option<tokio::task::JoinHandle<Result<(), FrameError>>>,
+    traffic: Traffic,
+    ticks_applied: u64,
+    next_tick: u64,
+    stream_ended: Option<String>,
+    left: bool,
+}
+
+impl std::fmt::Debug for LiveClient {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LiveClient")
+            .field("slot", &self.session.slot())
+            .field("next_tick", &self.next_tick)
+            .finish_non_exhaustive()
+    }
+}
+
+impl LiveClient {
+    /// This client's slot.
+    pub fn slot(&self) -> Slot {
+        self.session.slot()
+    }
+
+    /// The world after the last applied tick: read it to render.
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// The lockstep session (timing parameters, counters).
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+
+    /// The next tick to apply.
+    pub fn next_tick(&self) -> u64 {
+        self.next_tick
+    }
+
+    /// Ticks applied so far.
+    pub fn ticks_applied(&self) -> u64 {
+        self.ticks_applied
+    }
+
+    /// Whether the server ended the session.
+    pub fn is_closed(&self) -> bool {
+        self.session.is_closed()
+    }
+
+    /// Whether this client left (by [`leave`](Self::leave) or
+    /// `max_ticks`).
+    pub fn has_left(&self) -> bool {
+        self.left
+    }
+
+    /// Traffic counters so far (UDP totals from quinn).
+    pub fn traffic(&self) -> Traffic {
+        let stats = self.connection.stats();
+        Traffic {
+            udp_bytes_sent: stats.udp_tx.bytes,
+            udp_bytes_received: stats.udp_rx.bytes,
+            ..self.traffic
         }
     }
 
-    /// Waits briefly for a close message after the connection failed.
-    async fn drain_close(
-        &mut self,
-        frames: &mut mpsc::Receiver<Result<Vec<u8>, FrameError>>,
-        base: Instant,
-        err: quinn::ConnectionError,
-    ) -> Result<(), ClientError> {
-        let deadline = tokio::time::Instant::now() + Duration::from_millis(200);
-        while let Ok(Some(Ok(bytes))) = tokio::time::timeout_at(deadline, frames.recv()).await {
-            self.on_bytes(base.elapsed(), &bytes, Channel::Reliable)?;
+    /// When the session next needs a poll even if nothing arrives (time
+    /// since [`Client::start`]).
+    pub fn poll_timeout(&self) -> Option<Duration> {
+        self.session.poll_timeout()
+    }
+
+    /// Does everything due now, without blocking: handles what arrived,
+    /// submits the local input (`input(tick)`) for every tick due, applies
+    /// every bundle ready through the rules, steps, reports the hashes, and
+    /// returns the ticks applied and the events seen.
+    ///
+    /// # Errors
+    /// [`ClientError`] if the server sent garbage or the connection is
+    /// lost (a close by the server is an event, not an error).
+    pub fn poll(&mut self, mut input: impl FnMut(u64) -> Vec<u8>) -> Result<Polled, ClientError> {
+        let mut out = Polled::default();
+        let result = self.poll_inner(&mut input, &mut out);
+        while let Some(ev) = self.session.poll_event() {
+            out.events.push(match ev {
+                SessionEvent::Desync { notice, local_hash } => {
+                    ClientEvent::Desync { notice, local_hash }
+                }
+                SessionEvent::Closed(c) => ClientEvent::Closed(c),
+            });
         }
-        if self.session.is_closed() {
-            Ok(())
-        } else {
-            Err(ClientError::ConnectionLost(err.to_string()))
+        result.map(|()| out)
+    }
+
+    fn poll_inner(
+        &mut self,
+        input: &mut impl FnMut(u64) -> Vec<u8>,
+        out: &mut Polled,
+    ) -> Result<(), ClientError> {
+        while let Some(item) = self
+            .buffered
+            .pop_front()
+            .or_else(|| self.incoming.try_recv().ok())
+        {
+            match item {
+                Incoming::Frame(bytes) => self.on_bytes(&bytes, Channel::Reliable)?,
+                Incoming::Datagram(bytes) => self.on_bytes(&bytes, Channel::Datagram)?,
+                Incoming::StreamEnded(e) => {
+                    self.stream_ended = Some(match (e, self.connection.close_reason()) {
+                        (_, Some(r)) => r.to_string(),
+                        (Some(e), None) => e.to_string(),
+                        (None, None) => "the server ended the stream".into(),
+                    });
+                }
+            }
+        }
+        if self.session.is_closed() || self.left {
+            return Ok(());
+        }
+        if let Some(reason) = &self.stream_ended {
+            return Err(ClientError::ConnectionLost(reason.clone()));
+        }
+        let now = self.base.elapsed();
+        if self.session.poll_timeout().is_some_and(|t| t <= now) {
+            self.session.handle_timeout(now);
+        }
+        while self.session.wants_input(now) {
+            let tick = self.session.next_input_tick();
+            self.session.submit_input(input(tick))?;
+        }
+        // Inputs first: they are the time-critical part.
+        self.flush()?;
+        let slot = self.session.slot();
+        while self
+            .options
+            .max_ticks
+            .is_none_or(|m| self.ticks_applied < m)
+        {
+            let Some(bundle) = self.session.poll_bundle() else {
+                break;
+            };
+            let applied_at = Instant::now();
+            let own_input_substituted = bundle
+                .inputs
+                .iter()
+                .any(|p| p.slot == slot && p.substituted);
+            let inputs: Vec<(u8, &[u8])> = bundle
+                .inputs
+                .iter()
+                .map(|p| (p.slot.0, p.input.as_slice()))
+                .collect();
+            self.rules
+                .apply_inputs(&mut self.world, bundle.tick, &inputs);
+            let step = self.world.step();
+            let hash = self.world.state_hash();
+            let every = self.options.body_hashes_every;
+            let bodies = (every > 0 && bundle.tick.is_multiple_of(every)).then(|| {
+                self.world
+                    .body_hashes()
+                    .into_iter()
+                    .map(|(_, h)| h)
+                    .collect()
+            });
+            self.session.report_hash(bundle.tick, hash, bodies)?;
+            self.ticks_applied += 1;
+            self.next_tick = bundle.tick + 1;
+            out.ticks.push(AppliedTick {
+                tick: bundle.tick,
+                hash,
+                own_input_substituted,
+                faults: step.faults,
+                applied_at,
+            });
+        }
+        if self
+            .options
+            .max_ticks
+            .is_some_and(|m| self.ticks_applied >= m)
+        {
+            self.leave();
+        }
+        self.flush()
+    }
+
+    /// Leaves the match (tells the server, ends the stream). Later polls
+    /// do nothing.
+    pub fn leave(&mut self) {
+        if self.left {
+            return;
+        }
+        self.left = true;
+        self.session.leave();
+        let _ = self.flush();
+    }
+
+    /// Waits until something arrives or the session's next timeout, for a
+    /// loop that has nothing else to do between polls.
+    pub async fn wait(&mut self) {
+        let wake = self
+            .session
+            .poll_timeout()
+            .unwrap_or_else(|| self.base.elapsed() + Duration::from_millis(100));
+        let wake = tokio::time::Instant::from_std(self.base + wake);
+        if self.stream_ended.is_some() && self.buffered.is_empty() {
+            tokio::time::sleep_until(wake).await;
+            return;
+        }
+        tokio::select! {
+            item = self.incoming.recv() => match item {
+                Some(i) => self.buffered.push_back(i),
+                None => tokio::time::sleep_until(wake).await,
+            },
+            () = tokio::time::sleep_until(wake) => {}
         }
     }
 
-    fn on_bytes(
-        &mut self,
-        now: Duration,
-        bytes: &[u8],
-        channel: Channel,
-    ) -> Result<(), ClientError> {
+    /// Ends the stream, closes the connection and waits (at most 2 s) for
+    /// the endpoint to drain.
+    pub async fn shutdown(mut self) {
+        let _ = self.outgoing.send(Outgoing::Finish);
+        if let Some(w) = self.writer.take() {
+            let _ = tokio::time::timeout(Duration::from_secs(1), w).await;
+        }
+        let endpoint = self.endpoint.clone();
+        drop(self);
+        let _ = tokio::time::timeout(Duration::from_secs(2), endpoint.wait_idle()).await;
+    }
+
+    fn on_bytes(&mut self, bytes: &[u8], channel: Channel) -> Result<(), ClientError> {
         let msg = ServerMessage::decode(bytes)?;
         if msg.channel() != channel {
             return Err(ClientError::Unexpected(msg.kind()));
@@ -537,76 +867,13 @@ impl Loop<'_> {
             self.traffic.max_datagram_received =
                 self.traffic.max_datagram_received.max(bytes.len());
         }
-        self.session.handle_message(now, msg)?;
+        self.session.handle_message(self.base.elapsed(), msg)?;
         Ok(())
     }
 
-    /// Submits due inputs, applies every deliverable bundle, and sends what
-    /// the session produced.
-    async fn step_all(
-        &mut self,
-        now: Duration,
-        input: &mut (impl FnMut(u64) -> Vec<u8> + Send),
-        report: &mut ClientReport,
-    ) -> Result<(), ClientError> {
-        while self.session.wants_input(now) {
-            let tick = self.session.next_input_tick();
-            self.session.submit_input(input(tick))?;
-        }
-        // Inputs first: they are the time-critical part.
-        self.flush().await?;
-        let slot = self.session.slot();
-        while let Some(bundle) = self.session.poll_bundle() {
-            report.delivered_at.push(Instant::now());
-            if bundle
-                .inputs
-                .iter()
-                .any(|p| p.slot == slot && p.substituted)
-            {
-                report.own_inputs_substituted += 1;
-            }
-            if self.options.diverge_at == Some(bundle.tick) {
-                nudge_one_body(&mut self.world);
-            }
-            let inputs: Vec<(u8, &[u8])> = bundle
-                .inputs
-                .iter()
-                .map(|p| (p.slot.0, p.input.as_slice()))
-                .collect();
-            self.game
-                .apply_inputs(&mut self.world, bundle.tick, &inputs);
-            let step = self.world.step();
-            if !step.faults.is_empty() {
-                report.events.push(ClientEvent::Fault {
-                    tick: bundle.tick,
-                    faults: step.faults,
-                });
-            }
-            let hash = self.world.state_hash();
-            let bodies = self.options.body_hashes.then(|| {
-                self.world
-                    .body_hashes()
-                    .into_iter()
-                    .map(|(_, h)| h)
-                    .collect()
-            });
-            self.session.report_hash(bundle.tick, hash, bodies)?;
-            report.hashes.push(hash);
-            report.ticks_applied += 1;
-            if self
-                .options
-                .max_ticks
-                .is_some_and(|m| report.ticks_applied >= m)
-            {
-                break;
-            }
-        }
-        self.flush().await
-    }
-
-    /// Sends everything the session queued: stream frames in order,
-    /// datagrams as they come.
-    async fn flush(&mut self) -> Result<(), ClientError> {
+    /// Sends everything the session queued: stream frames in order (through
+    /// the writer task), datagrams at once.
+    fn flush(&mut self) -> Result<(), ClientError> {
         while let Some(msg) = self.session.poll_transmit() {
             let bytes = match msg.encode() {
                 Ok(b) => b,
@@ -615,9 +882,13 @@ impl Loop<'_> {
             };
             match msg.channel() {
                 Channel::Reliable => {
-                    write_frame(&mut self.send, &bytes).await?;
                     self.traffic.frames_sent += 1;
                     self.traffic.frame_bytes_sent += bytes.len() as u64 + 4;
+                    if self.outgoing.send(Outgoing::Frame(bytes)).is_err() {
+                        return Err(ClientError::ConnectionLost(
+                            "the stream writer stopped".into(),
+                        ));
+                    }
                 }
                 Channel::Datagram => {
                     self.traffic.datagrams_sent += 1;
@@ -630,45 +901,22 @@ impl Loop<'_> {
                 }
             }
             if matches!(msg, ClientMessage::Leave) {
-                let _ = self.send.finish();
+                let _ = self.outgoing.send(Outgoing::Finish);
             }
         }
         Ok(())
     }
 }
 
-/// The divergence hook: one ulp more x velocity on the first dynamic body.
-fn nudge_one_body(world: &mut World) {
-    let target = world
-        .body_handles()
-        .find(|&h| world.body(h).is_ok_and(|b| b.kind() == BodyKind::Dynamic));
-    if let Some(h) = target
-        && let Ok(b) = world.body(h)
-    {
-        let v = b.linear_velocity();
-        let nudged = Vec3::new(v.x + Scalar::DELTA, v.y, v.z);
-        let _ = world.set_linear_velocity(h, nudged);
-    }
-}
-
-/// Hands every pending session event to `on_event` and records it in the
-/// report (a close also sets `report.close`).
-fn drain_events(
-    session: &mut Session,
-    report: &mut ClientReport,
-    on_event: &mut impl FnMut(&ClientEvent),
-) {
-    while let Some(ev) = session.poll_event() {
-        let ev = match ev {
-            SessionEvent::Desync { notice, local_hash } => {
-                ClientEvent::Desync { notice, local_hash }
-            }
-            SessionEvent::Closed(c) => {
-                report.close = Some(c.clone());
-                ClientEvent::Closed(c)
-            }
-        };
-        on_event(&ev);
-        report.events.push(ev);
+impl Drop for LiveClient {
+    fn drop(&mut self) {
+        self.connection
+            .close(close_code::NORMAL.into(), b"client done");
+        for t in &self.tasks {
+            t.abort();
+        }
+        if let Some(w) = &self.writer {
+            w.abort();
+        }
     }
 }

@@ -17,9 +17,14 @@ mod client;
 mod frame;
 mod tls;
 
-pub use client::{Client, ClientError, ClientEvent, ClientOptions, ClientReport, Traffic};
+pub use client::{
+    AppliedTick, Client, ClientError, ClientEvent, ClientOptions, ClientReport, LiveClient, Polled,
+    Traffic, TrustedCert,
+};
 pub use frame::{FrameError, read_frame, write_frame};
-pub use tls::{MIN_CONGESTION_WINDOW, TlsError, client_config, load_certs, transport_config};
+pub use tls::{
+    MIN_CONGESTION_WINDOW, TlsError, client_config, load_certs, parse_certs, transport_config,
+};
 
 use lockstep_proto::CloseReason;
 

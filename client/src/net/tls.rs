@@ -48,6 +48,25 @@ pub fn load_certs(path: &Path) -> Result<Vec<CertificateDer<'static>>, TlsError>
     Ok(certs)
 }
 
+/// Reads every certificate of PEM text held in memory (`what` names it in
+/// errors).
+///
+/// # Errors
+/// [`TlsError::CertFile`] if the text holds no PEM certificate.
+pub fn parse_certs(pem: &[u8], what: &str) -> Result<Vec<CertificateDer<'static>>, TlsError> {
+    let err = |detail: String| TlsError::CertFile {
+        path: what.to_owned(),
+        detail,
+    };
+    let certs: Vec<_> = CertificateDer::pem_slice_iter(pem)
+        .collect::<Result<_, _>>()
+        .map_err(|e| err(e.to_string()))?;
+    if certs.is_empty() {
+        return Err(err("no certificate in the PEM text".into()));
+    }
+    Ok(certs)
+}
+
 /// Congestion window below which the controller never throttles: 32 KiB.
 ///
 /// Lockstep traffic is paced by the tick clock, not by the network: a

@@ -7,5 +7,8 @@ mod sim;
 pub mod tune;
 
 pub use dump::{BodyDump, StateDump, dump_state};
-pub use replay::{ReplayCheck, ReplayVerifyError, apply_bundle, verify_replay, verify_replay_file};
+pub use replay::{
+    BodiesAt, BodyDiff, ReplayCheck, ReplayVerifyError, apply_bundle, check_header,
+    check_replay_command, exit_status, verify_replay, verify_replay_file,
+};
 pub use sim::{SimError, SimOptions, SimSummary, load_scene_file, run_sim};

@@ -6,14 +6,63 @@
 //! client did: build the world from the scene (its initial hash must be the
 //! recorded scene hash), then for each tick apply the bundle's inputs through
 //! the game rules, step, and hash.
+//!
+//! Before that, the header must say the replay was made with the same rules
+//! (id and version) and the same state-hash layout as this check: otherwise
+//! no hash could match, and the check says which of the two differs instead
+//! of reporting a mismatch.
 
 use std::path::{Path, PathBuf};
 
 use lockstep_core::World;
-use lockstep_proto::{Replay, ReplayError, TickBundle};
+use lockstep_core::world::STATE_HASH_VERSION;
+use lockstep_proto::{Replay, ReplayError, RulesId, TickBundle};
 use thiserror::Error;
 
-use crate::game::{DemoGame, GameRules};
+use crate::game::{GameRules, RulesFactory};
+
+/// A body whose hash differs from the one recorded in the replay.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BodyDiff {
+    /// Its position in handle order (the index in `World::body_hashes`).
+    pub index: usize,
+    /// Its name in the scene (empty for bodies spawned by the rules, or if
+    /// the lists differ in length past the world's bodies).
+    pub name: String,
+    /// The recorded hash (`None`: the replay lists fewer bodies).
+    pub expected: Option<u64>,
+    /// The re-simulated hash (`None`: the world has fewer bodies).
+    pub got: Option<u64>,
+}
+
+impl std::fmt::Display for BodyDiff {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let h = |x: Option<u64>| x.map_or_else(|| "absent".to_owned(), |h| format!("{h:016x}"));
+        let name = if self.name.is_empty() {
+            String::new()
+        } else {
+            format!(" {:?}", self.name)
+        };
+        write!(
+            f,
+            "body #{}{name}: expected {}, got {}",
+            self.index,
+            h(self.expected),
+            h(self.got)
+        )
+    }
+}
+
+/// The bodies that differ at the first tick from a mismatch on whose body
+/// hashes the replay recorded.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BodiesAt {
+    /// The tick compared (the mismatch's tick, or the next with recorded
+    /// body hashes).
+    pub tick: u64,
+    /// The bodies that differ there, in handle order.
+    pub bodies: Vec<BodyDiff>,
+}
 
 /// What a successful verification found.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -67,6 +116,26 @@ pub enum ReplayVerifyError {
     /// The game rules refuse the world.
     #[error("game: {0}")]
     Game(String),
+    /// The replay was recorded with other rules than the ones checking it.
+    #[error("the replay was recorded with rules {recorded}, this check uses {ours}")]
+    WrongRules {
+        /// The replay's.
+        recorded: RulesId,
+        /// The checker's.
+        ours: RulesId,
+    },
+    /// The replay's hashes use another state-hash layout than this engine.
+    #[error(
+        "the replay's hashes use state-hash layout {recorded} (engine {engine}), this engine hashes with layout {ours}"
+    )]
+    WrongHashLayout {
+        /// The replay's.
+        recorded: u64,
+        /// The engine version that recorded it.
+        engine: String,
+        /// This engine's (`STATE_HASH_VERSION`).
+        ours: u64,
+    },
     /// The first tick whose re-simulated hash differs from the agreed one.
     #[error("mismatch at tick {tick}: expected {expected:016x}, got {got:016x}")]
     Mismatch {
@@ -76,7 +145,38 @@ pub enum ReplayVerifyError {
         expected: u64,
         /// The re-simulated hash.
         got: u64,
+        /// The bodies that differ, if the replay holds body hashes at or
+        /// after that tick.
+        bodies: Option<BodiesAt>,
     },
+}
+
+/// The status `lockstep replay` exits with for each outcome, so scripts can
+/// tell them apart.
+pub mod exit_status {
+    /// The replay verifies.
+    pub const OK: u8 = 0;
+    /// A tick's hash differs from the recorded one.
+    pub const MISMATCH: u8 = 1;
+    /// The file is not a readable replay (or its scene does not build).
+    pub const INVALID: u8 = 2;
+    /// The replay was recorded with other rules (id or version).
+    pub const WRONG_RULES: u8 = 3;
+    /// The replay's hashes use another state-hash layout.
+    pub const WRONG_HASH_LAYOUT: u8 = 4;
+}
+
+impl ReplayVerifyError {
+    /// The `lockstep replay` exit status of this error (see
+    /// [`exit_status`]).
+    pub fn exit_status(&self) -> u8 {
+        match self {
+            Self::Mismatch { .. } => exit_status::MISMATCH,
+            Self::WrongRules { .. } => exit_status::WRONG_RULES,
+            Self::WrongHashLayout { .. } => exit_status::WRONG_HASH_LAYOUT,
+            _ => exit_status::INVALID,
+        }
+    }
 }
 
 /// Applies one bundle to the world: game rules, then a step. The same
@@ -91,12 +191,42 @@ pub fn apply_bundle(world: &mut World, game: &mut dyn GameRules, bundle: &TickBu
     world.step();
 }
 
-/// Re-simulates a parsed replay and checks every recorded hash.
+/// Checks that a replay's header matches `game` and this engine's hash
+/// layout.
+///
+/// # Errors
+/// [`ReplayVerifyError::WrongHashLayout`] or
+/// [`ReplayVerifyError::WrongRules`].
+pub fn check_header(replay: &Replay, game: &dyn RulesFactory) -> Result<(), ReplayVerifyError> {
+    let h = &replay.header;
+    if h.hash_layout != STATE_HASH_VERSION {
+        return Err(ReplayVerifyError::WrongHashLayout {
+            recorded: h.hash_layout,
+            engine: h.engine_version.clone(),
+            ours: STATE_HASH_VERSION,
+        });
+    }
+    let ours = game.rules_id();
+    if h.rules != ours {
+        return Err(ReplayVerifyError::WrongRules {
+            recorded: h.rules.clone(),
+            ours,
+        });
+    }
+    Ok(())
+}
+
+/// Re-simulates a parsed replay with `game`'s rules and checks every
+/// recorded hash.
 ///
 /// # Errors
 /// [`ReplayVerifyError`]; [`ReplayVerifyError::Mismatch`] names the first
-/// tick that differs.
-pub fn verify_replay(replay: &Replay) -> Result<ReplayCheck, ReplayVerifyError> {
+/// tick that differs and, where the replay holds body hashes, the bodies.
+pub fn verify_replay(
+    replay: &Replay,
+    game: &dyn RulesFactory,
+) -> Result<ReplayCheck, ReplayVerifyError> {
+    check_header(replay, game)?;
     let text = std::str::from_utf8(&replay.header.scene)
         .map_err(|e| ReplayVerifyError::Scene(format!("not UTF-8: {e}")))?;
     let mut world = lockstep_core::scene::load_world(text, "replay scene")
@@ -108,17 +238,21 @@ pub fn verify_replay(replay: &Replay) -> Result<ReplayCheck, ReplayVerifyError> 
             got,
         });
     }
-    let mut game = DemoGame::new(&world).map_err(|e| ReplayVerifyError::Game(e.to_string()))?;
+    let mut rules = game
+        .new_rules(&world)
+        .map_err(|e| ReplayVerifyError::Game(e.to_string()))?;
     let mut checked = 0;
-    for (bundle, expected) in replay.ticks.iter().zip(&replay.hashes) {
-        apply_bundle(&mut world, &mut game, bundle);
+    for (i, (bundle, expected)) in replay.ticks.iter().zip(&replay.hashes).enumerate() {
+        apply_bundle(&mut world, &mut *rules, bundle);
         if let Some(expected) = *expected {
             let got = world.state_hash();
             if got != expected {
+                let bodies = diverging_bodies(replay, i, &mut world, &mut *rules);
                 return Err(ReplayVerifyError::Mismatch {
                     tick: bundle.tick,
                     expected,
                     got,
+                    bodies,
                 });
             }
             checked += 1;
@@ -137,15 +271,101 @@ pub fn verify_replay(replay: &Replay) -> Result<ReplayCheck, ReplayVerifyError> 
     })
 }
 
+/// After a mismatch at tick index `at` (already applied to `world`): goes on
+/// re-simulating to the first tick from there with recorded body hashes and
+/// compares them, body by body.
+fn diverging_bodies(
+    replay: &Replay,
+    at: usize,
+    world: &mut World,
+    rules: &mut dyn GameRules,
+) -> Option<BodiesAt> {
+    let tick = at as u64;
+    let (target, recorded) = replay.body_hashes.iter().find(|(t, _)| *t >= tick)?;
+    for bundle in replay.ticks.get(at + 1..=usize::try_from(*target).ok()?)? {
+        apply_bundle(world, rules, bundle);
+    }
+    let ours = world.body_hashes();
+    let n = ours.len().max(recorded.len());
+    let bodies = (0..n)
+        .filter_map(|i| {
+            let got = ours.get(i).map(|(_, h)| *h);
+            let expected = recorded.get(i).copied();
+            (got != expected).then(|| BodyDiff {
+                index: i,
+                name: ours
+                    .get(i)
+                    .and_then(|(h, _)| world.body(*h).ok())
+                    .map(|b| b.name().to_owned())
+                    .unwrap_or_default(),
+                expected,
+                got,
+            })
+        })
+        .collect();
+    Some(BodiesAt {
+        tick: *target,
+        bodies,
+    })
+}
+
 /// Reads, parses and verifies a replay file.
 ///
 /// # Errors
 /// See [`verify_replay`]; also [`ReplayVerifyError::Io`] and
 /// [`ReplayVerifyError::Parse`].
-pub fn verify_replay_file(path: &Path) -> Result<ReplayCheck, ReplayVerifyError> {
+pub fn verify_replay_file(
+    path: &Path,
+    game: &dyn RulesFactory,
+) -> Result<ReplayCheck, ReplayVerifyError> {
     let bytes = std::fs::read(path).map_err(|source| ReplayVerifyError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    verify_replay(&Replay::parse(&bytes)?)
+    verify_replay(&Replay::parse(&bytes)?, game)
+}
+
+/// What `lockstep replay FILE` does, for any game: verifies the file with
+/// `game`, prints one `OK` line (stdout), or the first mismatch and the
+/// bodies that differ (stdout), or the error (stderr), and returns the exit
+/// status ([`exit_status`]). A game's own replay tool is a `main` around it.
+pub fn check_replay_command(path: &Path, game: &dyn RulesFactory) -> u8 {
+    match verify_replay_file(path, game) {
+        Ok(c) => {
+            println!(
+                "OK: {} ticks re-simulated, {} hashes checked ({} without an agreed hash), \
+                 {} players, {} desync notices recorded, final hash {:016x}{}",
+                c.ticks,
+                c.checked,
+                c.unchecked,
+                c.players,
+                c.desyncs_recorded,
+                c.final_hash,
+                if c.truncated {
+                    " (file cut short: checked up to the cut)"
+                } else {
+                    ""
+                }
+            );
+            exit_status::OK
+        }
+        Err(ReplayVerifyError::Mismatch {
+            tick,
+            expected,
+            got,
+            bodies,
+        }) => {
+            println!("MISMATCH at tick {tick}: expected {expected:016x}, got {got:016x}");
+            if let Some(at) = &bodies {
+                for b in &at.bodies {
+                    println!("  at tick {}: {b}", at.tick);
+                }
+            }
+            exit_status::MISMATCH
+        }
+        Err(e) => {
+            eprintln!("lockstep replay: error: {e}");
+            e.exit_status()
+        }
+    }
 }

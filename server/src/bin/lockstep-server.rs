@@ -43,6 +43,13 @@ struct Cli {
     /// Scene file sent to the players (default: the embedded demo scene).
     #[arg(long)]
     scene: Option<PathBuf>,
+    /// Id of the game rules the players run, recorded in every replay
+    /// (default: the demo's; give it with --scene for another game).
+    #[arg(long, requires = "rules_version")]
+    rules_id: Option<String>,
+    /// Version of those rules.
+    #[arg(long, requires = "rules_id")]
+    rules_version: Option<u32>,
     /// Directory for replay files.
     #[arg(long, default_value = "out/replays")]
     replay_dir: PathBuf,
@@ -112,6 +119,9 @@ async fn main() -> ExitCode {
                 return ExitCode::from(2);
             }
         }
+    }
+    if let (Some(id), Some(version)) = (cli.rules_id, cli.rules_version) {
+        config.rules = lockstep_server::RulesId::new(id, version);
     }
     config.replay_dir = (!cli.no_replay).then_some(cli.replay_dir);
     config.room.max_players = cli.max_players;

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant, SystemTime};
 
 use bytes::Bytes;
 use lockstep_proto::{
-    BundleDatagram, Channel, ClientMessage, Close, CloseReason, DesyncNotice, Join,
+    BundleDatagram, Channel, ClientMessage, Close, CloseReason, DesyncNotice, ENGINE_VERSION, Join,
     MAX_DATAGRAM_BYTES, PROTOCOL_VERSION, PlayerId, Rejection, ReplayHeader, ReplayRecorder, Room,
     RoomConfig, RoomEvent, ServerMessage, Verdict,
 };
@@ -202,6 +202,9 @@ impl RoomTask {
                 input_delay: c.input_delay,
                 scene_hash: c.scene_hash,
                 scene: c.scene.clone(),
+                engine_version: ENGINE_VERSION.into(),
+                hash_layout: lockstep_core::world::STATE_HASH_VERSION,
+                rules: shared.config.rules.clone(),
             };
             let decide_after = c.ticks_in(c.hash_timeout);
             let recorder = match ReplayRecorder::new(header, decide_after) {
@@ -226,7 +229,10 @@ impl RoomTask {
                 .collect();
             let path = dir.join(format!("{safe}-{secs}-{seq}.replay"));
             let file = match File::create(&path) {
-                Ok(f) => Some(f),
+                Ok(f) => {
+                    crate::log!("room {name}: recording the replay to {}", path.display());
+                    Some(f)
+                }
                 Err(e) => {
                     crate::log!("room {name}: cannot create {}: {e}", path.display());
                     None
@@ -555,7 +561,11 @@ impl RoomTask {
                 let report = seat.report;
                 let (ack, hash) = match &msg {
                     ClientMessage::Input(d) => (d.ack_bundle, None),
-                    ClientMessage::HashReport(h) => (None, Some((h.tick, h.hash))),
+                    ClientMessage::HashReport(h) => {
+                        // Body hashes only matter to the replay.
+                        let bodies = self.replay.as_ref().and(h.body_hashes.clone());
+                        (None, Some((h.tick, h.hash, bodies)))
+                    }
                     _ => (None, None),
                 };
                 if channel == Channel::Datagram {
@@ -567,12 +577,13 @@ impl RoomTask {
                     Ok(()) => {
                         if let Some(seat) = self.seat(id) {
                             seat.bundle_ack = seat.bundle_ack.max(ack);
-                            if let Some((tick, _)) = hash {
-                                seat.last_hash = seat.last_hash.max(Some(tick));
+                            if let Some((tick, _, _)) = &hash {
+                                seat.last_hash = seat.last_hash.max(Some(*tick));
                             }
                         }
-                        if let (Some((tick, h)), Some(r)) = (hash, self.replay.as_mut()) {
-                            r.recorder.on_hash(id.slot, tick, h);
+                        if let (Some((tick, h, bodies)), Some(r)) = (hash, self.replay.as_mut()) {
+                            r.recorder
+                                .on_hash_with_bodies(id.slot, tick, h, bodies.as_deref());
                         }
                     }
                     Err(Rejection::UnknownPlayer(_)) => {}

@@ -1,0 +1,71 @@
+//! Test hooks (feature `test-hooks`): ways to make a peer misbehave on
+//! purpose, kept out of the options a game uses.
+
+use std::sync::Arc;
+
+use lockstep_core::{BodyKind, Scalar, Vec3, World};
+
+use crate::game::{GameError, GameRules, RulesFactory, RulesId};
+
+/// Another game's rules plus one ulp more x velocity on the first dynamic
+/// body right before the inputs of `tick`: a peer playing these diverges
+/// from the others exactly at `tick`. Claims the wrapped game's id.
+#[derive(Clone)]
+pub struct Diverge {
+    /// The game played otherwise.
+    pub inner: Arc<dyn RulesFactory>,
+    /// The tick the nudge happens before.
+    pub tick: u64,
+}
+
+impl std::fmt::Debug for Diverge {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Diverge")
+            .field("inner", &self.inner.rules_id())
+            .field("tick", &self.tick)
+            .finish()
+    }
+}
+
+struct DivergeRules {
+    inner: Box<dyn GameRules>,
+    tick: u64,
+}
+
+impl GameRules for DivergeRules {
+    fn apply_inputs(&mut self, world: &mut World, tick: u64, inputs: &[(u8, &[u8])]) {
+        if tick == self.tick {
+            nudge_one_body(world);
+        }
+        self.inner.apply_inputs(world, tick, inputs);
+    }
+}
+
+impl RulesFactory for Diverge {
+    fn rules_id(&self) -> RulesId {
+        self.inner.rules_id()
+    }
+    fn new_rules(&self, world: &World) -> Result<Box<dyn GameRules>, GameError> {
+        Ok(Box::new(DivergeRules {
+            inner: self.inner.new_rules(world)?,
+            tick: self.tick,
+        }))
+    }
+    fn bot_input(&self, seed: u64, slot: u8, tick: u64) -> Vec<u8> {
+        self.inner.bot_input(seed, slot, tick)
+    }
+}
+
+/// One ulp more x velocity on the first dynamic body.
+fn nudge_one_body(world: &mut World) {
+    let target = world
+        .body_handles()
+        .find(|&h| world.body(h).is_ok_and(|b| b.kind() == BodyKind::Dynamic));
+    if let Some(h) = target
+        && let Ok(b) = world.body(h)
+    {
+        let v = b.linear_velocity();
+        let nudged = Vec3::new(v.x + Scalar::DELTA, v.y, v.z);
+        let _ = world.set_linear_velocity(h, nudged);
+    }
+}
