@@ -33,11 +33,12 @@
 //! point, which rolls away from the contact.
 //!
 //! Friction acts at the centre of each manifold's contact patch (see
-//! [`Patch`]): two tangent rows and a twist row per manifold, where
-//! per-point friction needs two rows per point. On large_pyramid (box
-//! faces, four points) that cut the step's instructions by 17% and was no
-//! less accurate in the closed-form tests (ramp creep 0.15 mm against
-//! 0.18 mm, the kinematic platform's passenger 0.1 mm against 1.3 mm).
+//! [`Patch`]): two tangent rows, held together in the friction disc, and a
+//! twist row per manifold, where per-point friction needs two rows per
+//! point (eight for a box face). The closed-form friction tests
+//! (core/tests/friction.rs: sliding in every direction, the slide-to-roll
+//! transition, convergence under refinement; the ramp and the kinematic
+//! platform) hold it to their bounds.
 //!
 //! Each point stores `r×n` and `I⁻¹(r×n)`, and each patch the same for its
 //! two tangents, so an iteration reads a relative velocity as `d·Δv +
