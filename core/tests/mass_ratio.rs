@@ -2,7 +2,7 @@
 //! alternates light and heavy boxes. A soft contact of angular frequency ω
 //! holds a load at the depth load/(m_eff·ω²), and between a light box and a
 //! heavy one m_eff is about the light box's mass while the load is the
-//! heavy box's weight: without the solver's load-stiffened spring the heavy
+//! heavy box's weight: with the world's spring alone the heavy
 //! box sinks in proportion to the ratio, (1 + R)·g/ω² (1:1000: 69 mm at
 //! rest, 11 cm at the deepest).
 
@@ -98,32 +98,55 @@ fn sink(ratio: f64) -> Sink {
     r
 }
 
-/// The soft contact's static depth: the box–box contact (four corners,
-/// total effective mass m·M/(m + M)) holds the heavy box's weight M·g at
-/// (1 + R)·g/ω², and the ground contact under the light box, effective
-/// mass m, holds (m + M)·g at the same depth: 0.76 mm at 1:10, 7.0 mm at
-/// 1:100, each within 3%, and the pair at rest.
+/// The soft contact's static depth at 1:10: the box–box contact (four
+/// corners, total effective mass m·M/(m + M)) holds the heavy box's weight
+/// M·g at (1 + R)·g/ω², and the ground contact under the light box,
+/// effective mass m, holds (m + M)·g at the same depth: 0.76 mm, each
+/// within 3%, and the pair at rest.
 #[test]
-fn heavy_box_on_light_box_sinks_as_the_soft_contact_predicts() {
-    for ratio in [10.0, 100.0] {
+fn at_1_to_10_the_heavy_box_sinks_as_the_soft_contact_predicts() {
+    let r = sink(10.0);
+    let expect = 11.0 * soft_depth();
+    for (what, d) in [("box into box", r.depth), ("box into ground", r.ground)] {
+        assert!((d - expect).abs() < 0.03 * expect, "{what} {d} vs {expect}");
+    }
+    assert!(r.worst < 1.03 * expect, "worst {}", r.worst);
+    assert!(r.speed < 1e-3, "speed {}", r.speed);
+}
+
+/// Above 1:64 a contact between two dynamic bodies gets a spring stiffer by
+/// (1 + R)/65 (and more solver visits), so the heavy box rests at 65·g/ω²,
+/// 4.49 mm, within 3% at 1:100 and 1:1000 (it was (1 + R)·g/ω²: 7.0 mm and
+/// 69 mm; at the deepest 8.6 mm and 114 mm). The static contact under the
+/// light box keeps the world's spring: at 1:100 it is stiffened only in
+/// that it is solved more often, and sinks (1 + R)·g/ω², 7.0 mm.
+#[test]
+fn heavy_boxes_on_light_ones_rest_at_the_stiffened_springs_depth() {
+    let expect = 65.0 * soft_depth();
+    for ratio in [100.0, 1000.0] {
         let r = sink(ratio);
-        let expect = (1.0 + ratio) * soft_depth();
-        for (what, d) in [("box into box", r.depth), ("box into ground", r.ground)] {
-            assert!(
-                (d - expect).abs() < 0.03 * expect,
-                "1:{ratio}: {what} {d} vs {expect}"
-            );
-        }
-        assert!(r.worst < 1.3 * expect, "1:{ratio}: worst {}", r.worst);
+        assert!(
+            (r.depth - expect).abs() < 0.03 * expect,
+            "1:{ratio}: {} vs {expect}",
+            r.depth
+        );
+        assert!(r.worst < 1.5 * expect, "1:{ratio}: worst {}", r.worst);
+        let ground = (1.0 + ratio) * soft_depth();
+        assert!(
+            (r.ground - ground).abs() < 0.03 * ground,
+            "1:{ratio}: ground {} vs {ground}",
+            r.ground
+        );
         assert!(r.speed < 1e-3, "1:{ratio}: speed {}", r.speed);
     }
 }
 
 /// Issue 18, defect 3 (open): the target is under 2 cm at 1:1000 and
-/// 1:10,000. Today the heavy box sinks 69 mm at 1:1000 (114 mm at the
-/// deepest) and at 1:10,000 the light box is pushed into the ground.
+/// 1:10,000 for every contact. Today the light box sinks 69 mm into the
+/// ground at 1:1000 (the heavy box into it 4.5 mm), and at 1:10,000 the
+/// light box is pushed through the ground.
 #[test]
-#[ignore = "issue 18 defect 3, open: large mass ratios sink (69 mm at 1:1000)"]
+#[ignore = "issue 18 defect 3, open: the light box sinks 69 mm into the ground at 1:1000"]
 fn heavy_boxes_on_light_ones_sink_less_than_2_cm_up_to_1_to_10000() {
     let rs: Vec<_> = [1000.0, 10000.0].map(|ratio| (ratio, sink(ratio))).into();
     for (ratio, r) in rs {
