@@ -12,7 +12,9 @@
 //! 1. the integrator's velocity stage (outside this module);
 //! 2. [`ContactSolver::warm_start`]: last impulses applied again;
 //! 3. [`ContactSolver::solve`] with bias: a soft constraint (spring at
-//!    `contact_hertz`, damping ratio `contact_damping_ratio`) pushes
+//!    `contact_hertz`, damping ratio `contact_damping_ratio`; stiffer, and
+//!    visited more often, between bodies of a high mass ratio, see
+//!    [`RATIO_KEPT`]) pushes
 //!    overlaps apart at no more than `max_push_out` m/s; speculative points
 //!    (a gap) allow the approach that just closes the gap in one substep;
 //! 4. the integrator's position stage;
@@ -33,11 +35,12 @@
 //! point, which rolls away from the contact.
 //!
 //! Friction acts at the centre of each manifold's contact patch (see
-//! [`Patch`]): two tangent rows and a twist row per manifold, where
-//! per-point friction needs two rows per point. On large_pyramid (box
-//! faces, four points) that cut the step's instructions by 17% and was no
-//! less accurate in the closed-form tests (ramp creep 0.15 mm against
-//! 0.18 mm, the kinematic platform's passenger 0.1 mm against 1.3 mm).
+//! [`Patch`]): two tangent rows, held together in the friction disc, and a
+//! twist row per manifold, where per-point friction needs two rows per
+//! point (eight for a box face). The closed-form friction tests
+//! (core/tests/friction.rs: sliding in every direction, the slide-to-roll
+//! transition, convergence under refinement; the ramp and the kinematic
+//! platform) hold it to their bounds.
 //!
 //! Each point stores `r×n` and `I⁻¹(r×n)`, and each patch the same for its
 //! two tangents, so an iteration reads a relative velocity as `d·Δv +
@@ -201,6 +204,9 @@ struct Constraint {
     /// Their sum: how fast the relative velocity along a unit direction
     /// changes per unit impulse along it, linear part.
     inv_mass_sum: Scalar,
+    /// The contact spring of this constraint's soft pass: the world's, or
+    /// a stiffer one for a high mass ratio (see [`RATIO_KEPT`]).
+    softness: Softness,
     friction: Scalar,
     restitution: Scalar,
     /// How far A's and B's surfaces lie out from their cores (see
@@ -266,6 +272,25 @@ pub(crate) struct Softness {
 }
 
 impl Softness {
+    /// The spring of a contact whose lighter body has inverse mass `hi` and
+    /// touches (through it or its partner) a body of inverse mass `lo`, and
+    /// whether that ratio counts as high. See [`RATIO_KEPT`].
+    pub(crate) fn for_ratio(params: &SolverParams, lo: Scalar, hi: Scalar) -> (Softness, bool) {
+        if !lo.is_positive() || !params.omega.is_positive() {
+            return (params.softness, false);
+        }
+        // R = m_heavy/m_light = hi/lo.
+        let Some(ratio) = hi.checked_div(lo) else {
+            return (params.softness, false);
+        };
+        if ratio <= Scalar::from_int(RATIO_KEPT) {
+            return (params.softness, false);
+        }
+        let f = (ratio + Scalar::ONE).div_int(RATIO_KEPT as i64 + 1);
+        let omega = (params.omega * crate::math::elem::sqrt(f)).min(params.omega_max);
+        (Softness::from_omega(omega, params.zeta, params.h), true)
+    }
+
     /// A spring of `hertz` with damping ratio `zeta`, stepped at `h`
     /// (Box2D's `b2MakeSoft`). A zero frequency gives a rigid constraint
     /// without bias.
@@ -277,7 +302,12 @@ impl Softness {
                 impulse_scale: Scalar::ZERO,
             };
         }
-        let omega = Scalar::TAU * hertz;
+        Softness::from_omega(Scalar::TAU * hertz, zeta, h)
+    }
+
+    /// A spring of angular frequency `omega` (> 0), damping ratio `zeta`,
+    /// stepped at `h`.
+    pub(crate) fn from_omega(omega: Scalar, zeta: Scalar, h: Scalar) -> Softness {
         let a1 = Scalar::TWO * zeta + h * omega;
         let a2 = h * omega * a1;
         let a3 = (Scalar::ONE + a2).recip();
@@ -289,13 +319,34 @@ impl Softness {
     }
 }
 
+/// The mass ratio up to which a contact keeps the world's spring: there
+/// its static depth, (1 + R)·g/ω² for a light body under a heavy one (the
+/// effective mass is about the light body's, the load the heavy one's), is
+/// at most 4.5 mm at 60 Hz. Above it the spring's ω is raised by
+/// `√((1 + R)/(1 + RATIO_KEPT))` (up to `omega_max`) so the depth stays
+/// there, and the pass visits the contact [`HIGH_RATIO_PASSES`] more times:
+/// Gauss–Seidel between a light and a heavy body converges about R times
+/// slower, and with a single visit the stiffer spring let a box 1,000
+/// times heavier through the light one.
+const RATIO_KEPT: i32 = 64;
+
+/// Extra visits per pass of the high-ratio contacts (see [`RATIO_KEPT`]).
+const HIGH_RATIO_PASSES: u32 = 3;
+
 /// Settings the solver reads each tick.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SolverParams {
-    /// `1/h`.
+    /// The substep `h` and `1/h`.
+    pub h: Scalar,
     pub inv_h: Scalar,
     /// The contact spring.
     pub softness: Softness,
+    /// Its angular frequency and its damping ratio.
+    pub omega: Scalar,
+    pub zeta: Scalar,
+    /// The stiffest spring a high-ratio contact may get (see
+    /// [`RATIO_KEPT`]).
+    pub omega_max: Scalar,
     /// Cap on the push-out speed of overlapping shapes, m/s.
     pub max_push_out: Scalar,
     /// Normal approach speed below which there is no bounce, m/s.
@@ -326,6 +377,12 @@ pub(crate) struct ContactSolver {
     /// order in `prepare`.
     touched: Vec<u32>,
     constraints: Vec<Constraint>,
+    /// Per solver body, the smallest inverse mass among it and the dynamic
+    /// bodies it touches (`prepare` only).
+    heaviest: Vec<Scalar>,
+    /// The constraints with a high mass ratio (see [`RATIO_KEPT`]), which
+    /// each pass visits [`HIGH_RATIO_PASSES`] more times.
+    heavy: Vec<u32>,
     /// Warm starts (substeps) since `prepare`: the point each manifold's
     /// solve starts from.
     substeps: u32,
@@ -362,6 +419,7 @@ impl ContactSolver {
         pairs: &[ContactPair],
         active: Option<&[u32]>,
         hot: &[BodyHot],
+        params: &SolverParams,
         mut info: impl FnMut(&ContactPair) -> Option<PairInfo>,
     ) -> SolverStats {
         let caps = (
@@ -371,6 +429,8 @@ impl ContactSolver {
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
             self.touched.capacity(),
+            self.heaviest.capacity(),
+            self.heavy.capacity(),
         );
         self.substeps = 0;
         for sb in &self.bodies {
@@ -550,6 +610,45 @@ impl ContactSolver {
             let patch = prepare_patch(p, c, ba, bb);
             c.patch = patch;
         }
+        // 4. The heaviest body each solver body touches (smallest inverse
+        //    mass, its own included), then each contact's spring from the
+        //    ratio of that to its lighter body, and the high-ratio list.
+        self.heaviest.clear();
+        self.heaviest.extend(
+            self.bodies
+                .iter()
+                .map(|b| if b.dynamic { b.inv_mass } else { Scalar::MAX }),
+        );
+        for c in &self.constraints {
+            let (ia, ib) = (c.inv_mass_a, c.inv_mass_b);
+            if c.a != NONE && ib.is_positive() {
+                let h = &mut self.heaviest[c.a as usize];
+                *h = (*h).min(ib);
+            }
+            if c.b != NONE && ia.is_positive() {
+                let h = &mut self.heaviest[c.b as usize];
+                *h = (*h).min(ia);
+            }
+        }
+        self.heavy.clear();
+        for (i, c) in self.constraints.iter_mut().enumerate() {
+            let mut lo = Scalar::MAX;
+            for x in [c.a, c.b] {
+                if x != NONE {
+                    lo = lo.min(self.heaviest[x as usize]);
+                }
+            }
+            let hi = c.inv_mass_a.max(c.inv_mass_b);
+            let (soft, high) = Softness::for_ratio(params, lo, hi);
+            // Only between two dynamic bodies: stiffening the static
+            // contact under a light body as well (both its contacts stiff)
+            // let a box 1,000 times heavier through it.
+            let both = c.inv_mass_a.is_positive() && c.inv_mass_b.is_positive();
+            c.softness = if both { soft } else { params.softness };
+            if high {
+                self.heavy.push(i as u32);
+            }
+        }
         let grew = (
             self.bodies.capacity(),
             self.vels.capacity(),
@@ -557,6 +656,8 @@ impl ContactSolver {
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
             self.touched.capacity(),
+            self.heaviest.capacity(),
+            self.heavy.capacity(),
         ) != caps;
         SolverStats {
             constraints: self.constraints.len() as u32,
@@ -674,7 +775,7 @@ impl ContactSolver {
         let vels = &mut self.vels;
         let dls = &mut self.dls;
         let bodies = &self.bodies;
-        for_each_prefetched(&mut self.constraints, |c| {
+        let mut visit = |c: &mut Constraint| {
             let (mut va, mut vb) = load(vels, c.a, c.b);
             let n = c.normal;
             // The linear part of the relative velocity along n, t0 and t1,
@@ -732,9 +833,9 @@ impl ContactSolver {
                     (s * params.inv_h, Scalar::ONE, Scalar::ZERO)
                 } else if use_bias {
                     (
-                        (params.softness.bias_rate * s).max(-params.max_push_out),
-                        params.softness.mass_scale,
-                        params.softness.impulse_scale,
+                        (c.softness.bias_rate * s).max(-params.max_push_out),
+                        c.softness.mass_scale,
+                        c.softness.impulse_scale,
                     )
                 } else {
                     (Scalar::ZERO, Scalar::ONE, Scalar::ZERO)
@@ -765,7 +866,13 @@ impl ContactSolver {
             if !use_bias {
                 c.collect_angular(dls);
             }
-        });
+        };
+        for_each_prefetched(&mut self.constraints, &mut visit);
+        for _ in 0..HIGH_RATIO_PASSES {
+            for &i in &self.heavy {
+                visit(&mut self.constraints[i as usize]);
+            }
+        }
     }
 
     /// After the substeps: points that approached faster than the threshold

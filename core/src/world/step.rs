@@ -106,7 +106,7 @@ impl World {
         report.buffer_growths = contacts.growths + pairs.buffer_growths;
 
         let params = self.solver_params();
-        let prep = self.stage_prepare_contacts();
+        let prep = self.stage_prepare_contacts(&params);
         n.finished(Stage::PrepareContacts);
         report.contact_constraints = prep.constraints;
         report.buffer_growths += prep.growths;
@@ -241,9 +241,18 @@ impl World {
         // by the substeps: cap it there (as Box2D does).
         let substep_rate = cfg.tick_rate as i64 * cfg.substeps as i64;
         let hertz = cfg.contact_hertz.min(Scalar::from_ratio(substep_rate, 4));
+        let omega = if hertz.is_positive() {
+            Scalar::TAU * hertz
+        } else {
+            Scalar::ZERO
+        };
         SolverParams {
+            h,
             inv_h: Scalar::from_int(substep_rate as i32),
             softness: Softness::new(hertz, cfg.contact_damping_ratio, h),
+            omega,
+            zeta: cfg.contact_damping_ratio,
+            omega_max: omega_max(substep_rate),
             max_push_out: cfg.max_push_out,
             restitution_threshold: cfg.restitution_threshold,
         }
@@ -254,7 +263,7 @@ impl World {
     /// keeps that list, since pairs between sleeping or static bodies make
     /// no constraint.
     #[inline(never)]
-    fn stage_prepare_contacts(&mut self) -> SolverStats {
+    fn stage_prepare_contacts(&mut self, params: &SolverParams) -> SolverStats {
         let World {
             bodies,
             colliders,
@@ -263,7 +272,7 @@ impl World {
             ..
         } = self;
         let (hot, _) = bodies.hot_slots_mut();
-        solver.prepare(contacts.pairs(), contacts.active(), hot, |p| {
+        solver.prepare(contacts.pairs(), contacts.active(), hot, params, |p| {
             let ca = colliders.get(p.a.0)?;
             let cb = colliders.get(p.b.0)?;
             let m = ca.material.combine(&cb.material);
@@ -413,3 +422,15 @@ fn stage_store_impulses(solver: &ContactSolver, pairs: &mut [ContactPair]) {
 fn stage_finish_velocities(hot: &mut [BodyHot], awake: &[u32]) {
     integrate::finish_angular_velocities(hot, awake);
 }
+
+/// The stiffest contact spring a high-mass-ratio contact may get, rad/s
+/// (see the solver's `RATIO_KEPT`): `OMEGA_MAX_PER_RATE` times the substep
+/// rate.
+fn omega_max(substep_rate: i64) -> Scalar {
+    Scalar::from_int(OMEGA_MAX_PER_RATE).mul_int(substep_rate)
+}
+
+/// `ω_max·h`: how far past the base spring's cap (`ω·h = π/2`, a quarter of
+/// the substep rate) a high-ratio contact's spring may go (8: a 1:1000
+/// pair needs `ω·h` = 6.2 at the default 240 Hz substeps).
+const OMEGA_MAX_PER_RATE: i32 = 8;

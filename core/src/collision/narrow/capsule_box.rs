@@ -1,6 +1,7 @@
 //! Capsule against box: the capsule's core segment against the solid box,
 //! by exact closest features when they are apart and by a six-axis SAT when
-//! the segment enters the box; two points when the capsule lies along a face.
+//! the segment enters the box; two points when the capsule lies along a face
+//! or both its ends are within the margin of it.
 
 use super::clip::clip_segment_to_face;
 use super::segment::closest_points_segments;
@@ -45,9 +46,16 @@ fn sign_of(x: Scalar) -> Scalar {
 ///   closest points of the segment and that box edge (id `(segment feature,
 ///   100 + edge)`), depth `r − separation`.
 /// - In both cases, when the normal is a face normal and the capsule lies
-///   within about 1.8° of parallel to that face, the segment is clipped to
-///   the face's rectangle and its two ends become the points (ids
-///   `(0x10 + end, 27 + face)`), each with its own depth.
+///   within about 1.8° of parallel to that face, the ends of the segment
+///   clipped to the face's rectangle become the points (ids `(0x10 + end,
+///   27 + face)`), each with its own depth; tilted further, so do the two
+///   ends' lowest points when the whole segment and both lowest points are
+///   over the face, both are within the margin and the shallower end's core
+///   is not below the face. (With two points only within 1.8°, a capsule that landed on
+///   one end and swung down had no contact under the other: the solver let
+///   it pivot about the deep end, continuous collision stopped the other
+///   end at the start of every tick, and the capsule stayed 7 cm deep with
+///   a growing velocity.)
 pub fn contact_capsule_box(
     a: &Capsule,
     pose_a: &Transform,
@@ -243,7 +251,11 @@ fn box_edge(h: Vec3, k: usize, signs: usize) -> (Vec3, Vec3) {
 /// The two-point contact of a capsule lying along face `(k, sigma)` (outward
 /// normal `sigma·e_k`): the segment clipped to the face rectangle, each end
 /// with its own depth. Pushes nothing and returns false unless the capsule
-/// lies along the face and at least one end is within the margin.
+/// lies along the face and at least one end is within the margin, or (a
+/// tilted capsule) the whole segment and both ends' lowest points are over
+/// the face rectangle, both within the margin, and the shallower end's core
+/// is not below the face (depth at most `r`), so each point lies between
+/// the two surfaces.
 #[allow(clippy::too_many_arguments)]
 fn along_face(
     out: &mut Manifold,
@@ -257,9 +269,6 @@ fn along_face(
     r: Scalar,
     margin: Scalar,
 ) -> bool {
-    if !lies_along_face(u, k) {
-        return false;
-    }
     let Some((tlo, thi)) = clip_segment_to_face(p0, p1, h, k) else {
         return false;
     };
@@ -268,13 +277,50 @@ fn along_face(
     }
     let mut f = Vec3::ZERO;
     f.set(k, sigma);
-    for (end, t) in [tlo, thi].into_iter().enumerate() {
-        let p = p0 + (p1 - p0) * t;
-        let depth = r + h.get(k) - p.get(k) * sigma;
+    let flat = lies_along_face(u, k);
+    // The lowest point (along −f) of the capsule's cross-section at core
+    // point `p`: the bottom of the sphere there, except at the shallower
+    // end of a tilted capsule, whose lowest point is on the cylinder, `r`
+    // out along f's part perpendicular to the axis (below the sphere's
+    // bottom by r(1 − cos θ)). Lying flat, both are the sphere's bottom.
+    let axis = p1 - p0;
+    let lowest = |p: Vec3, toward_other: Scalar| -> Vec3 {
+        if flat || !toward_other.is_negative() {
+            return p - f * r;
+        }
+        let along = f
+            .dot(axis)
+            .checked_div(axis.dot(axis))
+            .unwrap_or(Scalar::ZERO);
+        match (f - axis * along).try_normalize() {
+            Some(w) => p - w * r,
+            None => p - f * r,
+        }
+    };
+    let fa = f.dot(axis);
+    let ends = [(tlo, fa), (thi, -fa)].map(|(t, toward_other)| {
+        let p = p0 + axis * t;
+        let q = lowest(p, toward_other);
+        (q, h.get(k) - q.get(k) * sigma)
+    });
+    if !flat {
+        // Tilted: the whole segment over the face, both ends within the
+        // margin, the shallower one's core end not below the face.
+        let shallow = ends[0].1.min(ends[1].1);
+        if !tlo.is_zero() || thi != Scalar::ONE || shallow < -margin || shallow > r {
+            return false;
+        }
+        // And both lowest points over the face rectangle.
+        let over = |q: Vec3| (0..3).all(|j| j == k || q.get(j).abs() <= h.get(j));
+        if !(over(ends[0].0) && over(ends[1].0)) {
+            return false;
+        }
+    }
+    for (end, (q, depth)) in ends.into_iter().enumerate() {
         if depth >= -margin {
-            let mut on_box = p;
+            let mut on_box = q;
             on_box.set(k, h.get(k) * sigma);
-            let mid = (p - f * r + on_box).half();
+            let mid = (q + on_box).half();
             let id = FeatureId::pair(ALONG_FACE + end as u16, face_id(k, sigma));
             push_point(out, pose_b, mid, depth, id);
         }

@@ -1,0 +1,201 @@
+//! Large mass ratios: a heavy box resting on a light one, and a stack that
+//! alternates light and heavy boxes. A soft contact of angular frequency ω
+//! holds a load at the depth load/(m_eff·ω²), and between a light box and a
+//! heavy one m_eff is about the light box's mass while the load is the
+//! heavy box's weight: with the world's spring alone the heavy
+//! box sinks in proportion to the ratio, (1 + R)·g/ω² (1:1000: 69 mm at
+//! rest, 11 cm at the deepest).
+
+mod common;
+
+use common::{f, ground, s, v};
+use lockstep_core::shape::{Cuboid, Shape};
+use lockstep_core::{BodyDesc, BodyHandle, ColliderDesc, Material, World, WorldConfig};
+
+const G: f64 = 9.81;
+
+/// The default world (60 Hz, 4 substeps, contacts at 60 Hz), sleeping off
+/// so the solver alone holds the boxes.
+fn world() -> World {
+    let mut cfg = WorldConfig {
+        gravity: v(0.0, -G, 0.0),
+        ..WorldConfig::default()
+    };
+    cfg.sleep.enabled = false;
+    World::new(cfg).unwrap()
+}
+
+/// A unit cube of `density` resting with its centre at height `y`.
+fn cube(w: &mut World, y: f64, density: f64) -> BodyHandle {
+    let b = w
+        .create_body(&BodyDesc::dynamic().position(v(0.0, y, 0.0)))
+        .unwrap();
+    w.add_collider(
+        b,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(0.5, 0.5, 0.5),
+        }))
+        .density(s(density))
+        .material(Material::default()),
+    )
+    .unwrap();
+    b
+}
+
+fn center(w: &World, b: BodyHandle) -> [f64; 3] {
+    f(w.body(b).unwrap().center_of_mass())
+}
+
+fn speed(w: &World, b: BodyHandle) -> f64 {
+    let u = f(w.body(b).unwrap().linear_velocity());
+    (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt()
+}
+
+/// The soft contact's depth under its own weight, g/ω², ω = 2π·60 Hz.
+fn soft_depth() -> f64 {
+    G / (2.0 * std::f64::consts::PI * 60.0).powi(2)
+}
+
+struct Sink {
+    /// Heavy box into the light one after 10 s, m.
+    depth: f64,
+    /// The deepest it went over the 10 s, m.
+    worst: f64,
+    /// Light box into the ground after 10 s, m.
+    ground: f64,
+    /// Fastest of the two boxes at the end, m/s.
+    speed: f64,
+}
+
+/// A box `ratio` times heavier than the unit cube under it, starting just
+/// touching it, for 10 s.
+fn sink(ratio: f64) -> Sink {
+    let mut w = world();
+    ground(&mut w, Material::default());
+    let light = cube(&mut w, 0.5, 1.0);
+    let heavy = cube(&mut w, 1.5, ratio);
+    let mut worst: f64 = 0.0;
+    for _ in 0..600 {
+        let r = w.step();
+        assert!(r.faults.is_empty(), "fault at tick {}", r.tick);
+        let gap = (center(&w, heavy)[1] - 0.5) - (center(&w, light)[1] + 0.5);
+        worst = worst.max(-gap);
+    }
+    let r = Sink {
+        depth: (center(&w, light)[1] + 0.5) - (center(&w, heavy)[1] - 0.5),
+        worst,
+        ground: 0.5 - center(&w, light)[1],
+        speed: speed(&w, heavy).max(speed(&w, light)),
+    };
+    println!(
+        "mass ratio 1:{ratio}: heavy into light {:.3} mm (worst {:.3} mm), light into ground \
+         {:.3} mm, speed {:.1e} m/s",
+        r.depth * 1e3,
+        r.worst * 1e3,
+        r.ground * 1e3,
+        r.speed
+    );
+    r
+}
+
+/// The soft contact's static depth at 1:10: the box–box contact (four
+/// corners, total effective mass m·M/(m + M)) holds the heavy box's weight
+/// M·g at (1 + R)·g/ω², and the ground contact under the light box,
+/// effective mass m, holds (m + M)·g at the same depth: 0.76 mm, each
+/// within 3%, and the pair at rest.
+#[test]
+fn at_1_to_10_the_heavy_box_sinks_as_the_soft_contact_predicts() {
+    let r = sink(10.0);
+    let expect = 11.0 * soft_depth();
+    for (what, d) in [("box into box", r.depth), ("box into ground", r.ground)] {
+        assert!((d - expect).abs() < 0.03 * expect, "{what} {d} vs {expect}");
+    }
+    assert!(r.worst < 1.03 * expect, "worst {}", r.worst);
+    assert!(r.speed < 1e-3, "speed {}", r.speed);
+}
+
+/// Above 1:64 a contact between two dynamic bodies gets a spring stiffer by
+/// (1 + R)/65 (and more solver visits), so the heavy box rests at 65·g/ω²,
+/// 4.49 mm, within 3% at 1:100 and 1:1000 (it was (1 + R)·g/ω²: 7.0 mm and
+/// 69 mm; at the deepest 8.6 mm and 114 mm). The static contact under the
+/// light box keeps the world's spring: at 1:100 it is stiffened only in
+/// that it is solved more often, and sinks (1 + R)·g/ω², 7.0 mm.
+#[test]
+fn heavy_boxes_on_light_ones_rest_at_the_stiffened_springs_depth() {
+    let expect = 65.0 * soft_depth();
+    for ratio in [100.0, 1000.0] {
+        let r = sink(ratio);
+        assert!(
+            (r.depth - expect).abs() < 0.03 * expect,
+            "1:{ratio}: {} vs {expect}",
+            r.depth
+        );
+        assert!(r.worst < 1.5 * expect, "1:{ratio}: worst {}", r.worst);
+        let ground = (1.0 + ratio) * soft_depth();
+        assert!(
+            (r.ground - ground).abs() < 0.03 * ground,
+            "1:{ratio}: ground {} vs {ground}",
+            r.ground
+        );
+        assert!(r.speed < 1e-3, "1:{ratio}: speed {}", r.speed);
+    }
+}
+
+/// Issue 18, defect 3 (open): the target is under 2 cm at 1:1000 and
+/// 1:10,000 for every contact. Today the light box sinks 69 mm into the
+/// ground at 1:1000 (the heavy box into it 4.5 mm), and at 1:10,000 the
+/// light box is pushed through the ground.
+#[test]
+#[ignore = "issue 18 defect 3, open: the light box sinks 69 mm into the ground at 1:1000"]
+fn heavy_boxes_on_light_ones_sink_less_than_2_cm_up_to_1_to_10000() {
+    let rs: Vec<_> = [1000.0, 10000.0].map(|ratio| (ratio, sink(ratio))).into();
+    for (ratio, r) in rs {
+        assert!(r.worst < 0.02, "1:{ratio}: worst {}", r.worst);
+        assert!(r.ground < 0.02, "1:{ratio}: ground {}", r.ground);
+        assert!(r.speed < 1e-3, "1:{ratio}: speed {}", r.speed);
+    }
+}
+
+/// Issue 18, defect 3 (open): five unit cubes, light and heavy (1:1000) in
+/// turn from the ground up, must stand 10 s without sleeping: each contact
+/// within 2 cm, the top box within 10 cm of its resting height (five
+/// contacts) and over its start. Today a heavy box passes through the
+/// light one under it within 2 s.
+#[test]
+#[ignore = "issue 18 defect 3, open: the 1:1000 alternating stack collapses"]
+fn alternating_stack_of_five_at_1_to_1000_stands_10_seconds() {
+    let mut w = world();
+    ground(&mut w, Material::default());
+    let boxes: Vec<_> = (0..5)
+        .map(|i| {
+            cube(
+                &mut w,
+                0.5 + i as f64,
+                if i % 2 == 0 { 1.0 } else { 1000.0 },
+            )
+        })
+        .collect();
+    let mut worst: f64 = 0.0;
+    for _ in 0..600 {
+        let r = w.step();
+        assert!(r.faults.is_empty(), "fault at tick {}", r.tick);
+        for k in 1..5 {
+            let gap = (center(&w, boxes[k])[1] - 0.5) - (center(&w, boxes[k - 1])[1] + 0.5);
+            worst = worst.max(-gap);
+        }
+        worst = worst.max(0.5 - center(&w, boxes[0])[1]);
+    }
+    let top = center(&w, boxes[4]);
+    let sag = 4.5 - top[1];
+    let lateral = (top[0] * top[0] + top[2] * top[2]).sqrt();
+    let fastest = boxes.iter().map(|&b| speed(&w, b)).fold(0.0, f64::max);
+    println!(
+        "alternating stack 1:1000: deepest contact {:.3} mm, top sag {:.3} mm, off-axis \
+         {lateral:.1e} m, fastest {fastest:.1e} m/s",
+        worst * 1e3,
+        sag * 1e3
+    );
+    assert!(worst < 0.02, "deepest contact {worst}");
+    assert!(sag < 0.1 && lateral < 0.01, "sag {sag}, off-axis {lateral}");
+    assert!(fastest < 1e-3, "fastest {fastest}");
+}
