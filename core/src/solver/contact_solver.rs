@@ -493,12 +493,18 @@ impl ContactSolver {
             used += 1;
         }
         self.constraints.truncate(used);
-        // 2. Solver bodies in slot order.
+        // 2. Solver bodies in slot order, and the range of their inverse
+        //    masses (for step 4).
         self.touched.sort_unstable();
+        let (mut lightest, mut heaviest) = (Scalar::ZERO, Scalar::MAX);
         for &slot in &self.touched {
             self.body_of_slot[slot as usize] = self.bodies.len() as u32;
             let b = &hot[slot as usize];
             let dynamic = b.kind == BodyKind::Dynamic;
+            if dynamic {
+                lightest = lightest.max(b.inv_mass);
+                heaviest = heaviest.min(b.inv_mass);
+            }
             // An isotropic inertia (a cube, a sphere) is the same in every
             // frame: no rotation, and products with it are one scale.
             let isotropic = dynamic && b.isotropic;
@@ -613,41 +619,17 @@ impl ContactSolver {
         // 4. The heaviest body each solver body touches (smallest inverse
         //    mass, its own included), then each contact's spring from the
         //    ratio of that to its lighter body, and the high-ratio list.
-        self.heaviest.clear();
-        self.heaviest.extend(
-            self.bodies
-                .iter()
-                .map(|b| if b.dynamic { b.inv_mass } else { Scalar::MAX }),
-        );
-        for c in &self.constraints {
-            let (ia, ib) = (c.inv_mass_a, c.inv_mass_b);
-            if c.a != NONE && ib.is_positive() {
-                let h = &mut self.heaviest[c.a as usize];
-                *h = (*h).min(ib);
-            }
-            if c.b != NONE && ia.is_positive() {
-                let h = &mut self.heaviest[c.b as usize];
-                *h = (*h).min(ia);
-            }
-        }
+        //    No contact's ratio exceeds that of the lightest to the heaviest
+        //    solver body (division rounds monotonically), so when even that
+        //    one is not high, every contact keeps the world's spring: the
+        //    same result without the two walks.
         self.heavy.clear();
-        for (i, c) in self.constraints.iter_mut().enumerate() {
-            let mut lo = Scalar::MAX;
-            for x in [c.a, c.b] {
-                if x != NONE {
-                    lo = lo.min(self.heaviest[x as usize]);
-                }
+        if heaviest.is_positive() && !Softness::for_ratio(params, heaviest, lightest).1 {
+            for c in &mut self.constraints {
+                c.softness = params.softness;
             }
-            let hi = c.inv_mass_a.max(c.inv_mass_b);
-            let (soft, high) = Softness::for_ratio(params, lo, hi);
-            // Only between two dynamic bodies: stiffening the static
-            // contact under a light body as well (both its contacts stiff)
-            // let a box 1,000 times heavier through it.
-            let both = c.inv_mass_a.is_positive() && c.inv_mass_b.is_positive();
-            c.softness = if both { soft } else { params.softness };
-            if high {
-                self.heavy.push(i as u32);
-            }
+        } else {
+            self.assign_ratio_springs(params);
         }
         let grew = (
             self.bodies.capacity(),
@@ -871,6 +853,47 @@ impl ContactSolver {
         for _ in 0..HIGH_RATIO_PASSES {
             for &i in &self.heavy {
                 visit(&mut self.constraints[i as usize]);
+            }
+        }
+    }
+
+    /// Step 4 of [`prepare`](Self::prepare) for a scene with high mass
+    /// ratios: each contact's spring and the high-ratio list (see
+    /// [`RATIO_KEPT`]).
+    fn assign_ratio_springs(&mut self, params: &SolverParams) {
+        self.heaviest.clear();
+        self.heaviest.extend(
+            self.bodies
+                .iter()
+                .map(|b| if b.dynamic { b.inv_mass } else { Scalar::MAX }),
+        );
+        for c in &self.constraints {
+            let (ia, ib) = (c.inv_mass_a, c.inv_mass_b);
+            if c.a != NONE && ib.is_positive() {
+                let h = &mut self.heaviest[c.a as usize];
+                *h = (*h).min(ib);
+            }
+            if c.b != NONE && ia.is_positive() {
+                let h = &mut self.heaviest[c.b as usize];
+                *h = (*h).min(ia);
+            }
+        }
+        for (i, c) in self.constraints.iter_mut().enumerate() {
+            let mut lo = Scalar::MAX;
+            for x in [c.a, c.b] {
+                if x != NONE {
+                    lo = lo.min(self.heaviest[x as usize]);
+                }
+            }
+            let hi = c.inv_mass_a.max(c.inv_mass_b);
+            let (soft, high) = Softness::for_ratio(params, lo, hi);
+            // Only between two dynamic bodies: stiffening the static
+            // contact under a light body as well (both its contacts stiff)
+            // let a box 1,000 times heavier through it.
+            let both = c.inv_mass_a.is_positive() && c.inv_mass_b.is_positive();
+            c.softness = if both { soft } else { params.softness };
+            if high {
+                self.heavy.push(i as u32);
             }
         }
     }
