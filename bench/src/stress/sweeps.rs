@@ -228,22 +228,28 @@ fn shots(quick: bool) -> usize {
     if quick { 2 } else { 8 }
 }
 
-/// `n` shots at `speed`: sphere `k` starts 3 m in front of the wall, aimed
-/// at a point of a 2 × 2 m grid on it, `k · 30°/(n−1)` off the normal, so
+/// Shot `k` of `n`: where the sphere's centre would touch the wall (a point
+/// of a 2 × 2 m grid on its face) and the unit direction back to its start,
+/// `k · 30°/(n−1)` off the normal.
+fn aim(k: usize, n: usize) -> ([f64; 3], [f64; 3]) {
+    let at = [
+        WALL_HALF[0] + SHOT_RADIUS,
+        -1.0 + 2.0 * ((k * 3) % n) as f64 / n as f64,
+        -1.0 + 2.0 * ((k * 5 + 1) % n) as f64 / n as f64,
+    ];
+    let theta = (30.0f64 * k as f64 / (n.max(2) - 1) as f64).to_radians();
+    (at, [theta.cos(), theta.sin(), 0.0])
+}
+
+/// `n` shots at `speed`: sphere `k` starts 3 m back from its [`aim`], so
 /// every shot hits the wall.
 fn projectile(r: &mut Runner, speed: f64, quick: bool) -> Outcome {
     let n = shots(quick);
     let mut through = 0;
     let mut failure = None;
     for k in 0..n {
-        let aim = [
-            WALL_HALF[0] + SHOT_RADIUS,
-            -1.0 + 2.0 * ((k * 3) % n) as f64 / n as f64,
-            -1.0 + 2.0 * ((k * 5 + 1) % n) as f64 / n as f64,
-        ];
-        let theta = (30.0f64 * k as f64 / (n.max(2) - 1) as f64).to_radians();
-        let back = [theta.cos(), theta.sin(), 0.0];
-        let start = std::array::from_fn(|i| aim[i] + back[i] * 3.0);
+        let (at, back) = aim(k, n);
+        let start = std::array::from_fn(|i| at[i] + back[i] * 3.0);
         let vel = back.map(|b| -b * speed);
         let wall = BodySpec::fixed(ShapeSpec::Cuboid(WALL_HALF), [0.0; 3]);
         let ball = BodySpec::dynamic(ShapeSpec::Sphere(SHOT_RADIUS), start).vel(vel);
@@ -581,17 +587,30 @@ mod tests {
         assert!((norm(far(1e7)) - 1e7).abs() < 1e-6);
     }
 
+    /// Every shot's straight path meets the wall's face inside its edges
+    /// (by at least a radius), at 0–30° off the normal, from 3 m.
     #[test]
     fn every_projectile_is_aimed_at_the_wall() {
         for quick in [false, true] {
             let n = shots(quick);
+            let mut points = Vec::new();
             for k in 0..n {
-                let u = -1.0 + 2.0 * ((k * 3) % n) as f64 / n as f64;
-                let v = -1.0 + 2.0 * ((k * 5 + 1) % n) as f64 / n as f64;
-                // 3 m back at up to 30° moves the start 1.5 m in y; the
-                // aim itself is on the wall.
-                assert!(u.abs() < WALL_HALF[1] && v.abs() < WALL_HALF[2]);
+                let (at, back) = aim(k, n);
+                assert!((norm(back) - 1.0).abs() < 1e-12);
+                let angle = back[0].acos().to_degrees();
+                assert!((-1e-9..=30.0 + 1e-9).contains(&angle), "{angle}");
+                assert!(at[0] > WALL_HALF[0], "the sphere starts in front");
+                assert!(at[1].abs() + SHOT_RADIUS < WALL_HALF[1]);
+                assert!(at[2].abs() + SHOT_RADIUS < WALL_HALF[2]);
+                points.push([at[1], at[2]]);
             }
+            let distinct = points
+                .iter()
+                .enumerate()
+                .all(|(i, p)| points[i + 1..].iter().all(|q| q != p));
+            assert!(distinct, "each shot hits its own point");
         }
+        let (_, last) = aim(7, 8);
+        assert!((last[0].acos().to_degrees() - 30.0).abs() < 1e-9);
     }
 }
