@@ -7,6 +7,7 @@
 //! cargo run --release -p lockstep-bench -- sleep [--quick] [--csv FILE]
 //! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N]
 //! cargo run --release -p lockstep-bench -- accuracy [--quick] [--csv FILE] [--scenes a,b] [--runs N]
+//! cargo run --release -p lockstep-bench -- stress [--quick] [--csv FILE] [--scenes a,b]
 //! ```
 //!
 //! Each suite is a module with a `run(&Options) -> SuiteOutput` function and
@@ -24,6 +25,7 @@ mod profile;
 mod scenes;
 mod sleep;
 mod stages;
+mod stress;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -130,6 +132,12 @@ const SUITES: &[Suite] = &[
         run: accuracy::run,
         scenes: accuracy::case_names,
     },
+    Suite {
+        name: "stress",
+        about: "where each engine breaks: stack, pyramid, mass ratio, speed, distance, overlap, soak",
+        run: stress::run,
+        scenes: stress::sweep_names,
+    },
 ];
 
 /// Printed with every suite's output.
@@ -160,8 +168,8 @@ struct Cli {
     /// measurement.
     #[arg(long)]
     quick: bool,
-    /// Only these scenes, comma-separated (`engines`, `profile`), or cases
-    /// (`accuracy`).
+    /// Only these scenes, comma-separated (`engines`, `profile`), cases
+    /// (`accuracy`) or sweeps (`stress`).
     #[arg(long, value_delimiter = ',', value_name = "A,B")]
     scenes: Option<Vec<String>>,
     /// Runs per measurement (default: the suite's own).

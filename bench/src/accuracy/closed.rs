@@ -12,11 +12,15 @@ pub fn volume(shape: ShapeSpec) -> f64 {
     match shape {
         ShapeSpec::Sphere(r) => 4.0 / 3.0 * std::f64::consts::PI * r * r * r,
         ShapeSpec::Cuboid([x, y, z]) => 8.0 * x * y * z,
+        ShapeSpec::Capsule(h, r) => std::f64::consts::PI * r * r * (2.0 * h + 4.0 / 3.0 * r),
+        ShapeSpec::Octahedron(r) => 4.0 / 3.0 * r * r * r,
     }
 }
 
 /// Principal moments of inertia about the centre, body axes, kg·m²: a solid
-/// sphere `2/5 m r²`; a box `m/3 (b² + c²)` from half-extents.
+/// sphere `2/5 m r²`; a box `m/3 (b² + c²)` from half-extents; a capsule as
+/// its cylinder plus two hemispheres (each `83/320 m r²` about its own
+/// centroid, `h + 3r/8` from the centre); a regular octahedron `m r²/5`.
 pub fn inertia(shape: ShapeSpec, mass: f64) -> [f64; 3] {
     match shape {
         ShapeSpec::Sphere(r) => [0.4 * mass * r * r; 3],
@@ -25,6 +29,20 @@ pub fn inertia(shape: ShapeSpec, mass: f64) -> [f64; 3] {
             mass / 3.0 * (x * x + z * z),
             mass / 3.0 * (x * x + y * y),
         ],
+        ShapeSpec::Capsule(h, r) => {
+            let cyl = 2.0 * h * r * r;
+            let hemi = 2.0 / 3.0 * r * r * r;
+            let (mc, mh) = (
+                mass * cyl / (cyl + 2.0 * hemi),
+                mass * hemi / (cyl + 2.0 * hemi),
+            );
+            let axial = mc * r * r / 2.0 + 2.0 * 0.4 * mh * r * r;
+            let d = h + 3.0 * r / 8.0;
+            let across =
+                mc * (r * r / 4.0 + h * h / 3.0) + 2.0 * mh * (83.0 / 320.0 * r * r + d * d);
+            [across, axial, across]
+        }
+        ShapeSpec::Octahedron(r) => [mass * r * r / 5.0; 3],
     }
 }
 

@@ -7,7 +7,9 @@
 //! Q32.32 first (as the `engines` suite does), so all engines start from
 //! the same numbers.
 
-use lockstep_core::shape::{Cuboid, Shape, Sphere};
+use std::sync::Arc;
+
+use lockstep_core::shape::{Capsule, ConvexHull, Cuboid, Shape, Sphere};
 use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, Material, Quat, Scalar, Vec3, World, WorldConfig,
@@ -57,6 +59,26 @@ pub enum ShapeSpec {
     Sphere(f64),
     /// A box of these half-extents, m.
     Cuboid([f64; 3]),
+    /// A capsule along local y: half the core segment's length and the
+    /// radius, m.
+    Capsule(f64, f64),
+    /// A regular octahedron (the convex hull of the six points at this
+    /// distance on the axes), m: the hull shape both engines have.
+    Octahedron(f64),
+}
+
+impl ShapeSpec {
+    /// The octahedron's six vertices.
+    pub fn octahedron_points(r: f64) -> [[f64; 3]; 6] {
+        [
+            [r, 0.0, 0.0],
+            [-r, 0.0, 0.0],
+            [0.0, r, 0.0],
+            [0.0, -r, 0.0],
+            [0.0, 0.0, r],
+            [0.0, 0.0, -r],
+        ]
+    }
 }
 
 /// One body of a scene with its single collider.
@@ -165,6 +187,9 @@ pub struct Spec {
     pub ccd: Vec<usize>,
     /// A dynamic body faster than this, m/s, has exploded.
     pub explode_speed: f64,
+    /// Whether bodies may fall asleep (each engine's own default rule);
+    /// off unless a case asks.
+    pub sleep: bool,
 }
 
 impl Spec {
@@ -176,6 +201,7 @@ impl Spec {
             bodies,
             ccd: Vec::new(),
             explode_speed: 100.0,
+            sleep: false,
         }
     }
 }
@@ -215,6 +241,8 @@ pub trait Sim {
     fn set_linvel(&mut self, i: usize, v: [f64; 3]);
     /// Whether the engine reported an arithmetic fault (ours only).
     fn faulted(&self) -> bool;
+    /// Whether body `i` is asleep.
+    fn sleeping(&self, i: usize) -> bool;
 }
 
 /// A simulation of `spec` in `engine` at `settings`.
@@ -260,7 +288,7 @@ impl Ours {
             solver_iterations: settings.iterations,
             relax_iterations: 1,
             sleep: SleepConfig {
-                enabled: false,
+                enabled: spec.sleep,
                 ..SleepConfig::default()
             },
             ..WorldConfig::default()
@@ -284,6 +312,13 @@ impl Ours {
             let shape = match b.shape {
                 ShapeSpec::Sphere(r) => Shape::Sphere(Sphere::new(s(r)).expect("sphere")),
                 ShapeSpec::Cuboid(half) => Shape::Cuboid(Cuboid::new(v3(half)).expect("box")),
+                ShapeSpec::Capsule(h, r) => {
+                    Shape::Capsule(Capsule::new(s(h), s(r)).expect("capsule"))
+                }
+                ShapeSpec::Octahedron(r) => {
+                    let pts = ShapeSpec::octahedron_points(r).map(v3);
+                    Shape::ConvexHull(Arc::new(ConvexHull::from_points(&pts).expect("hull")))
+                }
             };
             world
                 .add_collider(
@@ -336,6 +371,13 @@ impl Sim for Ours {
 
     fn faulted(&self) -> bool {
         self.faulted
+    }
+
+    fn sleeping(&self, i: usize) -> bool {
+        self.world
+            .body(self.handles[i])
+            .expect("live body")
+            .is_sleeping()
     }
 }
 
@@ -416,13 +458,20 @@ macro_rules! rapier_adapter {
                                 .pose(pose)
                                 .linvel(rv(b.vel))
                                 .angvel(rv(b.omega))
-                                .can_sleep(false)
+                                .can_sleep(spec.sleep)
                                 .ccd_enabled(spec.ccd.contains(&i))
                         };
                         let collider = match b.shape {
                             ShapeSpec::Sphere(rad) => ColliderBuilder::ball(r(rad)),
                             ShapeSpec::Cuboid([hx, hy, hz]) => {
                                 ColliderBuilder::cuboid(r(hx), r(hy), r(hz))
+                            }
+                            ShapeSpec::Capsule(hh, rad) => {
+                                ColliderBuilder::capsule_y(r(hh), r(rad))
+                            }
+                            ShapeSpec::Octahedron(rad) => {
+                                let pts = ShapeSpec::octahedron_points(rad).map(rv);
+                                ColliderBuilder::convex_hull(&pts).expect("hull")
                             }
                         };
                         let (h, _) = world.insert(
@@ -464,6 +513,10 @@ macro_rules! rapier_adapter {
 
                 fn faulted(&self) -> bool {
                     false
+                }
+
+                fn sleeping(&self, i: usize) -> bool {
+                    self.world.bodies[self.handles[i]].is_sleeping()
                 }
             }
         }
