@@ -1,23 +1,8 @@
 //! The `lockstep` binary as a user runs it.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
-fn lockstep() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_lockstep"))
-}
-
-fn scene(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenes")
-        .join(name)
-}
-
-fn temp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("lockstep-cli-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use common::{lockstep, scene, temp_dir};
 
 #[test]
 fn sim_prints_one_hash_line_per_hashed_tick() {
@@ -54,7 +39,7 @@ fn sim_prints_one_hash_line_per_hashed_tick() {
 
 #[test]
 fn dump_state_writes_exact_decimals_for_every_body() {
-    let dir = temp_dir("dump");
+    let dir = temp_dir("cli", "dump");
     let dump = dir.join("state.json");
     let out = lockstep()
         .args(["sim", "--scene"])
@@ -96,7 +81,7 @@ fn dump_state_writes_exact_decimals_for_every_body() {
 
 #[test]
 fn a_bad_scene_file_is_a_clear_error_with_file_line_and_column() {
-    let dir = temp_dir("bad");
+    let dir = temp_dir("cli", "bad");
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "[world]\ntick_rate = 60\n\n[[bodies]]\nname = \"ball\"\nkind = \"dynamic\"\n[[bodies.shapes]]\nkind = \"sphere\"\nradius = -1\n").unwrap();
     let out = lockstep()

@@ -4,25 +4,14 @@
 //! clear errors. Short runs (`ticks`) and one timed run keep it fast; the
 //! choices asserted on are by the deterministic work count.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
+
+use common::{lockstep, scene, temp_dir};
 
 use lockstep_client::offline::tune::{
     Candidates, CostBasis, Plan, Scene, Settings, TuneError, TuneOptions, reference_settings,
     run_tune,
 };
-
-fn scene(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenes")
-        .join(name)
-}
-
-fn temp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("lockstep-tune-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn options(name: &str, ticks: u64, max_error: f64) -> TuneOptions {
     TuneOptions {
@@ -33,10 +22,6 @@ fn options(name: &str, ticks: u64, max_error: f64) -> TuneOptions {
         out: None,
         ..TuneOptions::new(scene(name))
     }
-}
-
-fn lockstep() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_lockstep"))
 }
 
 #[test]
@@ -165,7 +150,7 @@ fn a_bound_the_coarse_settings_miss_picks_finer_ones() {
 
 #[test]
 fn a_scene_that_faults_at_the_reference_is_an_error() {
-    let dir = temp_dir("fault");
+    let dir = temp_dir("tune", "fault");
     let file = dir.join("runaway.toml");
     // 648 m short of the Q32.32 range, at 1 km/s: it overflows after 0.65 s.
     std::fs::write(
@@ -198,7 +183,7 @@ fn a_scene_that_faults_at_the_reference_is_an_error() {
 
 #[test]
 fn the_cli_prints_the_table_and_the_choice_and_draws_the_plot() {
-    let dir = temp_dir("cli");
+    let dir = temp_dir("tune", "cli");
     let out = lockstep()
         .args(["tune", "--scene"])
         .arg(scene("spin.toml"))
@@ -269,7 +254,7 @@ fn bad_flags_give_clear_errors() {
             .arg(scene("spin.toml"))
             .args(args)
             .args(["--repeats", "1", "--out"])
-            .arg(temp_dir("flags"))
+            .arg(temp_dir("tune", "flags"))
             .output()
             .unwrap();
         assert_eq!(out.status.code(), Some(2), "{args:?}");
