@@ -5,8 +5,10 @@ mod common;
 
 use common::{s, v, zero_g};
 use lockstep_core::collision::{ContactEventKind, PairKind};
-use lockstep_core::shape::{Cuboid, Shape, Sphere};
-use lockstep_core::{BodyDesc, ColliderDesc, CollisionFilter, Transform, Vec3, World, WorldConfig};
+use lockstep_core::shape::{Capsule, Cuboid, Shape, Sphere};
+use lockstep_core::{
+    BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, Quat, Transform, Vec3, World, WorldConfig,
+};
 
 fn ball(w: &mut World, name: &str, at: Vec3, vel: Vec3) -> lockstep_core::BodyHandle {
     let b = w
@@ -468,4 +470,158 @@ fn a_reused_stack_stays_where_the_full_test_would_keep_it() {
     let y1 = top(&w).y.to_f64();
     assert!((y1 - y0).abs() < 1e-4, "{y0} -> {y1}");
     assert!((5.5 - y1).abs() < 0.01, "{y1}");
+}
+
+/// A round body of radius 0.5 m (a ball, or a capsule lying along z)
+/// resting on the default ground and rolling without slip along +x at
+/// `v0`, with angular damping `c` (1/s); sleep on or off.
+fn rolling(shape: &str, v0: f64, c: f64, sleep: bool) -> (World, BodyHandle) {
+    let mut w = World::new(WorldConfig {
+        sleep: lockstep_core::solver::sleep::SleepConfig {
+            enabled: sleep,
+            ..Default::default()
+        },
+        ..WorldConfig::default()
+    })
+    .unwrap();
+    common::ground(&mut w, lockstep_core::Material::default());
+    let (shape, rotation) = match shape {
+        "ball" => (Shape::Sphere(Sphere { radius: s(0.5) }), Quat::IDENTITY),
+        _ => (
+            Shape::Capsule(Capsule {
+                half_height: s(0.5),
+                radius: s(0.5),
+            }),
+            Quat::from_axis_angle(Vec3::X, s(std::f64::consts::FRAC_PI_2)),
+        ),
+    };
+    let b = w
+        .create_body(
+            &BodyDesc::dynamic()
+                .position(v(0.0, 0.5, 0.0))
+                .rotation(rotation)
+                .linear_velocity(v(v0, 0.0, 0.0))
+                .angular_velocity(v(0.0, 0.0, -v0 / 0.5))
+                .damping(s(0.0), s(c)),
+        )
+        .unwrap();
+    w.add_collider(b, ColliderDesc::new(shape)).unwrap();
+    (w, b)
+}
+
+#[test]
+fn round_shapes_rolling_slowly_never_reuse_and_keep_their_speed() {
+    // Rolling without slip on a level floor, undamped, loses nothing: after
+    // 10 s at 0.03 m/s the speed is still 0.03 m/s and the body 0.3 m on.
+    // Were the pair to reuse, the cached anchor on the round shape would
+    // stay where it touched while the centre rolls on (up to the 1 mm
+    // bound), and the normal force behind the centre would drive the roll
+    // up to 1 mm per tick, 0.0586 m/s (it did: 0.0587 m/s after 10 s).
+    for shape in ["ball", "capsule"] {
+        let (mut w, b) = rolling(shape, 0.03, 0.0, false);
+        let mut reused = 0;
+        for _ in 0..600 {
+            let r = w.step();
+            assert!(r.faults.is_empty());
+            reused += r.reused_manifolds;
+        }
+        let body = w.body(b).unwrap();
+        let (x, vx) = (
+            body.position().x.to_f64(),
+            body.linear_velocity().x.to_f64(),
+        );
+        assert!((vx - 0.03).abs() < 3e-5, "{shape}: {vx} m/s");
+        assert!((x - 0.3).abs() < 3e-4, "{shape}: {x} m");
+        assert_eq!(reused, 0, "{shape}: reused manifolds");
+        assert!(w.contact_pairs().iter().all(|p| !p.reuse.valid), "{shape}");
+    }
+}
+
+#[test]
+fn a_ball_left_rolling_slows_as_its_damping_says_and_falls_asleep() {
+    // The demo's player ball: angular damping c = 0.2/s slows a ball that
+    // rolls without slip as v0·e^(−kt), k = (2/7)c (the damping acts on
+    // the spin, which carries 2/7 of the rolling ball's inertia about its
+    // contact). It rests once its spin v/r is under 0.05 rad/s, at
+    // t = ln(v0/0.025)/k, and sleeps 0.5 s (30 ticks) later. With reuse it
+    // was held at 0.0587 m/s (0.0565 expected after 10 s) and never slept.
+    let (v0, c) = (0.1, 0.2);
+    let k = 2.0 / 7.0 * c;
+    let (mut w, b) = rolling("ball", v0, c, true);
+    let (mut asleep_at, mut v10, mut reused) = (None, 0.0, 0);
+    for t in 1..=1800u32 {
+        let r = w.step();
+        assert!(r.faults.is_empty());
+        reused += r.reused_manifolds;
+        let body = w.body(b).unwrap();
+        if t == 600 {
+            v10 = body.linear_velocity().x.to_f64();
+        }
+        if body.is_sleeping() {
+            asleep_at = Some(t);
+            break;
+        }
+    }
+    let want = v0 * (-k * 10.0).exp();
+    assert!(
+        (v10 / want - 1.0).abs() < 0.005,
+        "after 10 s: {v10}, not {want}"
+    );
+    let rest = (v0 / 0.025_f64).ln() / k;
+    let want = (rest * 60.0).ceil() as u32 + 30;
+    let asleep_at = asleep_at.unwrap_or_else(|| {
+        let vx = w.body(b).unwrap().linear_velocity().x.to_f64();
+        panic!("awake after 30 s, rolling at {vx} m/s (asleep at tick {want} expected)")
+    });
+    assert!(
+        asleep_at.abs_diff(want) <= 3,
+        "asleep at tick {asleep_at}, not {want}"
+    );
+    assert_eq!(reused, 0);
+    let y = w.body(b).unwrap().position().y.to_f64();
+    assert!((y - 0.5).abs() < 1e-3, "{y}");
+}
+
+#[test]
+fn a_ball_on_a_box_never_reuses_while_the_box_on_the_ground_does() {
+    // Sleep off, everything settled: the box–ground pair reuses its
+    // manifold every tick, the ball–box pair never (either collider round
+    // is enough; with reuse it did too, 2 reuses a tick).
+    let mut w = World::new(WorldConfig {
+        sleep: lockstep_core::solver::sleep::SleepConfig {
+            enabled: false,
+            ..Default::default()
+        },
+        ..WorldConfig::default()
+    })
+    .unwrap();
+    common::ground(&mut w, lockstep_core::Material::default());
+    let bx = w
+        .create_body(&BodyDesc::dynamic().position(v(0.0, 0.5, 0.0)))
+        .unwrap();
+    w.add_collider(
+        bx,
+        ColliderDesc::new(Shape::Cuboid(Cuboid {
+            half_extents: v(0.5, 0.5, 0.5),
+        })),
+    )
+    .unwrap();
+    let top = ball(&mut w, "ball", v(0.0, 1.5, 0.0), Vec3::ZERO);
+    for _ in 0..120 {
+        w.step();
+    }
+    for t in 0..120 {
+        let r = w.step();
+        assert_eq!(r.touching_pairs, 2, "tick {t}");
+        assert_eq!(r.reused_manifolds, 1, "tick {t}: only the box–ground pair");
+    }
+    let collider_of = |h: BodyHandle| w.body(h).unwrap().colliders()[0];
+    let (cb, cs) = (collider_of(bx), collider_of(top));
+    for p in w.contact_pairs().iter().filter(|p| p.touching) {
+        assert!(p.a == cb || p.b == cb, "ball–box or box–ground");
+        let round = p.a == cs || p.b == cs;
+        assert_eq!(p.reuse.valid, !round, "{:?}–{:?}", p.a, p.b);
+    }
+    let y = w.body(top).unwrap().position().y.to_f64();
+    assert!((y - 1.5).abs() < 1e-3, "the ball rests on the box: {y}");
 }

@@ -94,7 +94,8 @@ pub struct ContactPair {
     /// Accumulated friction of the whole manifold.
     pub friction: PatchFriction,
     /// What the last full narrow-phase test left for reuse (see
-    /// [`super::reuse`]); never valid for triggers.
+    /// [`super::reuse`]); never valid for triggers, nor for a pair with a
+    /// sphere or capsule.
     pub reuse: ReuseCache,
 }
 
@@ -332,7 +333,8 @@ impl ContactSet {
     ///   (called once per candidate, in pair order). For a solid pair
     ///   `reuse` holds the pair's current manifold and its reuse cache: the
     ///   closure may rebuild the manifold from the cache (returning true) or
-    ///   run the full test and record the cache anew (returning false);
+    ///   run the full test and record the cache anew, or empty it for a
+    ///   pair that never reuses (returning false);
     /// - `keep_asleep(pair)` says whether a pair that is no longer a
     ///   candidate rests between sleeping (or sleeping and static) bodies and
     ///   must be kept as it is.

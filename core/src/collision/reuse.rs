@@ -15,6 +15,23 @@
 //! recorded anew, so a pair never drifts further than the bounds from a
 //! manifold the narrow phase built.
 //!
+//! Only pairs of flat-faced shapes (boxes, hulls, triangle meshes, height
+//! fields) reuse ([`shapes_reuse`]); a pair with a sphere or a capsule runs
+//! the full test every step and keeps its cache empty. The anchors are
+//! material points, carried along with their bodies, which is right for a
+//! polytope: its contact features (vertices, edges, faces) are points of
+//! the body. The touching point of a round surface is not: it stays at the
+//! bottom of a rolling ball while the ball turns under it. A reused anchor
+//! on a ball rolling without slip stays where the ball touched (that point
+//! of the ball is at rest) while the centre rolls on, up to the 1 mm
+//! bound, so the normal force acts behind the centre and drives the roll.
+//! A ball left rolling on a floor was pushed up to the speed at which it
+//! leaves the bound every tick (2⁻¹⁰ m per tick, 0.059 m/s at 60 Hz, above
+//! the sleep thresholds) and never came to rest. Those pairs cost the full
+//! test, as before reuse; against spheres, capsules and boxes it is
+//! analytic. (The contact solver follows a round shape's separation
+//! through its core for the same reason; see `Shape::rounding`.)
+//!
 //! The cache is simulation state: it is serialised with its pair, so a
 //! restored world reuses exactly what the original would have, and it is
 //! in the state hash.
@@ -28,6 +45,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::math::{Mat3, Quat, Scalar, Transform, Vec3};
+use crate::shape::Shape;
 
 use super::manifold::{MAX_MANIFOLD_POINTS, Manifold};
 
@@ -38,6 +56,21 @@ pub const REUSE_DISTANCE: Scalar = Scalar::from_bits(1 << 22);
 /// sin(θ/2) of the largest rotation of B relative to A since the manifold
 /// was built: θ = 2° (Jolt's default), sin 1° = 0.0174524…, in Q32.32.
 pub const REUSE_ANGLE_SIN_HALF: Scalar = Scalar::from_bits(74_957_515);
+
+/// Whether a solid pair of these shapes may reuse its manifold: not if
+/// either is a sphere or a capsule, whose touching point is not a point of
+/// the body (see the module docs). Such a pair's cache stays empty.
+pub fn shapes_reuse(a: &Shape, b: &Shape) -> bool {
+    fn material_features(s: &Shape) -> bool {
+        match s {
+            Shape::Sphere(_) | Shape::Capsule(_) => false,
+            Shape::Cuboid(_) | Shape::ConvexHull(_) | Shape::TriMesh(_) | Shape::HeightField(_) => {
+                true
+            }
+        }
+    }
+    material_features(a) && material_features(b)
+}
 
 /// What a pair keeps from its last full narrow-phase test for reuse.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -4,7 +4,7 @@
 use crate::body::{BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::collider::ColliderHandle;
 use crate::collision::contacts::{Candidate, ContactStats, PairKind};
-use crate::collision::reuse::{RelativePose, ReuseCache};
+use crate::collision::reuse::{RelativePose, ReuseCache, shapes_reuse};
 use crate::collision::{Manifold, PairStats, ProxyKey, ProxyKind, narrow};
 
 use super::World;
@@ -189,15 +189,23 @@ impl World {
         // passes the surface, and the solver stops it exactly there (no
         // overlap to push out, and a bounce from the right height).
         //
-        // A solid pair whose relative pose has barely changed since its
-        // manifold was built rebuilds it from the cached anchors instead
-        // (see `collision::reuse`).
+        // A solid pair of flat-faced shapes whose relative pose has barely
+        // changed since its manifold was built rebuilds it from the cached
+        // anchors instead; a pair with a sphere or capsule never does, and
+        // its cache stays empty (see `collision::reuse`).
         let narrow_phase = |a: ColliderHandle,
                             b: ColliderHandle,
                             reuse: Option<(&mut Manifold, &mut ReuseCache)>,
                             out: &mut Manifold| {
             let (Some((ca, pa, va)), Some((cb, pb, vb))) = (pose_of(a), pose_of(b)) else {
                 return false;
+            };
+            let reuse = match reuse {
+                Some((_, cache)) if !shapes_reuse(&ca.shape, &cb.shape) => {
+                    *cache = ReuseCache::EMPTY;
+                    None
+                }
+                r => r,
             };
             let Some((prev, cache)) = reuse else {
                 let reach = margin + (vb - va).length() * dt;
