@@ -21,6 +21,10 @@
 //! 5. [`ContactSolver::solve`] without bias (relax): removes the velocity
 //!    the soft push-out added, so resting contacts do not bounce.
 //!
+//! After steps 3 and 5, [`ContactSolver::shock`] visits the high-ratio
+//! contacts once more from the ground up, each with its lower body held
+//! still (see [`shock`]), so a heavy body cannot sink through a light one.
+//!
 //! After the substeps, [`ContactSolver::restitution`] gives points that hit
 //! faster than `restitution_threshold` their bounce, and
 //! [`ContactSolver::store_impulses`] hands the accumulated impulses back to
@@ -67,6 +71,7 @@
 
 mod patch;
 mod rows;
+mod shock;
 
 use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
@@ -383,6 +388,11 @@ pub(crate) struct ContactSolver {
     /// The constraints with a high mass ratio (see [`RATIO_KEPT`]), which
     /// each pass visits [`HIGH_RATIO_PASSES`] more times.
     heavy: Vec<u32>,
+    /// Per solver body, its level for the shock pass (`prepare` only; see
+    /// [`shock`]).
+    level: Vec<u32>,
+    /// The shock pass's visits, in order (see [`shock`]).
+    shock: Vec<shock::ShockRow>,
     /// Warm starts (substeps) since `prepare`: the point each manifold's
     /// solve starts from.
     substeps: u32,
@@ -431,6 +441,8 @@ impl ContactSolver {
             self.touched.capacity(),
             self.heaviest.capacity(),
             self.heavy.capacity(),
+            self.level.capacity(),
+            self.shock.capacity(),
         );
         self.substeps = 0;
         for sb in &self.bodies {
@@ -631,6 +643,8 @@ impl ContactSolver {
         } else {
             self.assign_ratio_springs(params);
         }
+        // 5. The shock pass's order over the high-ratio contacts.
+        self.order_shock();
         let grew = (
             self.bodies.capacity(),
             self.vels.capacity(),
@@ -640,6 +654,8 @@ impl ContactSolver {
             self.touched.capacity(),
             self.heaviest.capacity(),
             self.heavy.capacity(),
+            self.level.capacity(),
+            self.shock.capacity(),
         ) != caps;
         SolverStats {
             constraints: self.constraints.len() as u32,

@@ -355,8 +355,8 @@ fn stage_warm_start(solver: &mut ContactSolver, hot: &[BodyHot]) {
     solver.warm_start();
 }
 
-/// The soft solve passes with push-out, then the velocities go back to the
-/// bodies.
+/// The soft solve passes with push-out and the shock pass over the
+/// high-mass-ratio contacts, then the velocities go back to the bodies.
 #[inline(never)]
 fn stage_solve(
     solver: &mut ContactSolver,
@@ -370,6 +370,7 @@ fn stage_solve(
     for _ in 0..iterations {
         solver.solve(params, true);
     }
+    solver.shock(params, false);
     solver.scatter_velocities(hot);
 }
 
@@ -379,7 +380,8 @@ fn stage_integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar) {
     integrate::integrate_positions(hot, awake, h);
 }
 
-/// The relax passes (no push-out) at the substep's new poses.
+/// The relax passes (no push-out) at the substep's new poses, and the shock
+/// pass over the high-mass-ratio contacts.
 #[inline(never)]
 fn stage_relax(
     solver: &mut ContactSolver,
@@ -394,6 +396,7 @@ fn stage_relax(
     for _ in 0..iterations {
         solver.solve(params, false);
     }
+    solver.shock(params, true);
     solver.scatter(hot);
 }
 
