@@ -193,6 +193,54 @@ struct ConstraintPoint {
     max_normal_impulse: Scalar,
 }
 
+/// How a constraint follows its points' current separation through the
+/// substeps: a point's is its adjusted separation plus `n·(Δp_B − Δp_A) +
+/// n·(ΔR_B r_B) − n·(ΔR_A r_A)`, and `n·(ΔR r) = (ΔRᵀ n)·r`, so the two
+/// rotated normals and the displacement term are formed once per
+/// constraint and visit, not two rotated anchors per point.
+struct SeparationFrame {
+    /// `ΔR_Aᵀ n` and `ΔR_Bᵀ n` (zero for no body).
+    na: Vec3,
+    nb: Vec3,
+    /// `n·(Δp_B − Δp_A)`, unrounded.
+    base: i128,
+}
+
+impl SeparationFrame {
+    /// The frame of `c` at its bodies' current pose changes.
+    #[inline(always)]
+    fn of(c: &Constraint, bodies: &[SolverBody]) -> SeparationFrame {
+        let n = c.normal;
+        let (na, dpa) = if c.a == NONE {
+            (Vec3::ZERO, Vec3::ZERO)
+        } else {
+            let b = &bodies[c.a as usize];
+            (b.dr.transpose_mul_vec(n), b.dp)
+        };
+        let (nb, dpb) = if c.b == NONE {
+            (Vec3::ZERO, Vec3::ZERO)
+        } else {
+            let b = &bodies[c.b as usize];
+            (b.dr.transpose_mul_vec(n), b.dp)
+        };
+        SeparationFrame {
+            na,
+            nb,
+            base: n.dot_wide(dpb - dpa),
+        }
+    }
+
+    /// The current separation of point `cp` of the constraint.
+    #[inline(always)]
+    fn separation(&self, cp: &ConstraintPoint) -> Scalar {
+        round_wide(wide_sum([
+            self.base,
+            self.nb.dot_wide(cp.rb),
+            -self.na.dot_wide(cp.ra),
+        ])) + cp.adjusted_separation
+    }
+}
+
 /// One solid pair's constraint.
 #[derive(Clone, Copy, Debug, Default)]
 struct Constraint {
@@ -775,7 +823,6 @@ impl ContactSolver {
         let bodies = &self.bodies;
         let mut visit = |c: &mut Constraint| {
             let (mut va, mut vb) = load(vels, c.a, c.b);
-            let n = c.normal;
             // The linear part of the relative velocity along n, t0 and t1,
             // kept up to date through the rows (an impulse λ along one unit
             // direction of the basis changes it by λ(1/mA + 1/mB) along that
@@ -806,27 +853,11 @@ impl ContactSolver {
                 total
             };
             solve_patch(c, &mut va, &mut vb, &u, &mut applied, total);
-            // Non-penetration. The current separation of a point is its
-            // adjusted separation plus `n·(Δp_B − Δp_A) + n·(ΔR_B r_B) −
-            // n·(ΔR_A r_A)`, and `n·(ΔR r) = (ΔRᵀ n)·r`: two rotated normals
-            // per constraint instead of two rotated anchors per point.
-            let (na, dpa) = if c.a == NONE {
-                (Vec3::ZERO, Vec3::ZERO)
-            } else {
-                let b = &bodies[c.a as usize];
-                (b.dr.transpose_mul_vec(n), b.dp)
-            };
-            let (nb, dpb) = if c.b == NONE {
-                (Vec3::ZERO, Vec3::ZERO)
-            } else {
-                let b = &bodies[c.b as usize];
-                (b.dr.transpose_mul_vec(n), b.dp)
-            };
-            let base = n.dot_wide(dpb - dpa);
+            // Non-penetration, at each point's current separation.
+            let frame = SeparationFrame::of(c, bodies);
             for kk in 0..count {
                 let cp = &mut c.points[order(kk)];
-                let s = round_wide(wide_sum([base, nb.dot_wide(cp.rb), -na.dot_wide(cp.ra)]))
-                    + cp.adjusted_separation;
+                let s = frame.separation(cp);
                 let (bias, mass_scale, impulse_scale) = if s.is_positive() {
                     (s * params.inv_h, Scalar::ONE, Scalar::ZERO)
                 } else if use_bias {

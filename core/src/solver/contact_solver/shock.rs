@@ -41,10 +41,9 @@
 //! a total key.
 
 use super::rows::{angular_along, inverse_or_zero, load, mul, round_wide, scale, store};
-use super::{ContactSolver, NONE, SolverParams};
+use super::{ContactSolver, NONE, SeparationFrame, SolverParams};
 use crate::collision::MAX_MANIFOLD_POINTS;
-use crate::math::scalar::wide_sum;
-use crate::math::{Scalar, Vec3};
+use crate::math::Scalar;
 
 /// A solver body that no high-ratio contact links to a static or
 /// kinematic body.
@@ -137,19 +136,7 @@ impl ContactSolver {
             let (mut va, mut vb) = load(vels, c.a, c.b);
             let n = c.normal;
             // The current separation, as the regular passes follow it.
-            let (na, dpa) = if c.a == NONE {
-                (Vec3::ZERO, Vec3::ZERO)
-            } else {
-                let b = &bodies[c.a as usize];
-                (b.dr.transpose_mul_vec(n), b.dp)
-            };
-            let (nb, dpb) = if c.b == NONE {
-                (Vec3::ZERO, Vec3::ZERO)
-            } else {
-                let b = &bodies[c.b as usize];
-                (b.dr.transpose_mul_vec(n), b.dp)
-            };
-            let base = n.dot_wide(dpb - dpa);
+            let frame = SeparationFrame::of(c, bodies);
             let count = c.count.min(MAX_MANIFOLD_POINTS);
             let start = if count == 0 { 0 } else { rot % count };
             // What this visit gave each point so far.
@@ -157,8 +144,7 @@ impl ContactSolver {
             for kk in 0..count * SWEEPS {
                 let k = (kk + start) % count;
                 let cp = c.points[k];
-                let s = round_wide(wide_sum([base, nb.dot_wide(cp.rb), -na.dot_wide(cp.ra)]))
-                    + cp.adjusted_separation;
+                let s = frame.separation(&cp);
                 let vn =
                     round_wide(n.dot_wide(vb.v - va.v)) + angular_along(&va, &vb, cp.ra_n, cp.rb_n);
                 // The change of normal speed wanted: up to the approach the
