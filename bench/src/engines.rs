@@ -1,4 +1,4 @@
-//! The `engines` suite: the SCENES.md performance scenes built from one
+//! The `engines` suite: the performance scenes (docs/engines.md) built from one
 //! recipe ([`crate::scenes`]) in lockstep-core and in Rapier, stepped
 //! alternately (ours, Rapier, ours, Rapier, ...) in one process.
 //!

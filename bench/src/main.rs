@@ -110,7 +110,7 @@ const SUITES: &[Suite] = &[
     },
     Suite {
         name: "engines",
-        about: "SCENES.md performance scenes, ours vs rapier3d, alternating in one process",
+        about: "performance scenes (docs/engines.md), ours vs rapier3d, alternating in one process",
         run: engines::run,
         scenes: engine_scenes,
     },

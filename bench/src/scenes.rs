@@ -1,4 +1,4 @@
-//! The SCENES.md performance scenes as engine-neutral recipes: one list of
+//! The performance scenes (docs/engines.md) as engine-neutral recipes: one list of
 //! bodies that both engines build from, so the geometry, masses and
 //! starting poses are the same.
 //!
@@ -18,7 +18,7 @@ pub enum BodyShape {
 /// A scene: a static ground box plus dynamic bodies of one shape.
 #[derive(Clone, Debug)]
 pub struct Scene {
-    /// The SCENES.md name.
+    /// The scene's name (docs/engines.md).
     pub name: &'static str,
     /// Half-extents of the ground box, m.
     pub ground_half: [f64; 3],

@@ -1,4 +1,4 @@
-//! Figures for the collision pipeline on the SCENES.md benchmark pyramids:
+//! Figures for the collision pipeline on the `engines` benchmark pyramids (docs/engines.md):
 //! how many pairs each stage leaves, and what the collision stage costs.
 //! Ignored (release-only figures): run with
 //! `cargo test --release -p lockstep-core --test pyramid_pairs -- --ignored --nocapture`.

@@ -90,8 +90,8 @@ pub(crate) fn rsqrt_q61(x: u64) -> i64 {
 
 /// ⌊√n⌋ for a `u128`, exact for every input.
 ///
-/// Why not `u128::isqrt`: that is a bit-by-bit loop (35–42 ns in
-/// `shared/FIXED_POINT.md`, ~1.4× this one in `lockstep-bench math`); this
+/// Why not `u128::isqrt`: that is a bit-by-bit loop (~1.4× this one in
+/// `lockstep-bench math`); this
 /// takes a table seed, two Newton steps for 1/√n, one Newton step for √n using that
 /// reciprocal (landing within one unit of the root), and an exact integer
 /// fix-up against `n` itself, so the result is always the floor.

@@ -1,7 +1,7 @@
 //! `Scalar`: the Q32.32 fixed-point number every simulation quantity is made of.
 //!
 //! Storage is `fixed::types::I32F32` (an `i64` holding value × 2³²). The
-//! arithmetic is our own, for two reasons measured in `shared/FIXED_POINT.md`:
+//! arithmetic is our own, for two reasons (docs/determinism.md, "Numbers"):
 //! `fixed`'s `*` rounds toward −∞ (a systematic bias in a solver) and its
 //! release builds wrap silently on overflow. Here:
 //!
