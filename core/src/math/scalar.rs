@@ -149,6 +149,55 @@ impl Scalar {
         Scalar::from_bits((v as i64) << 32)
     }
 
+    /// The value nearest to a decimal number written as text, ties away from
+    /// zero: exactly what scene files give for the same digits (no `f64` on
+    /// the way). A `const fn`, so constants can be written as decimals; the
+    /// [`scalar!`](crate::scalar) macro is the short form for literals.
+    ///
+    /// The grammar is the scene files': an optional sign, digits with an
+    /// optional fraction, an optional exponent (`2.5e-3`), underscores
+    /// between digits (`1_000`).
+    ///
+    /// ```
+    /// use lockstep_core::Scalar;
+    ///
+    /// const HALF: Scalar = Scalar::from_decimal_str("0.5");
+    /// assert_eq!(HALF, Scalar::HALF);
+    /// // 0.1 is not a binary fraction: the nearest Q32.32 value, exactly.
+    /// assert_eq!(Scalar::from_decimal_str("0.1").to_bits(), 429_496_730);
+    /// assert_eq!(Scalar::from_decimal_str("-9.81"), Scalar::from_ratio(-981, 100));
+    /// // Below half of 2⁻³², a value rounds to zero.
+    /// assert_eq!(Scalar::from_decimal_str("1e-10"), Scalar::ZERO);
+    /// ```
+    ///
+    /// In a constant, a malformed number does not compile:
+    ///
+    /// ```compile_fail
+    /// use lockstep_core::Scalar;
+    /// const BAD: Scalar = Scalar::from_decimal_str("1.2.3");
+    /// ```
+    ///
+    /// # Panics
+    /// On text that [`str::parse`] would refuse (see
+    /// [`ParseDecimalError`](super::decimal::ParseDecimalError)): in a
+    /// constant that is a compile error. Use `str::parse` for text read at
+    /// run time.
+    pub const fn from_decimal_str(s: &str) -> Scalar {
+        use super::decimal::ParseDecimalError as E;
+        match super::decimal::parse_exact_const(s) {
+            Ok(v) => v,
+            Err(E::Empty) => panic!("Scalar::from_decimal_str: empty number"),
+            Err(E::InvalidChar { .. }) => {
+                panic!("Scalar::from_decimal_str: a character that is not part of a decimal number")
+            }
+            Err(E::MissingDigits) => panic!("Scalar::from_decimal_str: digits are missing"),
+            Err(E::OutOfRange) => {
+                panic!("Scalar::from_decimal_str: outside the fixed-point range ±2147483648")
+            }
+            Err(E::TooLong) => panic!("Scalar::from_decimal_str: too many digits"),
+        }
+    }
+
     /// `num / den` rounded to nearest (ties away from zero): the way to build
     /// constants such as `1/60` without floats.
     ///
@@ -313,6 +362,30 @@ impl Scalar {
     pub const fn floor_int(self) -> i64 {
         self.to_bits() >> 32
     }
+}
+
+/// A [`Scalar`] from a number literal, converted exactly at compile time:
+/// `scalar!(0.5)` is `Scalar::from_decimal_str("0.5")` in a `const` block.
+///
+/// The literal is taken as written (its digits, not an `f64`), so
+/// `scalar!(0.1)` is the Q32.32 value nearest to one tenth, the same bits a
+/// scene file gives for `0.1`. Integers, negative numbers, exponents and
+/// underscores work; suffixes (`0.5f32`) and hex do not compile.
+///
+/// ```
+/// use lockstep_core::{Scalar, scalar};
+///
+/// assert_eq!(scalar!(0.5), Scalar::HALF);
+/// assert_eq!(scalar!(-9.81), Scalar::from_ratio(-981, 100));
+/// assert_eq!(scalar!(3), Scalar::from_int(3));
+/// assert_eq!(scalar!(2.5e-3), Scalar::from_ratio(1, 400));
+/// assert_eq!(scalar!(1_000.25), Scalar::from_ratio(4001, 4));
+/// ```
+#[macro_export]
+macro_rules! scalar {
+    ($lit:literal) => {
+        const { $crate::math::Scalar::from_decimal_str(stringify!($lit)) }
+    };
 }
 
 impl Add for Scalar {
