@@ -250,7 +250,9 @@ impl World {
     /// # Errors
     /// [`WorldError::InvalidBody`]; [`WorldError::StaticOnlyShape`] for a
     /// triangle mesh or height field on a dynamic or kinematic body;
-    /// [`WorldError::Shape`] for a non-positive density or mass.
+    /// [`WorldError::Shape`] for a shape with a non-positive dimension (see
+    /// [`Shape::validate`](crate::shape::Shape::validate)) or a non-positive
+    /// density or mass.
     pub fn add_collider(
         &mut self,
         body: BodyHandle,
@@ -270,6 +272,7 @@ impl World {
                 kind: kind.name(),
             });
         }
+        desc.shape.validate()?;
         let mass_properties = if kind == BodyKind::Dynamic {
             collider_mass(&desc)?
         } else {
