@@ -12,8 +12,9 @@
 //!   and raises [`Faults::DIV_BY_ZERO`](super::Faults::DIV_BY_ZERO). Nothing
 //!   panics, whatever the build profile.
 //!
-//! Conversions from floats exist only for the edges (printing, tests) and are
-//! named so (`to_f64`); the simulation path never calls them.
+//! Conversions to and from floats exist only for the edges (printing,
+//! rendering, tests) and are named so (`to_f64`, `to_f32`,
+//! `from_f64_lossy`); the simulation path never calls them.
 
 use std::cmp::Ordering;
 use std::fmt;
@@ -215,6 +216,14 @@ impl Scalar {
     /// and tests only: never on the simulation path.
     pub fn to_f64(self) -> f64 {
         self.to_bits() as f64 / 4_294_967_296.0
+    }
+
+    /// The nearest `f32` to the value, for rendering (a renderer's
+    /// transforms, a debug overlay): never on the simulation path. One
+    /// rounding, so values within about ±2²⁴ ulps of a float are exact and
+    /// larger ones keep 24 significant bits.
+    pub fn to_f32(self) -> f32 {
+        self.to_bits() as f32 / 4_294_967_296.0
     }
 
     /// The nearest value to `v`, for tests and tools at the edges only (never
@@ -610,6 +619,24 @@ mod tests {
         ] {
             assert!((c.to_f64() - v).abs() <= 0.5 / 4_294_967_296.0, "{c}");
         }
+    }
+
+    #[test]
+    fn to_f32_is_the_nearest_float() {
+        let mut x: u64 = 7;
+        for _ in 0..10_000 {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            // Below 2^21 the f64 is exact, so rounding it to f32 is the one
+            // rounding to compare with.
+            let v = Scalar::from_bits((x as i64) >> 10);
+            assert_eq!(v.to_f32(), v.to_f64() as f32, "{v}");
+        }
+        assert_eq!(Scalar::MAX.to_f32(), 2_147_483_648.0);
+        assert_eq!(Scalar::MIN.to_f32(), -2_147_483_648.0);
+        assert_eq!(Scalar::DELTA.to_f32(), 1.0 / 4_294_967_296.0);
+        assert_eq!(Scalar::from_ratio(-3, 2).to_f32(), -1.5);
     }
 
     #[test]
