@@ -172,6 +172,22 @@ fn check_channel_len(len: usize, channel: Channel) -> Result<(), DecodeError> {
 impl ClientMessage {
     /// Encodes the message with its version header.
     ///
+    /// ```
+    /// use lockstep_proto::{ClientMessage, InputDatagram, Slot};
+    ///
+    /// let message = ClientMessage::Input(InputDatagram {
+    ///     slot: Slot(2),
+    ///     ack_bundle: Some(41),
+    ///     first_tick: 45,
+    ///     inputs: vec![vec![1, 0], vec![1, 1]], // the game's own bytes
+    /// });
+    /// let bytes = message.encode()?;
+    /// assert_eq!(ClientMessage::decode(&bytes)?, message);
+    /// // Anything else is an error, never a panic.
+    /// assert!(ClientMessage::decode(&bytes[..bytes.len() - 1]).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
     /// # Errors
     /// [`EncodeError`] if the message breaks a bound or its channel's size.
     pub fn encode(&self) -> Result<Vec<u8>, EncodeError> {

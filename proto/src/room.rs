@@ -38,6 +38,42 @@ use history::{FellBehind, History};
 use player::Player;
 
 /// A lockstep room: see the module documentation for how to drive it.
+///
+/// One player joins, sends its input for tick 0, and receives tick 0's
+/// bundle once the tick closes; the network is the two `while` loops:
+///
+/// ```
+/// use std::time::Duration;
+/// use lockstep_proto::{ClientMessage, Room, RoomConfig, ServerMessage, Session};
+///
+/// let mut room = Room::new(RoomConfig::new("demo", b"scene".to_vec(), 0x5ce9e))?;
+/// let now = Duration::ZERO;
+/// let ClientMessage::Join(join) = Session::join_message("demo", "ada") else { unreachable!() };
+/// let ada = room.join(now, &join)?;
+/// let Some(ServerMessage::Welcome(welcome)) = room.poll_transmit().map(|t| t.message) else {
+///     unreachable!()
+/// };
+/// let mut session = Session::new(&welcome)?;
+///
+/// assert_eq!(session.submit_input(b"jump".to_vec())?, 0); // for tick 0
+/// while let Some(m) = session.poll_transmit() {
+///     room.handle_message(now, ada, ClientMessage::decode(&m.encode()?)?)?;
+/// }
+/// assert!(room.all_ready());
+/// room.start(now)?;
+///
+/// // One tick period (1/60 s) later, tick 0 closes and its bundle goes out.
+/// let now = now + Duration::from_millis(17);
+/// room.handle_timeout(now);
+/// while let Some(t) = room.poll_transmit() {
+///     session.handle_message(now, ServerMessage::decode(&t.message.encode()?)?)?;
+/// }
+/// let bundle = session.poll_bundle().unwrap();
+/// assert_eq!(bundle.tick, 0);
+/// assert_eq!(bundle.inputs[0].input, b"jump");
+/// assert!(!bundle.inputs[0].substituted);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug)]
 pub struct Room {
     config: RoomConfig,

@@ -113,7 +113,8 @@ pub struct SessionStats {
     pub input_datagrams: u64,
 }
 
-/// A client's lockstep session; see the module documentation.
+/// A client's lockstep session; see the module documentation, and the
+/// example on [`Room`](crate::Room), which drives one through a tick.
 #[derive(Debug)]
 pub struct Session {
     slot: Slot,

@@ -8,6 +8,30 @@ use super::BodyKind;
 /// [`World::create_body`](crate::World::create_body). Shapes are added
 /// afterwards with [`World::add_collider`](crate::World::add_collider); the
 /// mass comes from their densities unless set here.
+///
+/// Start from [`fixed`](BodyDesc::fixed), [`dynamic`](BodyDesc::dynamic) or
+/// [`kinematic`](BodyDesc::kinematic) and set what differs from the
+/// defaults (at rest at the origin, no damping, full gravity):
+///
+/// ```
+/// use lockstep_core::{BodyDesc, BodyKind, ColliderDesc, Vec3, World, WorldConfig, scalar};
+///
+/// let mut world = World::new(WorldConfig::default())?;
+/// let desc = BodyDesc::dynamic()
+///     .name("ball")
+///     .position(Vec3::new(scalar!(1), scalar!(5), scalar!(0)))
+///     .linear_velocity(Vec3::new(scalar!(2.5), scalar!(0), scalar!(0)))
+///     .damping(scalar!(0.1), scalar!(0.1));
+/// let ball = world.create_body(&desc)?;
+/// world.add_collider(ball, ColliderDesc::sphere(scalar!(0.25)))?;
+///
+/// let body = world.body(ball)?;
+/// assert_eq!(body.kind(), BodyKind::Dynamic);
+/// assert_eq!(body.position(), desc.position);
+/// assert_eq!(body.linear_velocity().x, scalar!(2.5));
+/// assert_eq!(world.find_body("ball"), Some(ball));
+/// # Ok::<(), lockstep_core::WorldError>(())
+/// ```
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BodyDesc {
     /// How the body moves.

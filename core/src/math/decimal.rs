@@ -181,6 +181,207 @@ pub fn parse_exact(text: &str) -> Result<Scalar, ParseDecimalError> {
     Ok(Scalar::from_bits(bits))
 }
 
+/// [`parse_exact`] as a `const fn`: the same grammar, the same value, the
+/// same error, for every input (tested against it), so constants can be
+/// written as decimals and converted at compile time. What
+/// [`Scalar::from_decimal_str`] and the [`scalar!`](crate::scalar) macro
+/// run.
+///
+/// It works on fixed buffers of [`MAX_DIGITS`] digits instead of vectors:
+/// the significant digits with the position of the decimal point, which
+/// the exponent moves, then the same 33 doublings of the fraction.
+///
+/// # Errors
+/// See [`ParseDecimalError`].
+pub const fn parse_exact_const(text: &str) -> Result<Scalar, ParseDecimalError> {
+    let bytes = text.as_bytes();
+    if bytes.is_empty() {
+        return Err(ParseDecimalError::Empty);
+    }
+    let mut i = 0;
+    let negative = bytes[0] == b'-';
+    if bytes[0] == b'-' || bytes[0] == b'+' {
+        i = 1;
+    }
+    // The significant digits: the integer digits without leading zeros,
+    // then the fraction digits; `int_len` of them before the point.
+    let mut digits = [0u8; MAX_DIGITS];
+    let mut len = 0usize;
+    let mut int_len = 0usize;
+    let mut seen_point = false;
+    let mut any_digit = false;
+    let mut exponent: i64 = 0;
+    while i < bytes.len() {
+        let c = bytes[i];
+        if c.is_ascii_digit() {
+            any_digit = true;
+            let d = c - b'0';
+            if seen_point || !(int_len == 0 && d == 0) {
+                if len == MAX_DIGITS {
+                    return Err(ParseDecimalError::TooLong);
+                }
+                digits[len] = d;
+                len += 1;
+                if !seen_point {
+                    int_len += 1;
+                }
+            }
+        } else if c == b'_' && i > 0 && bytes[i - 1].is_ascii_digit() {
+        } else if c == b'.' && !seen_point {
+            seen_point = true;
+        } else if c == b'e' || c == b'E' {
+            if !any_digit {
+                return Err(ParseDecimalError::MissingDigits);
+            }
+            exponent = match parse_exponent_const(bytes, i + 1) {
+                Ok(e) => e,
+                Err(e) => return Err(e),
+            };
+            break;
+        } else {
+            return Err(ParseDecimalError::InvalidChar {
+                ch: char_at(bytes, i),
+                at: i,
+            });
+        }
+        i += 1;
+    }
+    if !any_digit {
+        return Err(ParseDecimalError::MissingDigits);
+    }
+    // The point moves `exponent` places right. Digit k (0-based, from the
+    // first significant one) is `digits[k]` inside the buffer, 0 outside.
+    // |exponent| <= MAX_DIGITS, so this cannot overflow.
+    let point = int_len as i64 + exponent;
+    let frac_len = len as i64 - point;
+    if exponent < 0 && frac_len > MAX_DIGITS as i64 {
+        return Err(ParseDecimalError::TooLong);
+    }
+    // The integer digits are those before the point, less leading zeros
+    // (which only a positive exponent can bring in from the fraction).
+    let mut first = 0i64;
+    while first < point && first < len as i64 && digits[first as usize] == 0 {
+        first += 1;
+    }
+    if first >= len as i64 {
+        first = point; // all zero
+    }
+    if point - first > 12 {
+        return Err(ParseDecimalError::OutOfRange);
+    }
+    let mut int_part: u128 = 0;
+    let mut k = first;
+    while k < point {
+        int_part = int_part * 10 + digit_at(&digits, len, k) as u128;
+        k += 1;
+    }
+    // The fraction digits, from the point on, into a buffer of their own.
+    let mut frac = [0u8; MAX_DIGITS];
+    let mut n = 0usize;
+    let mut k = point;
+    while k < len as i64 {
+        frac[n] = digit_at(&digits, len, k);
+        n += 1;
+        k += 1;
+    }
+    // 32 fraction bits plus the rounding bit, one per doubling (as
+    // `parse_exact` does).
+    let mut frac_bits: u128 = 0;
+    let mut round = 0;
+    while round < 33 {
+        let mut carry = 0u8;
+        let mut j = n;
+        while j > 0 {
+            j -= 1;
+            let v = frac[j] * 2 + carry;
+            frac[j] = v % 10;
+            carry = v / 10;
+        }
+        frac_bits = (frac_bits << 1) | carry as u128;
+        round += 1;
+    }
+    let magnitude = (int_part << 32) + (frac_bits >> 1) + (frac_bits & 1);
+    let limit = if negative {
+        1u128 << 63
+    } else {
+        (1u128 << 63) - 1
+    };
+    if magnitude > limit {
+        return Err(ParseDecimalError::OutOfRange);
+    }
+    let bits = if negative {
+        (magnitude as i128).wrapping_neg() as i64
+    } else {
+        magnitude as i64
+    };
+    Ok(Scalar::from_bits(bits))
+}
+
+/// Digit `k` of the significant digits, 0 outside `0..len`.
+const fn digit_at(digits: &[u8; MAX_DIGITS], len: usize, k: i64) -> u8 {
+    if k >= 0 && k < len as i64 {
+        digits[k as usize]
+    } else {
+        0
+    }
+}
+
+/// The character starting at byte `i` of a `str`'s bytes (at a character
+/// boundary), decoded from its UTF-8.
+const fn char_at(bytes: &[u8], i: usize) -> char {
+    let b0 = bytes[i] as u32;
+    let (mut code, extra) = if b0 < 0x80 {
+        (b0, 0)
+    } else if b0 >= 0xf0 {
+        (b0 & 0x07, 3)
+    } else if b0 >= 0xe0 {
+        (b0 & 0x0f, 2)
+    } else {
+        (b0 & 0x1f, 1)
+    };
+    let mut k = 1;
+    while k <= extra && i + k < bytes.len() {
+        code = (code << 6) | (bytes[i + k] as u32 & 0x3f);
+        k += 1;
+    }
+    match char::from_u32(code) {
+        Some(c) => c,
+        None => '?',
+    }
+}
+
+/// `parse_exponent` as a `const fn`, reading `bytes[start..]`.
+const fn parse_exponent_const(bytes: &[u8], start: usize) -> Result<i64, ParseDecimalError> {
+    let mut i = start;
+    let negative = i < bytes.len() && bytes[i] == b'-';
+    if i < bytes.len() && (bytes[i] == b'-' || bytes[i] == b'+') {
+        i += 1;
+    }
+    let mut value: i64 = 0;
+    let mut any = false;
+    while i < bytes.len() {
+        let c = bytes[i];
+        if c.is_ascii_digit() {
+            any = true;
+            value = value * 10 + (c - b'0') as i64;
+            if value > MAX_DIGITS as i64 {
+                return Err(ParseDecimalError::TooLong);
+            }
+        } else if c == b'_' && i > start && bytes[i - 1].is_ascii_digit() {
+        } else {
+            return Err(ParseDecimalError::InvalidChar {
+                ch: c as char,
+                at: i,
+            });
+        }
+        i += 1;
+    }
+    if !any {
+        return Err(ParseDecimalError::MissingDigits);
+    }
+    Ok(if negative { -value } else { value })
+}
+
 fn parse_exponent(bytes: &[u8], offset: usize) -> Result<i64, ParseDecimalError> {
     let mut i = 0;
     let negative = match bytes.first() {
@@ -301,6 +502,184 @@ mod tests {
             "0.00000000023283064365386962890625"
         );
         assert_eq!(format_exact(Scalar::from_ratio(-3, 2)), "-1.5");
+    }
+
+    /// A small deterministic generator (SplitMix64).
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            z ^ (z >> 31)
+        }
+
+        fn below(&mut self, n: u64) -> u64 {
+            self.next() % n
+        }
+
+        fn digits(&mut self, max: u64) -> String {
+            let n = self.below(max + 1);
+            (0..n)
+                .map(|_| char::from(b'0' + self.below(10) as u8))
+                .collect()
+        }
+
+        /// A decimal as TOML writes floats: `[-]int.frac[e[-]exp]`, the
+        /// integer part without leading zeros.
+        fn toml_float(&mut self) -> String {
+            let sign = if self.below(2) == 0 { "-" } else { "" };
+            let int = match self.below(4) {
+                0 => "0".to_owned(),
+                _ => {
+                    let bits = 1 + self.below(31);
+                    format!("{}", 1 + self.below(1 << bits))
+                }
+            };
+            let mut frac = self.digits(45);
+            if frac.is_empty() {
+                frac.push('5');
+            }
+            let exp = match self.below(4) {
+                0 => format!("e-{}", self.below(15)),
+                1 => format!("e{}", self.below(4)),
+                _ => String::new(),
+            };
+            format!("{sign}{int}.{frac}{exp}")
+        }
+    }
+
+    /// Literals around every rule of the grammar and of the rounding,
+    /// separated by spaces (the empty text and spaces are added by the test).
+    const LITERALS: &str = "\
+        0 1 -1 +1 0.5 -0.5 0.1 -0.1 9.81 -9.81 +2.000 -0.0 00012.5 0.000 1_000 1_000.000_5 \
+        1__0 _1 1_ 1._5 -_1 2.5e2 25E-1 1e0 1e+3 1e-3 1.e5 .5 5. . - + e5 .e5 -.5e1 1e 1e- 1e+ \
+        1e_5 1e5_ 1e5_0 1e-_5 1ee5 1e5.0 1.2.3 12x nan inf -inf 0x10 1,5 ½ 1é 1e½ é \
+        3.14159265358979323846264338327950288 \
+        0.000000000116415321826934814453125 -0.000000000116415321826934814453125 \
+        0.000000000116415321826934814453124 0.000000000116415321826934814453126 \
+        0.00000000023283064365386962890625 0.0000000001 -0.0000000001 1e-10 -1e-10 \
+        1e-400 1e-401 1e400 0e400 0.0e400 0.00000e12 0.0001e12 0.001e12 1e11 1e12 -1e12 \
+        999999999999 9999999999999 0000000000000000001 2147483647 2147483648 -2147483648 \
+        -2147483649 2147483647.99999999988358467817306518554688 \
+        2147483647.9999999998835846781730651855469 2147483647.99999999999 \
+        -2147483648.0000000001 -2147483648.00000000011641532182693481445313 \
+        0.016666666666666666 123456.789e-3 0.0000123456789e7 1.0e-5000 \
+        12345678901234567890e-10 0.12345678901234567890123456789012345678901234567890 \
+        12e-400 123e-400 0.5e-399 0.5e-400 1.5e-399 1.5e-400";
+
+    #[test]
+    fn the_const_parser_agrees_with_the_scene_parser_on_every_input() {
+        let mut inputs: Vec<String> = LITERALS.split(' ').map(str::to_owned).collect();
+        for text in ["", " 1", "1 ", "\t1"] {
+            inputs.push(text.to_owned());
+        }
+        inputs.push("1".repeat(400));
+        inputs.push("1".repeat(401));
+        inputs.push(format!("0.{}", "0".repeat(399)));
+        inputs.push(format!("0.{}", "0".repeat(400)));
+        inputs.push(format!("0.{}1", "0".repeat(398)));
+        inputs.push(format!("0.{}e-1", "0".repeat(398)));
+        inputs.push(format!("0.{}e-2", "0".repeat(398)));
+        inputs.push(format!("0.{}e-3", "0".repeat(398)));
+        inputs.push(format!("{}e-390", "7".repeat(12)));
+        inputs.push(format!("0.{}5e11", "9".repeat(60)));
+        inputs.push(format!("-{}.{}", "0".repeat(30), "3".repeat(300)));
+        let mut rng = Rng(0x5eed);
+        // Random strings over the grammar's alphabet (mostly malformed).
+        let alphabet = b"0123456789012345678900_.-+eE";
+        for _ in 0..20_000 {
+            let n = rng.below(14) as usize;
+            let s: String = (0..n)
+                .map(|_| char::from(alphabet[rng.below(alphabet.len() as u64) as usize]))
+                .collect();
+            inputs.push(s);
+        }
+        // Random well-formed decimals of many digits and magnitudes.
+        for _ in 0..20_000 {
+            inputs.push(rng.toml_float());
+        }
+        // Every Q32.32 value printed exactly, and one digit more or less.
+        for _ in 0..5_000 {
+            let text = format_exact(Scalar::from_bits(rng.next() as i64));
+            inputs.push(format!("{text}1"));
+            inputs.push(format!("{text}9"));
+            inputs.push(text[..text.len() - 1].to_owned());
+            inputs.push(text);
+        }
+        for text in &inputs {
+            assert_eq!(parse_exact_const(text), parse_exact(text), "{text:?}");
+        }
+    }
+
+    #[test]
+    fn from_decimal_str_and_the_macro_give_what_a_scene_file_gives() {
+        use crate::scene::parse_scene;
+        // The scene reader converts a TOML float from its source text.
+        let through_scene = |lit: &str| -> Scalar {
+            let text = format!("[world]\ngravity = [{lit}, 0.0, 0.0]\n");
+            let desc = parse_scene(&text, "t.toml").unwrap_or_else(|e| panic!("{lit}: {e}"));
+            desc.world.gravity.x
+        };
+        let mut rng = Rng(17);
+        let mut literals: Vec<String> = [
+            "0.5",
+            "-0.5",
+            "0.1",
+            "9.81",
+            "-9.81",
+            "1.0",
+            "-2147483648.0",
+            "2147483647.99999999988",
+            "0.000000000116415321826934814453125",
+            "-0.000000000116415321826934814453124",
+            "1e-10",
+            "-3.0e-11",
+            "1_000.000_1",
+            "3.14159265358979323846264338327950288419716939937510",
+            "12.5e3",
+        ]
+        .iter()
+        .map(|s| (*s).to_owned())
+        .collect();
+        while literals.len() < 3_000 {
+            let lit = rng.toml_float();
+            // (Out-of-range values are errors in both; compared above.)
+            if parse_exact(&lit).is_ok() {
+                literals.push(lit);
+            }
+        }
+        for lit in &literals {
+            let scene = through_scene(lit);
+            assert_eq!(Scalar::from_decimal_str(lit), scene, "{lit}");
+            assert_eq!(lit.parse::<Scalar>(), Ok(scene), "{lit}");
+        }
+        // The macro takes Rust literals, which are the same digits.
+        assert_eq!(crate::scalar!(0.1), through_scene("0.1"));
+        assert_eq!(crate::scalar!(-9.81), through_scene("-9.81"));
+        assert_eq!(crate::scalar!(1e-10), Scalar::ZERO);
+        assert_eq!(crate::scalar!(-3e-11), Scalar::ZERO);
+        assert_eq!(crate::scalar!(1.5e-10), Scalar::DELTA);
+        assert_eq!(crate::scalar!(-1.5e-10), -Scalar::DELTA);
+        assert_eq!(crate::scalar!(7), Scalar::from_int(7));
+        assert_eq!(crate::scalar!(-2147483648), Scalar::MIN);
+        assert_eq!(
+            crate::scalar!(3.14159265358979323846264338327950288419716939937510),
+            through_scene("3.14159265358979323846264338327950288419716939937510")
+        );
+        assert_eq!(
+            crate::scalar!(0.000_000_000_116_415_321_826_934_814_453_125),
+            Scalar::DELTA
+        );
+    }
+
+    #[test]
+    #[should_panic(expected = "outside the fixed-point range")]
+    fn from_decimal_str_panics_at_run_time_on_bad_text() {
+        let text = String::from("2147483648");
+        let _ = Scalar::from_decimal_str(&text);
     }
 
     #[test]

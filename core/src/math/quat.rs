@@ -61,6 +61,27 @@ impl Quat {
         Quat { x, y, z, w }
     }
 
+    /// The components `[x, y, z, w]` as the nearest `f32`s, the order glam,
+    /// nalgebra and mint use, for a renderer: output only, never fed back
+    /// into the simulation.
+    ///
+    /// ```
+    /// use lockstep_core::{Quat, Scalar, Vec3};
+    ///
+    /// let q = Quat::from_axis_angle(Vec3::Y, Scalar::FRAC_PI_2);
+    /// let [x, y, z, w] = q.to_f32_array();
+    /// assert_eq!([x, z], [0.0, 0.0]);
+    /// assert!((y - 0.5f32.sqrt()).abs() < 1e-6 && (w - 0.5f32.sqrt()).abs() < 1e-6);
+    /// ```
+    pub fn to_f32_array(self) -> [f32; 4] {
+        [self.x, self.y, self.z, self.w].map(Scalar::to_f32)
+    }
+
+    /// The components `[x, y, z, w]` as `f64`s (exact), for output.
+    pub fn to_f64_array(self) -> [f64; 4] {
+        [self.x, self.y, self.z, self.w].map(Scalar::to_f64)
+    }
+
     /// The vector part.
     #[inline(always)]
     pub const fn xyz(self) -> Vec3 {

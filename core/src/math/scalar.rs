@@ -12,8 +12,9 @@
 //!   and raises [`Faults::DIV_BY_ZERO`](super::Faults::DIV_BY_ZERO). Nothing
 //!   panics, whatever the build profile.
 //!
-//! Conversions from floats exist only for the edges (printing, tests) and are
-//! named so (`to_f64`); the simulation path never calls them.
+//! Conversions to and from floats exist only for the edges (printing,
+//! rendering, tests) and are named so (`to_f64`, `to_f32`,
+//! `from_f64_lossy`); the simulation path never calls them.
 
 use std::cmp::Ordering;
 use std::fmt;
@@ -149,6 +150,55 @@ impl Scalar {
         Scalar::from_bits((v as i64) << 32)
     }
 
+    /// The value nearest to a decimal number written as text, ties away from
+    /// zero: exactly what scene files give for the same digits (no `f64` on
+    /// the way). A `const fn`, so constants can be written as decimals; the
+    /// [`scalar!`](crate::scalar) macro is the short form for literals.
+    ///
+    /// The grammar is the scene files': an optional sign, digits with an
+    /// optional fraction, an optional exponent (`2.5e-3`), underscores
+    /// between digits (`1_000`).
+    ///
+    /// ```
+    /// use lockstep_core::Scalar;
+    ///
+    /// const HALF: Scalar = Scalar::from_decimal_str("0.5");
+    /// assert_eq!(HALF, Scalar::HALF);
+    /// // 0.1 is not a binary fraction: the nearest Q32.32 value, exactly.
+    /// assert_eq!(Scalar::from_decimal_str("0.1").to_bits(), 429_496_730);
+    /// assert_eq!(Scalar::from_decimal_str("-9.81"), Scalar::from_ratio(-981, 100));
+    /// // Below half of 2⁻³², a value rounds to zero.
+    /// assert_eq!(Scalar::from_decimal_str("1e-10"), Scalar::ZERO);
+    /// ```
+    ///
+    /// In a constant, a malformed number does not compile:
+    ///
+    /// ```compile_fail
+    /// use lockstep_core::Scalar;
+    /// const BAD: Scalar = Scalar::from_decimal_str("1.2.3");
+    /// ```
+    ///
+    /// # Panics
+    /// On text that [`str::parse`] would refuse (see
+    /// [`ParseDecimalError`](super::decimal::ParseDecimalError)): in a
+    /// constant that is a compile error. Use `str::parse` for text read at
+    /// run time.
+    pub const fn from_decimal_str(s: &str) -> Scalar {
+        use super::decimal::ParseDecimalError as E;
+        match super::decimal::parse_exact_const(s) {
+            Ok(v) => v,
+            Err(E::Empty) => panic!("Scalar::from_decimal_str: empty number"),
+            Err(E::InvalidChar { .. }) => {
+                panic!("Scalar::from_decimal_str: a character that is not part of a decimal number")
+            }
+            Err(E::MissingDigits) => panic!("Scalar::from_decimal_str: digits are missing"),
+            Err(E::OutOfRange) => {
+                panic!("Scalar::from_decimal_str: outside the fixed-point range ±2147483648")
+            }
+            Err(E::TooLong) => panic!("Scalar::from_decimal_str: too many digits"),
+        }
+    }
+
     /// `num / den` rounded to nearest (ties away from zero): the way to build
     /// constants such as `1/60` without floats.
     ///
@@ -166,6 +216,14 @@ impl Scalar {
     /// and tests only: never on the simulation path.
     pub fn to_f64(self) -> f64 {
         self.to_bits() as f64 / 4_294_967_296.0
+    }
+
+    /// The nearest `f32` to the value, for rendering (a renderer's
+    /// transforms, a debug overlay): never on the simulation path. One
+    /// rounding, so values within about ±2²⁴ ulps of a float are exact and
+    /// larger ones keep 24 significant bits.
+    pub fn to_f32(self) -> f32 {
+        self.to_bits() as f32 / 4_294_967_296.0
     }
 
     /// The nearest value to `v`, for tests and tools at the edges only (never
@@ -313,6 +371,30 @@ impl Scalar {
     pub const fn floor_int(self) -> i64 {
         self.to_bits() >> 32
     }
+}
+
+/// A [`Scalar`] from a number literal, converted exactly at compile time:
+/// `scalar!(0.5)` is `Scalar::from_decimal_str("0.5")` in a `const` block.
+///
+/// The literal is taken as written (its digits, not an `f64`), so
+/// `scalar!(0.1)` is the Q32.32 value nearest to one tenth, the same bits a
+/// scene file gives for `0.1`. Integers, negative numbers, exponents and
+/// underscores work; suffixes (`0.5f32`) and hex do not compile.
+///
+/// ```
+/// use lockstep_core::{Scalar, scalar};
+///
+/// assert_eq!(scalar!(0.5), Scalar::HALF);
+/// assert_eq!(scalar!(-9.81), Scalar::from_ratio(-981, 100));
+/// assert_eq!(scalar!(3), Scalar::from_int(3));
+/// assert_eq!(scalar!(2.5e-3), Scalar::from_ratio(1, 400));
+/// assert_eq!(scalar!(1_000.25), Scalar::from_ratio(4001, 4));
+/// ```
+#[macro_export]
+macro_rules! scalar {
+    ($lit:literal) => {
+        const { $crate::math::Scalar::from_decimal_str(stringify!($lit)) }
+    };
 }
 
 impl Add for Scalar {
@@ -537,6 +619,24 @@ mod tests {
         ] {
             assert!((c.to_f64() - v).abs() <= 0.5 / 4_294_967_296.0, "{c}");
         }
+    }
+
+    #[test]
+    fn to_f32_is_the_nearest_float() {
+        let mut x: u64 = 7;
+        for _ in 0..10_000 {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            // Below 2^21 the f64 is exact, so rounding it to f32 is the one
+            // rounding to compare with.
+            let v = Scalar::from_bits((x as i64) >> 10);
+            assert_eq!(v.to_f32(), v.to_f64() as f32, "{v}");
+        }
+        assert_eq!(Scalar::MAX.to_f32(), 2_147_483_648.0);
+        assert_eq!(Scalar::MIN.to_f32(), -2_147_483_648.0);
+        assert_eq!(Scalar::DELTA.to_f32(), 1.0 / 4_294_967_296.0);
+        assert_eq!(Scalar::from_ratio(-3, 2).to_f32(), -1.5);
     }
 
     #[test]

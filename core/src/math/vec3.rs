@@ -86,6 +86,27 @@ impl Vec3 {
         [self.x, self.y, self.z]
     }
 
+    /// The components as the nearest `f32`s, for a renderer (positions,
+    /// velocities to draw): output only, never fed back into the
+    /// simulation.
+    ///
+    /// ```
+    /// use lockstep_core::{Vec3, scalar};
+    ///
+    /// let p = Vec3::new(scalar!(1.5), scalar!(-2), scalar!(0.1));
+    /// assert_eq!(p.to_f32_array(), [1.5, -2.0, 0.1]);
+    /// assert_eq!(p.to_f64_array()[2], 0.1000000000931322574615478515625); // exact
+    /// ```
+    pub fn to_f32_array(self) -> [f32; 3] {
+        self.to_array().map(Scalar::to_f32)
+    }
+
+    /// The components as `f64`s (exact below 2²¹ m), for output: tools,
+    /// plots, renderers in double precision.
+    pub fn to_f64_array(self) -> [f64; 3] {
+        self.to_array().map(Scalar::to_f64)
+    }
+
     /// The exact dot product as Q64.64, for further exact accumulation.
     #[inline(always)]
     pub fn dot_wide(self, o: Vec3) -> i128 {

@@ -308,6 +308,24 @@ impl Shape {
         }
     }
 
+    /// Checks the dimensions of the shapes whose fields are public (sphere,
+    /// capsule, box), as their `new` does: a literal such as
+    /// `Sphere { radius }` is not checked when written.
+    /// [`World::add_collider`](crate::World::add_collider) calls this. Hulls,
+    /// meshes and height fields can only be built by their checking
+    /// constructors, so they are valid.
+    ///
+    /// # Errors
+    /// The [`ShapeError`] the shape's `new` would give.
+    pub fn validate(&self) -> Result<(), ShapeError> {
+        match self {
+            Shape::Sphere(s) => Sphere::new(s.radius).map(drop),
+            Shape::Capsule(c) => Capsule::new(c.half_height, c.radius).map(drop),
+            Shape::Cuboid(b) => Cuboid::new(b.half_extents).map(drop),
+            Shape::ConvexHull(_) | Shape::TriMesh(_) | Shape::HeightField(_) => Ok(()),
+        }
+    }
+
     /// Whether only static bodies may carry this shape (triangle meshes and
     /// height fields: they enclose no volume, so they have no mass).
     pub fn is_static_only(&self) -> bool {

@@ -36,6 +36,33 @@ use crate::solver::sleep::IslandScratch;
 /// Determinism: every operation visits bodies and colliders in handle
 /// order; the same sequence of calls gives the same state, bit for bit, on
 /// every platform. [`World::state_hash`] summarises that state.
+///
+/// A ball dropped on the ground comes to rest on it:
+///
+/// ```
+/// use lockstep_core::{BodyDesc, ColliderDesc, Vec3, World, WorldConfig, scalar};
+///
+/// let mut world = World::new(WorldConfig::default())?; // 60 Hz, gravity −9.81 m/s² on y
+/// // A static ground whose top face is y = 0.
+/// let ground = world.create_body(&BodyDesc::fixed().position(Vec3::new(
+///     scalar!(0),
+///     scalar!(-0.5),
+///     scalar!(0),
+/// )))?;
+/// world.add_collider(ground, ColliderDesc::cuboid(scalar!(20), scalar!(0.5), scalar!(20)))?;
+/// // A ball of radius 0.5 m, 2 m up.
+/// let ball = world.create_body(&BodyDesc::dynamic().position(Vec3::from_ints(0, 2, 0)))?;
+/// world.add_collider(ball, ColliderDesc::sphere(scalar!(0.5)))?;
+///
+/// for _ in 0..120 {
+///     let report = world.step();
+///     assert!(!report.overflowed());
+/// }
+/// assert_eq!(world.tick(), 120);
+/// let y = world.body(ball)?.position().y; // resting: one radius above the ground
+/// assert!((y - scalar!(0.5)).abs() < scalar!(0.005), "{y}");
+/// # Ok::<(), lockstep_core::WorldError>(())
+/// ```
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct World {
     config: WorldConfig,
@@ -250,7 +277,9 @@ impl World {
     /// # Errors
     /// [`WorldError::InvalidBody`]; [`WorldError::StaticOnlyShape`] for a
     /// triangle mesh or height field on a dynamic or kinematic body;
-    /// [`WorldError::Shape`] for a non-positive density or mass.
+    /// [`WorldError::Shape`] for a shape with a non-positive dimension (see
+    /// [`Shape::validate`](crate::shape::Shape::validate)) or a non-positive
+    /// density or mass.
     pub fn add_collider(
         &mut self,
         body: BodyHandle,
@@ -270,6 +299,7 @@ impl World {
                 kind: kind.name(),
             });
         }
+        desc.shape.validate()?;
         let mass_properties = if kind == BodyKind::Dynamic {
             collider_mass(&desc)?
         } else {

@@ -88,6 +88,29 @@ impl World {
     ///
     /// A ray starting inside (or on) a solid shape hits it at fraction 0
     /// with the normal opposite the ray; see [`crate::query::ray`].
+    ///
+    /// ```
+    /// use lockstep_core::query::{QueryFilter, Ray};
+    /// use lockstep_core::{BodyDesc, ColliderDesc, Vec3, World, WorldConfig, scalar};
+    ///
+    /// let mut world = World::new(WorldConfig::default())?;
+    /// // A 2 m box whose top face is y = 1.
+    /// let block = world.create_body(&BodyDesc::fixed())?;
+    /// world.add_collider(block, ColliderDesc::cuboid(scalar!(1), scalar!(1), scalar!(1)))?;
+    ///
+    /// // Straight down from 9 m, 16 m long: the top face is halfway.
+    /// let ray = Ray::new(Vec3::from_ints(0, 9, 0), Vec3::from_ints(0, -16, 0));
+    /// let hit = world.cast_ray_closest(&ray, &QueryFilter::default()).unwrap();
+    /// assert_eq!(hit.body, block);
+    /// assert_eq!(hit.fraction, scalar!(0.5));
+    /// assert_eq!(hit.point, Vec3::from_ints(0, 1, 0));
+    /// assert_eq!(hit.normal, Vec3::Y);
+    ///
+    /// // Bodies can be left out (a shooter's own body, say).
+    /// let filter = QueryFilter { exclude_bodies: &[block], ..QueryFilter::default() };
+    /// assert!(world.cast_ray_closest(&ray, &filter).is_none());
+    /// # Ok::<(), lockstep_core::WorldError>(())
+    /// ```
     pub fn cast_ray_closest(&self, ray: &Ray, filter: &QueryFilter<'_>) -> Option<RayHit> {
         contained(|| {
             let mut best: Option<RayHit> = None;
