@@ -418,7 +418,7 @@ pub async fn run(
         connections.shutdown().await;
     }
     endpoint.close(
-        lockstep_client::net::close_code::SHUTDOWN.into(),
+        lockstep_net::close_code::SHUTDOWN.into(),
         b"server shutting down",
     );
     let _ = tokio::time::timeout(Duration::from_secs(2), endpoint.wait_idle()).await;
