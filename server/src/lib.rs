@@ -111,16 +111,13 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
-    /// A server on `listen` with the demo game (its scene and rules id), a
-    /// dev certificate written to `out/dev-cert.pem`, replays in
-    /// `out/replays`, and default rooms.
-    pub fn new(listen: SocketAddr) -> Self {
-        use lockstep_client::game::{Demo, DemoGame, RulesFactory};
-        Self::for_game(listen, DemoGame::SCENE, "demo", Demo.rules_id())
-    }
-
     /// A server on `listen` for a game: its scene text (and a name for
-    /// messages) and its rules' id, otherwise as [`ServerConfig::new`].
+    /// messages) and its rules' id, with a dev certificate written to
+    /// `out/dev-cert.pem`, replays in `out/replays`, and default rooms.
+    ///
+    /// The server never runs the rules; it only records their id. For the
+    /// demo game: `for_game(listen, DemoGame::SCENE, "demo",
+    /// Demo.rules_id())` (`lockstep_client::game`).
     pub fn for_game(
         listen: SocketAddr,
         scene: impl Into<String>,

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
+use lockstep_client::game::{Demo, DemoGame, RulesFactory};
 use lockstep_server::demo::{DemoOptions, run_demo};
 use lockstep_server::{ServerConfig, TlsSource, run};
 
@@ -103,7 +104,7 @@ async fn main() -> ExitCode {
     } else {
         cli.listen
     };
-    let mut config = ServerConfig::new(listen);
+    let mut config = ServerConfig::for_game(listen, DemoGame::SCENE, "demo", Demo.rules_id());
     config.tls = match (cli.cert, cli.key) {
         (Some(cert), Some(key)) => TlsSource::Files { cert, key },
         _ => TlsSource::dev(cli.cert_out),
