@@ -13,8 +13,10 @@
 //!   and forwards decoded messages to its room (`conn`); each room has a task
 //!   that owns the [`Room`](lockstep_proto::Room) state machine and all
 //!   sending (`room`).
-//! - [`demo`] is the main job: the server with the demo scene and four
-//!   in-process bots, with a status line per second.
+//! - The game is a parameter ([`ServerConfig::for_game`]: its scene and its
+//!   rules' id); the server never runs the rules. The `lockstep-server`
+//!   program and its `--demo` (the server with the demo game and
+//!   in-process bots) are in the `lockstep` package (`cli/`).
 //!
 //! Nothing a client sends can disturb a room beyond that client: malformed
 //! or oversized frames and datagrams, messages on the wrong channel, and
@@ -24,7 +26,6 @@
 #![warn(missing_docs)]
 
 mod conn;
-pub mod demo;
 pub mod log;
 mod room;
 mod tls;

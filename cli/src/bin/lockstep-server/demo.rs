@@ -14,7 +14,9 @@ use lockstep_client::game::{Demo, DemoGame, RulesFactory};
 use lockstep_client::offline::verify_replay_file;
 use tokio::sync::{mpsc, oneshot};
 
-use crate::{RoomReport, RoomStatus, ServerConfig, ServerError, ServerEvent, TlsSource, run};
+use lockstep_server::{
+    RoomReport, RoomStatus, ServerConfig, ServerError, ServerEvent, TlsSource, run,
+};
 
 /// What the demo runs.
 #[derive(Clone)]
@@ -279,7 +281,7 @@ fn print_summary(s: &DemoSummary, bots: usize) {
             );
             println!("replay check: {check}");
             println!(
-                "  re-check with: cargo run --release -p lockstep-client --bin lockstep -- replay {}",
+                "  re-check with: cargo run --release -p lockstep --bin lockstep -- replay {}",
                 p.display()
             );
         }

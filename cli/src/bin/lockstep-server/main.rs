@@ -1,5 +1,7 @@
 //! `lockstep-server`: parses flags and runs the library's server (or the
-//! demo); Ctrl-C or SIGTERM shuts it down gracefully.
+//! demo, module [`demo`]); Ctrl-C or SIGTERM shuts it down gracefully.
+
+mod demo;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -7,14 +9,14 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
+use demo::{DemoOptions, run_demo};
 use lockstep_client::game::{Demo, DemoGame, RulesFactory};
-use lockstep_server::demo::{DemoOptions, run_demo};
 use lockstep_server::{ServerConfig, TlsSource, run};
 
 /// The lockstep server: relays inputs, compares every tick's hashes,
 /// records replays.
 #[derive(Parser, Debug)]
-#[command(name = "lockstep-server", version, about)]
+#[command(name = "lockstep-server", version)]
 struct Cli {
     /// Run the demo: the server on loopback with 4 in-process bots, a status
     /// line per second, a summary at the end.
