@@ -42,9 +42,9 @@ done
 
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
-cargo build -q --release -p lockstep-client --bin lockstep
+cargo build -q --release -p lockstep --bin lockstep
 for t in "${targets[@]}"; do
-  cargo build -q --release -p lockstep-client --bin lockstep --target "$t"
+  cargo build -q --release -p lockstep --bin lockstep --target "$t"
 done
 
 run() { # arch scene

@@ -10,7 +10,7 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
-use lockstep_client::net::{FrameError, close_code, close_code_for, read_frame, write_frame};
+use lockstep_net::{FrameError, close_code, close_code_for, read_frame, write_frame};
 use lockstep_proto::{Channel, ClientMessage, Close, CloseReason, PlayerId, ServerMessage};
 use tokio::sync::{mpsc, oneshot};
 

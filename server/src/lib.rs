@@ -13,8 +13,10 @@
 //!   and forwards decoded messages to its room (`conn`); each room has a task
 //!   that owns the [`Room`](lockstep_proto::Room) state machine and all
 //!   sending (`room`).
-//! - [`demo`] is the main job: the server with the demo scene and four
-//!   in-process bots, with a status line per second.
+//! - The game is a parameter ([`ServerConfig::for_game`]: its scene and its
+//!   rules' id); the server never runs the rules. The `lockstep-server`
+//!   program and its `--demo` (the server with the demo game and
+//!   in-process bots) are in the `lockstep` package (`cli/`).
 //!
 //! Nothing a client sends can disturb a room beyond that client: malformed
 //! or oversized frames and datagrams, messages on the wrong channel, and
@@ -24,7 +26,6 @@
 #![warn(missing_docs)]
 
 mod conn;
-pub mod demo;
 pub mod log;
 mod room;
 mod tls;
@@ -111,16 +112,13 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
-    /// A server on `listen` with the demo game (its scene and rules id), a
-    /// dev certificate written to `out/dev-cert.pem`, replays in
-    /// `out/replays`, and default rooms.
-    pub fn new(listen: SocketAddr) -> Self {
-        use lockstep_client::game::{Demo, DemoGame, RulesFactory};
-        Self::for_game(listen, DemoGame::SCENE, "demo", Demo.rules_id())
-    }
-
     /// A server on `listen` for a game: its scene text (and a name for
-    /// messages) and its rules' id, otherwise as [`ServerConfig::new`].
+    /// messages) and its rules' id, with a dev certificate written to
+    /// `out/dev-cert.pem`, replays in `out/replays`, and default rooms.
+    ///
+    /// The server never runs the rules; it only records their id. For the
+    /// demo game: `for_game(listen, DemoGame::SCENE, "demo",
+    /// Demo.rules_id())` (`lockstep_client::game`).
     pub fn for_game(
         listen: SocketAddr,
         scene: impl Into<String>,
@@ -418,7 +416,7 @@ pub async fn run(
         connections.shutdown().await;
     }
     endpoint.close(
-        lockstep_client::net::close_code::SHUTDOWN.into(),
+        lockstep_net::close_code::SHUTDOWN.into(),
         b"server shutting down",
     );
     let _ = tokio::time::timeout(Duration::from_secs(2), endpoint.wait_idle()).await;

@@ -4,9 +4,9 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use lockstep_client::net::{ALPN, transport_config};
+use lockstep_net::{ALPN, load_certs, transport_config};
+use rustls::pki_types::PrivateKeyDer;
 use rustls::pki_types::pem::PemObject;
-use rustls::pki_types::{CertificateDer, PrivateKeyDer};
 
 use crate::ServerError;
 
@@ -69,13 +69,7 @@ pub(crate) fn server_config(
             (vec![ck.cert.der().clone()], key, Some(cert_out.clone()))
         }
         TlsSource::Files { cert, key } => {
-            let chain: Vec<CertificateDer<'static>> = CertificateDer::pem_file_iter(cert)
-                .map_err(|e| tls_err(format!("{}: {e}", cert.display())))?
-                .collect::<Result<_, _>>()
-                .map_err(|e| tls_err(format!("{}: {e}", cert.display())))?;
-            if chain.is_empty() {
-                return Err(tls_err(format!("{}: no certificate", cert.display())));
-            }
+            let chain = load_certs(cert).map_err(tls_err)?;
             let key = PrivateKeyDer::from_pem_file(key)
                 .map_err(|e| tls_err(format!("{}: {e}", key.display())))?;
             (chain, key, None)

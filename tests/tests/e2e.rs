@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 use lockstep_client::bot::{BotOptions, run_bots};
-use lockstep_client::game::Demo;
+use lockstep_client::game::{Demo, DemoGame, RulesFactory};
 use lockstep_client::net::{ClientReport, client_config, load_certs, read_frame, write_frame};
 use lockstep_client::offline::verify_replay_file;
 use lockstep_client::testing::Diverge;
@@ -37,7 +37,12 @@ impl TestServer {
     async fn start(name: &str, tweak: impl FnOnce(&mut ServerConfig)) -> TestServer {
         let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("e2e-{name}"));
         let _ = std::fs::remove_dir_all(&dir);
-        let mut config = ServerConfig::new(SocketAddr::from(([127, 0, 0, 1], 0)));
+        let mut config = ServerConfig::for_game(
+            SocketAddr::from(([127, 0, 0, 1], 0)),
+            DemoGame::SCENE,
+            "demo",
+            Demo.rules_id(),
+        );
         config.tls = TlsSource::dev(dir.join("cert.pem"));
         config.replay_dir = Some(dir.join("replays"));
         let (tx, mut events) = mpsc::unbounded_channel();

@@ -15,9 +15,11 @@ use lockstep_proto::{
 use thiserror::Error;
 use tokio::sync::mpsc;
 
-use super::close_code;
-use super::frame::{FrameError, read_frame, write_frame};
-use super::tls::{TlsError, client_config, load_certs, parse_certs};
+use lockstep_net::{
+    FrameError, TlsError, close_code, load_certs, parse_certs, read_frame, write_frame,
+};
+
+use super::tls::client_config;
 use crate::game::{GameRules, RulesFactory, RulesId};
 
 /// The certificate (or CA) a client trusts: a PEM file, or PEM text held in

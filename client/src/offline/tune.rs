@@ -7,7 +7,7 @@
 //! compared with the reference's at the times every tick rate hits; its cost
 //! is the CPU time per simulated second (the minimum of a few timed runs
 //! after the measuring run, which also warms the caches) and a deterministic
-//! work count. The timing lives here, in the CLI: the core has no clock.
+//! work count. The timing lives here, outside the core: the core has no clock.
 //! docs/tune.md describes the method.
 
 mod plot;

@@ -1,15 +1,9 @@
-//! Helpers shared by the CLI tests: the `lockstep` binary, the example
-//! scenes and per-test scratch folders.
+//! Helpers shared by the integration tests: the example scenes and
+//! per-test scratch folders.
 
 #![allow(dead_code)]
 
 use std::path::PathBuf;
-use std::process::Command;
-
-/// The `lockstep` binary of this build.
-pub fn lockstep() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_lockstep"))
-}
 
 /// An example scene from the repository's `scenes/`.
 pub fn scene(name: &str) -> PathBuf {

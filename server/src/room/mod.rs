@@ -679,7 +679,7 @@ impl RoomTask {
                     seat.closing = true;
                     let remote = seat.peer.remote;
                     seat.peer.connection.close(
-                        lockstep_client::net::close_code::OVERLOADED.into(),
+                        lockstep_net::close_code::OVERLOADED.into(),
                         b"stream send queue full",
                     );
                     self.shared.refused(
@@ -718,7 +718,7 @@ impl RoomTask {
                     if !seat.closing {
                         // Left or lost: nothing more to tell it.
                         let _ = seat.peer.writer.try_send(WriterCmd::Close {
-                            code: lockstep_client::net::close_code::NORMAL,
+                            code: lockstep_net::close_code::NORMAL,
                             reason: format!("{reason:?}"),
                         });
                     }

@@ -11,7 +11,7 @@ use lockstep_client::offline::{SimOptions, check_replay_command, run_sim};
 
 /// lockstep: deterministic lockstep physics, offline tools.
 #[derive(Parser, Debug)]
-#[command(name = "lockstep", version, about)]
+#[command(name = "lockstep", version)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -10,7 +10,7 @@ use lockstep_client::bot::{BotOptions, run_bots};
 
 /// Headless lockstep bots with seeded scripted input.
 #[derive(Parser, Debug)]
-#[command(name = "lockstep-bot", version, about)]
+#[command(name = "lockstep-bot", version)]
 struct Cli {
     /// The server's UDP address.
     #[arg(long)]

@@ -10,11 +10,13 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use lockstep_client::bot::{BotOptions, run_bots};
-use lockstep_client::game::{Demo, RulesFactory};
+use lockstep_client::game::{Demo, DemoGame, RulesFactory};
 use lockstep_client::offline::verify_replay_file;
 use tokio::sync::{mpsc, oneshot};
 
-use crate::{RoomReport, RoomStatus, ServerConfig, ServerError, ServerEvent, TlsSource, run};
+use lockstep_server::{
+    RoomReport, RoomStatus, ServerConfig, ServerError, ServerEvent, TlsSource, run,
+};
 
 /// What the demo runs.
 #[derive(Clone)]
@@ -33,9 +35,15 @@ pub struct DemoOptions {
 }
 
 impl DemoOptions {
-    /// Four bots, 20 s, on a free loopback port, dev certificate in `out/`.
+    /// The demo game with four bots, 20 s, on a free loopback port, dev
+    /// certificate in `out/`.
     pub fn new() -> Self {
-        let mut server = ServerConfig::new(SocketAddr::from(([127, 0, 0, 1], 0)));
+        let mut server = ServerConfig::for_game(
+            SocketAddr::from(([127, 0, 0, 1], 0)),
+            DemoGame::SCENE,
+            "demo",
+            Demo.rules_id(),
+        );
         server.tls = TlsSource::dev("out/dev-cert.pem");
         Self {
             server,
@@ -273,7 +281,7 @@ fn print_summary(s: &DemoSummary, bots: usize) {
             );
             println!("replay check: {check}");
             println!(
-                "  re-check with: cargo run --release -p lockstep-client --bin lockstep -- replay {}",
+                "  re-check with: cargo run --release -p lockstep --bin lockstep -- replay {}",
                 p.display()
             );
         }

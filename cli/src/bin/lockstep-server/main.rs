@@ -1,5 +1,7 @@
 //! `lockstep-server`: parses flags and runs the library's server (or the
-//! demo); Ctrl-C or SIGTERM shuts it down gracefully.
+//! demo, module [`demo`]); Ctrl-C or SIGTERM shuts it down gracefully.
+
+mod demo;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -7,13 +9,14 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
-use lockstep_server::demo::{DemoOptions, run_demo};
+use demo::{DemoOptions, run_demo};
+use lockstep_client::game::{Demo, DemoGame, RulesFactory};
 use lockstep_server::{ServerConfig, TlsSource, run};
 
 /// The lockstep server: relays inputs, compares every tick's hashes,
 /// records replays.
 #[derive(Parser, Debug)]
-#[command(name = "lockstep-server", version, about)]
+#[command(name = "lockstep-server", version)]
 struct Cli {
     /// Run the demo: the server on loopback with 4 in-process bots, a status
     /// line per second, a summary at the end.
@@ -103,7 +106,7 @@ async fn main() -> ExitCode {
     } else {
         cli.listen
     };
-    let mut config = ServerConfig::new(listen);
+    let mut config = ServerConfig::for_game(listen, DemoGame::SCENE, "demo", Demo.rules_id());
     config.tls = match (cli.cert, cli.key) {
         (Some(cert), Some(key)) => TlsSource::Files { cert, key },
         _ => TlsSource::dev(cli.cert_out),
