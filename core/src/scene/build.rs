@@ -31,18 +31,13 @@ pub fn load_world(text: &str, file_name: &str) -> Result<World, SceneError> {
 /// geometry that parsed cannot be built, e.g. a convex hull whose points are
 /// all coplanar or out of range.
 pub fn build_world(desc: &SceneDesc, file_name: &str) -> Result<World, SceneError> {
-    let config = WorldConfig {
-        gravity: desc.world.gravity,
-        tick_rate: desc.world.tick_rate,
-        substeps: desc.world.substeps,
-        ..WorldConfig::default()
-    };
-    build_world_with_config(desc, config, file_name)
+    build_world_with_config(desc, desc.world.config(), file_name)
 }
 
 /// Builds the bodies a scene describes into a world with other settings:
-/// `config` replaces everything the scene's `[world]` table gives (gravity,
-/// tick rate, substeps). `lockstep tune` runs one scene at many tick rates,
+/// `config` replaces everything the scene's `[world]` table gives (start
+/// from [`WorldDesc::config`](super::WorldDesc::config) to change only some
+/// settings). `lockstep tune` runs one scene at many tick rates,
 /// substep and solver iteration counts this way.
 ///
 /// # Errors

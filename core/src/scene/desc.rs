@@ -10,11 +10,12 @@
 //! material or applies a default.
 
 use crate::math::{Quat, Scalar, Vec3};
+use crate::world::WorldConfig;
 
 /// A whole scene: world settings, the named materials, and the bodies.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneDesc {
-    /// Gravity, tick rate and substeps.
+    /// Gravity, tick rate, substeps and the other world settings.
     pub world: WorldDesc,
     /// The `[materials.*]` tables in file order. Kept (although every shape
     /// already has its material resolved) so tools can list and re-export
@@ -51,6 +52,13 @@ pub struct WorldDesc {
     pub tick_rate: u32,
     /// Solver substeps per tick, in `1..=64`. Default 4.
     pub substeps: u32,
+    /// Everything else a world is set up with (solver passes, contact
+    /// spring, margins, push-out, restitution threshold, sleeping), as the
+    /// file's `[world]` keys give it; the keys it leaves out keep
+    /// [`WorldConfig::default`]'s values. Its `gravity`, `tick_rate` and
+    /// `substeps` are not read: the fields above are. See
+    /// [`WorldDesc::config`].
+    pub settings: WorldConfig,
 }
 
 impl WorldDesc {
@@ -65,6 +73,17 @@ impl WorldDesc {
         Scalar::from_ratio(1, i64::from(self.tick_rate.max(1)))
     }
 
+    /// The world settings this table describes: the gravity, tick rate and
+    /// substeps above with the rest of [`WorldDesc::settings`].
+    pub fn config(&self) -> WorldConfig {
+        WorldConfig {
+            gravity: self.gravity,
+            tick_rate: self.tick_rate,
+            substeps: self.substeps,
+            ..self.settings
+        }
+    }
+
     /// The substep length in seconds, `1 / (tick_rate · substeps)`, rounded
     /// once (not `dt() / substeps`, which would round twice).
     pub fn substep_dt(&self) -> Scalar {
@@ -75,12 +94,14 @@ impl WorldDesc {
 
 impl Default for WorldDesc {
     /// The values used for keys a scene leaves out: Earth gravity along −y,
-    /// 60 ticks per second, 4 substeps.
+    /// 60 ticks per second, 4 substeps, and [`WorldConfig::default`] for
+    /// the rest.
     fn default() -> WorldDesc {
         WorldDesc {
             gravity: WorldDesc::default_gravity(),
             tick_rate: 60,
             substeps: 4,
+            settings: WorldConfig::default(),
         }
     }
 }

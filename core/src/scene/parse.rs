@@ -14,11 +14,28 @@ use super::reader::{Result, TableView};
 use super::rotation::read_rotation;
 use super::shape::read_shape;
 use crate::math::{Quat, Scalar, Vec3};
+use crate::world::MAX_SOLVER_ITERATIONS;
 
 /// Keys of the root table.
 const ROOT_KEYS: &[&str] = &["world", "materials", "bodies"];
 /// Keys of `[world]`.
-const WORLD_KEYS: &[&str] = &["gravity", "tick_rate", "substeps"];
+const WORLD_KEYS: &[&str] = &[
+    "gravity",
+    "tick_rate",
+    "substeps",
+    "solver_iterations",
+    "relax_iterations",
+    "contact_hertz",
+    "contact_damping_ratio",
+    "contact_margin",
+    "broad_phase_margin",
+    "max_push_out",
+    "restitution_threshold",
+    "sleep",
+    "sleep_linear_threshold",
+    "sleep_angular_threshold",
+    "time_to_sleep",
+];
 /// Keys of a `[materials.NAME]` table.
 const MATERIAL_KEYS: &[&str] = &["friction", "restitution", "density"];
 /// Keys of a `[[bodies]]` table.
@@ -129,6 +146,50 @@ fn read_world(t: &TableView<'_>) -> Result<WorldDesc> {
     if let Some(f) = t.get("substeps") {
         let rule = format!("1 to {MAX_SUBSTEPS}");
         world.substeps = t.integer(&f, 1, MAX_SUBSTEPS, &rule)? as u32;
+    }
+    let settings = &mut world.settings;
+    for (key, slot) in [
+        ("solver_iterations", &mut settings.solver_iterations),
+        ("relax_iterations", &mut settings.relax_iterations),
+    ] {
+        if let Some(f) = t.get(key) {
+            let rule = format!("1 to {MAX_SOLVER_ITERATIONS} passes per substep");
+            *slot = t.integer(&f, 1, i64::from(MAX_SOLVER_ITERATIONS), &rule)? as u32;
+        }
+    }
+    for (key, slot, unit) in [
+        ("contact_hertz", &mut settings.contact_hertz, "Hz"),
+        (
+            "contact_damping_ratio",
+            &mut settings.contact_damping_ratio,
+            "a damping ratio",
+        ),
+        ("contact_margin", &mut settings.contact_margin, "m"),
+        ("broad_phase_margin", &mut settings.broad_phase_margin, "m"),
+        ("max_push_out", &mut settings.max_push_out, "m/s"),
+        (
+            "restitution_threshold",
+            &mut settings.restitution_threshold,
+            "m/s",
+        ),
+        (
+            "sleep_linear_threshold",
+            &mut settings.sleep.linear_threshold,
+            "m/s",
+        ),
+        (
+            "sleep_angular_threshold",
+            &mut settings.sleep.angular_threshold,
+            "rad/s",
+        ),
+        ("time_to_sleep", &mut settings.sleep.time_to_sleep, "s"),
+    ] {
+        if let Some(f) = t.get(key) {
+            *slot = t.scalar_where(&f, |v| !v.is_negative(), &format!("≥ 0 ({unit})"))?;
+        }
+    }
+    if let Some(f) = t.get("sleep") {
+        settings.sleep.enabled = t.boolean(&f)?;
     }
     Ok(world)
 }

@@ -381,7 +381,7 @@ impl<'a> TableView<'a> {
                         ),
                     ));
                 }
-                parse_exact(text).map_err(|e| {
+                let value = parse_exact(text).map_err(|e| {
                     let why = match e {
                         ParseDecimalError::OutOfRange => {
                             "is outside the fixed-point range ±2147483648".to_owned()
@@ -394,7 +394,21 @@ impl<'a> TableView<'a> {
                         SceneErrorKind::BadNumber,
                         format!("{name} = {text} {why}"),
                     )
-                })
+                })?;
+                // A non-zero literal below half the resolution would become
+                // 0 without a word: a radius, a mass or a speed the author
+                // did not mean.
+                let mantissa = text.split(['e', 'E']).next().unwrap_or(text);
+                if value.is_zero() && mantissa.bytes().any(|c| matches!(c, b'1'..=b'9')) {
+                    return Err(self.error(
+                        at,
+                        SceneErrorKind::BadNumber,
+                        format!(
+                            "{name} = {text} rounds to 0: numbers are fixed point with steps of 2^-32 (about 2.3e-10); write 0 or a larger value"
+                        ),
+                    ));
+                }
+                Ok(value)
             }
             other => Err(self.error(
                 at,

@@ -58,12 +58,12 @@ impl Scene {
         Ok(scene)
     }
 
-    /// The settings the scene file gives (iterations: the world defaults).
+    /// The settings the scene file gives.
     pub fn own(&self) -> Settings {
-        let d = WorldConfig::default();
+        let d = self.desc.world.config();
         Settings {
-            tick_rate: self.desc.world.tick_rate,
-            substeps: self.desc.world.substeps,
+            tick_rate: d.tick_rate,
+            substeps: d.substeps,
             solver_iterations: d.solver_iterations,
             relax_iterations: d.relax_iterations,
         }
@@ -75,13 +75,14 @@ impl Scene {
     /// [`TuneError::Scene`] (geometry that does not build, settings out of
     /// range).
     pub fn build(&self, s: Settings) -> Result<World, TuneError> {
+        // The scene's own settings (contact spring, margins, sleeping) with
+        // the four that tune varies.
         let config = WorldConfig {
-            gravity: self.desc.world.gravity,
             tick_rate: s.tick_rate,
             substeps: s.substeps,
             solver_iterations: s.solver_iterations,
             relax_iterations: s.relax_iterations,
-            ..WorldConfig::default()
+            ..self.desc.world.config()
         };
         Ok(build_world_with_config(&self.desc, config, &self.file)?)
     }

@@ -38,7 +38,7 @@ fn unknown_keys_are_rejected_with_a_suggestion() {
     );
     assert_error(
         "[world]\n  tickrate = 60\n",
-        "test.toml:2:3: world: unknown key \"tickrate\" in [world] (did you mean \"tick_rate\"? expected one of: gravity, tick_rate, substeps)",
+        "test.toml:2:3: world: unknown key \"tickrate\" in [world] (did you mean \"tick_rate\"? expected one of: gravity, tick_rate, substeps, solver_iterations, relax_iterations, contact_hertz, contact_damping_ratio, contact_margin, broad_phase_margin, max_push_out, restitution_threshold, sleep, sleep_linear_threshold, sleep_angular_threshold, time_to_sleep)",
     );
     assert_error(
         "[physics]\n",
@@ -46,7 +46,7 @@ fn unknown_keys_are_rejected_with_a_suggestion() {
     );
     assert_error(
         &format!("{BALL}rotation = {{ axis = [0, 1, 0], angle = 3 }}\n"),
-        "test.toml:7:32: body \"ball\", shape 1: unknown key \"rotation.angle\" in a rotation (expected one of: axis, angle_deg, quaternion)",
+        "test.toml:7:32: body \"ball\", shape 1: unknown key \"rotation.angle\" in a rotation (expected one of: axis, angle_deg, quat_xyzw, quat_wxyz, quaternion, euler_deg, euler_order)",
     );
 }
 
@@ -291,7 +291,7 @@ fn flat_convex_hulls_are_rejected() {
 fn zero_rotations_are_rejected() {
     assert_error(
         &format!("{BALL}rotation = {{ quaternion = [0, 0, 0, 0] }}\n"),
-        "test.toml:7:27: body \"ball\", shape 1: rotation.quaternion must not be zero (expected a non-zero [w, x, y, z]; it is normalised on load)",
+        "test.toml:7:27: body \"ball\", shape 1: rotation.quaternion must not be zero (expected a unit quaternion)",
     );
     assert_error(
         &format!("{BALL}rotation = {{ axis = [0, 0.0, 0], angle_deg = 45 }}\n"),
@@ -304,6 +304,38 @@ fn zero_rotations_are_rejected() {
 }
 
 #[test]
+fn rotations_that_are_not_unit_or_mix_forms_are_rejected() {
+    assert_error(
+        &format!("{BALL}rotation = {{ quat_xyzw = [0, 0, 1, 1] }}\n"),
+        "test.toml:7:26: body \"ball\", shape 1: rotation.quat_xyzw is not a unit quaternion (its length is 1.4142136); write the normalised [0.0000000, 0.0000000, 0.7071068, 0.7071068]",
+    );
+    assert_error(
+        &format!("{BALL}rotation = {{ quaternion = [2, 0, 0, 0] }}\n"),
+        "test.toml:7:27: body \"ball\", shape 1: rotation.quaternion is not a unit quaternion (its length is 2.0000000); write the normalised [1.0000000, 0.0000000, 0.0000000, 0.0000000]",
+    );
+    assert_error(
+        &format!("{BALL}rotation = {{ euler_deg = [0, 90, 0], quat_wxyz = [1, 0, 0, 0] }}\n"),
+        "test.toml:7:50: body \"ball\", shape 1: rotation.quat_wxyz cannot be combined with rotation.euler_deg (give one rotation: axis and angle_deg, a quaternion, or euler_deg)",
+    );
+    assert_error(
+        &format!("{BALL}rotation = {{ euler_deg = [0, 90, 0], euler_order = \"xxz\" }}\n"),
+        "test.toml:7:52: body \"ball\", shape 1: rotation.euler_order \"xxz\" is not an order of the three axes (expected one of: xyz, xzy, yxz, yzx, zxy, zyx; the first is applied first)",
+    );
+    assert_error(
+        &format!("{BALL}rotation = {{ quat_xyzw = [0, 0, 0, 1], euler_order = \"zxy\" }}\n"),
+        "test.toml:7:54: body \"ball\", shape 1: rotation.euler_order goes with euler_deg only",
+    );
+}
+
+#[test]
+fn nonzero_numbers_that_round_to_zero_are_rejected() {
+    assert_error(
+        &BALL.replace("radius = 1\n", "radius = 1e-11\n"),
+        "test.toml:6:10: body \"ball\", shape 1: radius = 1e-11 rounds to 0: numbers are fixed point with steps of 2^-32 (about 2.3e-10); write 0 or a larger value",
+    );
+}
+
+#[test]
 fn keys_that_exclude_each_other_are_rejected() {
     assert_error(
         &format!("{BALL}density = 10\nmass = 2\n"),
@@ -311,7 +343,7 @@ fn keys_that_exclude_each_other_are_rejected() {
     );
     assert_error(
         &format!("{BALL}rotation = {{ quaternion = [1, 0, 0, 0], axis = [0, 1, 0] }}\n"),
-        "test.toml:7:48: body \"ball\", shape 1: rotation.axis cannot be combined with rotation.quaternion (give either axis and angle_deg, or quaternion)",
+        "test.toml:7:48: body \"ball\", shape 1: rotation.axis cannot be combined with rotation.quaternion (give one rotation: axis and angle_deg, a quaternion, or euler_deg)",
     );
 }
 

@@ -8,6 +8,7 @@ mod fuzz;
 use super::rotation::degrees_to_radians;
 use super::*;
 use crate::math::{Quat, Scalar, Vec3};
+use crate::world::WorldConfig;
 
 pub(super) const PYRAMID: &str = include_str!("../../../../scenes/pyramid.toml");
 pub(super) const SHAPES: &str = include_str!("../../../../scenes/shapes.toml");
@@ -352,25 +353,87 @@ fn axis_angle_rotations_become_unit_quaternions() {
 }
 
 #[test]
-fn quaternions_are_normalised_on_load_in_w_x_y_z_order() {
-    let scene = parse(
-        "[[bodies]]\nname = \"a\"\nkind = \"static\"\nrotation = { quaternion = [2, 0, 0, 0] }\n[[bodies.shapes]]\nkind = \"sphere\"\nradius = 1\nrotation = { quaternion = [0, 0, 0, -3] }\n",
-    );
-    let b = &scene.bodies[0];
-    assert_eq!(b.rotation, Quat::IDENTITY);
+fn quaternions_name_their_order_and_near_unit_ones_are_normalised() {
+    // The same rotation (90° about y) in every form.
+    let half = Scalar::from_bits(3_037_000_500); // cos 45°, rounded
+    let forms = [
+        "quat_xyzw = [0, 0.7071068, 0, 0.7071068]",
+        "quat_wxyz = [0.7071068, 0, 0.7071068, 0]",
+        "quaternion = [0.7071068, 0, 0.7071068, 0]",
+        "axis = [0, 1, 0], angle_deg = 90",
+        "euler_deg = [0, 90, 0]",
+    ];
+    for form in forms {
+        let scene = parse(&format!("{BALL}rotation = {{ {form} }}\n"));
+        let q = scene.bodies[0].shapes[0].rotation;
+        assert!(
+            (q.w - half).abs().to_bits() <= 4 && (q.y - half).abs().to_bits() <= 4,
+            "{form}: {q:?}"
+        );
+        assert_eq!((q.x, q.z), (Scalar::ZERO, Scalar::ZERO), "{form}");
+    }
+    // Exactly unit: kept as written, sign included.
+    let scene = parse(&format!(
+        "{BALL}rotation = {{ quat_xyzw = [0, 0, -1, 0] }}\n"
+    ));
     assert_eq!(
-        b.shapes[0].rotation,
+        scene.bodies[0].shapes[0].rotation,
         Quat::from_xyzw(Scalar::ZERO, Scalar::ZERO, Scalar::NEG_ONE, Scalar::ZERO)
     );
-    // Huge components are scaled down first: no overflow, no panic.
-    let scene = parse(&format!(
-        "{BALL}rotation = {{ quaternion = [2000000000, 2000000000, 2000000000, 2000000000] }}\n"
-    ));
-    let q = scene.bodies[0].shapes[0].rotation;
-    assert_eq!(
-        (q.w, q.x, q.y, q.z),
-        (Scalar::HALF, Scalar::HALF, Scalar::HALF, Scalar::HALF)
+}
+
+#[test]
+fn euler_angles_apply_in_the_given_order_about_the_parent_axes() {
+    let rot =
+        |e: &str| parse(&format!("{BALL}rotation = {{ {e} }}\n")).bodies[0].shapes[0].rotation;
+    let near = |a: Vec3, b: [f64; 3]| {
+        (a.x.to_f64() - b[0]).abs() < 1e-8
+            && (a.y.to_f64() - b[1]).abs() < 1e-8
+            && (a.z.to_f64() - b[2]).abs() < 1e-8
+    };
+    // x by 90° first, then z by 90°: +y goes to +z, then stays (z axis).
+    // +x stays under the first, then goes to +y.
+    let q = rot("euler_deg = [90, 0, 90]");
+    assert!(
+        near(q.rotate(Vec3::Y), [0.0, 0.0, 1.0]),
+        "{:?}",
+        q.rotate(Vec3::Y)
     );
+    assert!(
+        near(q.rotate(Vec3::X), [0.0, 1.0, 0.0]),
+        "{:?}",
+        q.rotate(Vec3::X)
+    );
+    // z first, then x: +x goes to +y, then to +z.
+    let q = rot("euler_deg = [90, 0, 90], euler_order = \"zxy\"");
+    assert!(
+        near(q.rotate(Vec3::X), [0.0, 0.0, 1.0]),
+        "{:?}",
+        q.rotate(Vec3::X)
+    );
+}
+
+#[test]
+fn world_settings_reach_the_world() {
+    let scene = parse(
+        "[world]\nsolver_iterations = 4\nrelax_iterations = 2\ncontact_hertz = 30\ncontact_damping_ratio = 1\ncontact_margin = 0.01\nbroad_phase_margin = 0.2\nmax_push_out = 1.5\nrestitution_threshold = 0.5\nsleep = false\nsleep_linear_threshold = 0.01\nsleep_angular_threshold = 0.02\ntime_to_sleep = 2\n",
+    );
+    let c = scene.world.config();
+    assert_eq!((c.solver_iterations, c.relax_iterations), (4, 2));
+    assert_eq!(c.contact_hertz, Scalar::from_int(30));
+    assert_eq!(c.contact_damping_ratio, Scalar::ONE);
+    assert_eq!(c.contact_margin, Scalar::from_ratio(1, 100));
+    assert_eq!(c.broad_phase_margin, Scalar::from_ratio(1, 5));
+    assert_eq!(c.max_push_out, Scalar::from_ratio(3, 2));
+    assert_eq!(c.restitution_threshold, Scalar::HALF);
+    assert!(!c.sleep.enabled);
+    assert_eq!(c.sleep.linear_threshold, Scalar::from_ratio(1, 100));
+    assert_eq!(c.sleep.angular_threshold, Scalar::from_ratio(1, 50));
+    assert_eq!(c.sleep.time_to_sleep, Scalar::from_int(2));
+    let world = build_world(&scene, "test.toml").unwrap();
+    assert_eq!(world.config(), &c);
+    // Left out: the defaults.
+    assert_eq!(parse("").world.config(), WorldConfig::default());
 }
 
 #[test]
