@@ -326,6 +326,40 @@ impl Shared {
 /// collect the last hash reports, closes every connection with a reason,
 /// flushes the replays, and waits for every task.
 ///
+/// # Example
+///
+/// A server for a game of one static box on a free port, with its own dev
+/// certificate and no replays, stopped as soon as it listens:
+///
+/// ```
+/// use lockstep_server::{RulesId, ServerConfig, ServerEvent, TlsSource, run};
+///
+/// # #[tokio::main(flavor = "current_thread")]
+/// # async fn main() {
+/// let dir = std::env::temp_dir().join(format!("lockstep-doc-{}", std::process::id()));
+/// let scene = "[[bodies]]\nname = \"ground\"\nkind = \"static\"\n\
+///              [[bodies.shapes]]\nkind = \"box\"\nhalf_extents = [10, 1, 10]\n";
+/// let listen = "127.0.0.1:0".parse().unwrap();
+/// let mut config = ServerConfig::for_game(listen, scene, "ground", RulesId::new("my-game", 1));
+/// config.tls = TlsSource::dev(dir.join("cert.pem"));
+/// config.replay_dir = None;
+/// let (events_tx, mut events) = tokio::sync::mpsc::unbounded_channel();
+/// config.events = Some(events_tx);
+/// let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+/// let server = tokio::spawn(run(config, async {
+///     let _ = stopped.await;
+/// }));
+/// let Some(ServerEvent::Listening { addr, cert }) = events.recv().await else {
+///     panic!("the server did not start");
+/// };
+/// assert_ne!(addr.port(), 0);
+/// assert!(cert.expect("a dev certificate").exists()); // for clients to trust
+/// stop.send(()).unwrap();
+/// let report = server.await.unwrap().unwrap();
+/// assert!(report.matches.is_empty());
+/// # }
+/// ```
+///
 /// # Errors
 /// [`ServerError`] if the scene does not build, the settings are incoherent,
 /// the certificate cannot be made, or the socket cannot be bound. Errors of

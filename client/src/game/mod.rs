@@ -61,6 +61,76 @@ pub trait GameRules: Send {
 /// `new_rules` is called once per world (each client, each bot, each replay
 /// check), right after the world is built from the match's scene and before
 /// the first tick; it may look bodies up by name and keep their handles.
+///
+/// # Example
+///
+/// A one-button game: a player's input byte `1` kicks the ball called
+/// `"ball"` upward by 2 m/s; anything else (a malformed input included)
+/// does nothing. Every peer builds its own rules from the same world and
+/// applies the same inputs before each step, so two peers stay identical.
+///
+/// ```
+/// use lockstep_client::game::{GameError, GameRules, RulesFactory, RulesId};
+/// use lockstep_core::{BodyHandle, Scalar, Vec3, World, scene::load_world};
+///
+/// struct Kick;
+/// struct KickRules {
+///     ball: BodyHandle,
+/// }
+///
+/// impl RulesFactory for Kick {
+///     fn rules_id(&self) -> RulesId {
+///         RulesId::new("kick", 1)
+///     }
+///     fn new_rules(&self, world: &World) -> Result<Box<dyn GameRules>, GameError> {
+///         let ball = world
+///             .find_body("ball")
+///             .ok_or_else(|| GameError::MissingBody("ball".into()))?;
+///         Ok(Box::new(KickRules { ball }))
+///     }
+/// }
+///
+/// impl GameRules for KickRules {
+///     fn apply_inputs(&mut self, world: &mut World, _tick: u64, inputs: &[(u8, &[u8])]) {
+///         for &(_slot, bytes) in inputs {
+///             if bytes == [1] {
+///                 let mass = world.body(self.ball).map(|b| b.mass()).unwrap_or(Scalar::ZERO);
+///                 let up = Vec3::new(Scalar::ZERO, Scalar::from_int(2) * mass, Scalar::ZERO);
+///                 let _ = world.apply_impulse(self.ball, up);
+///             }
+///         }
+///     }
+/// }
+///
+/// let scene = "[[bodies]]\nname = \"ball\"\nkind = \"dynamic\"\n\
+///              [[bodies.shapes]]\nkind = \"sphere\"\nradius = 0.5\n";
+/// let mut peers: Vec<(World, Box<dyn GameRules>)> = (0..2)
+///     .map(|_| {
+///         let world = load_world(scene, "kick.toml").unwrap();
+///         let rules = Kick.new_rules(&world).unwrap();
+///         (world, rules)
+///     })
+///     .collect();
+/// for tick in 0..30 {
+///     let kick: &[u8] = if tick == 0 { &[1] } else { &[7, 7] }; // then garbage
+///     for (world, rules) in &mut peers {
+///         rules.apply_inputs(world, tick, &[(0, kick)]);
+///         world.step();
+///     }
+/// }
+/// let (a, b) = (&peers[0].0, &peers[1].0);
+/// assert_eq!(a.state_hash(), b.state_hash());
+/// // Kicked at 2 m/s and falling since: v = 2 − 9.81·0.5 s.
+/// let ball = a.find_body("ball").unwrap();
+/// let vy = a.body(ball).unwrap().linear_velocity().y.to_f64();
+/// assert!((vy - (2.0 - 9.81 * 0.5)).abs() < 1e-6, "{vy}");
+/// // A game without a ball is refused with the reason.
+/// let empty = load_world("", "empty.toml").unwrap();
+/// assert_eq!(
+///     Kick.new_rules(&empty).err(),
+///     Some(GameError::MissingBody("ball".into()))
+/// );
+/// ```
 pub trait RulesFactory: Send + Sync {
     /// The rules' id and version, recorded in every replay; a replay is
     /// checked only with rules of the same id and version.
