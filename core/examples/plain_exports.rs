@@ -8,6 +8,13 @@
 //!     --scene scenes/demo.toml --ticks 100
 //! ```
 //!
+//! A game's own module is a `cdylib` crate; this example is an ordinary
+//! (binary) example, whose wasm build exports the `#[unsafe(no_mangle)]`
+//! functions just the same (and a `main` that nothing calls), because the
+//! cross-architecture check also builds the core's examples for i686 and
+//! aarch64 statically linked, where a cdylib cannot be made. Natively, `main`
+//! only says how to build it.
+//!
 //! The module imports nothing (the runner checks): it cannot reach threads,
 //! files or clocks. JS passes a scene's text in through linear memory:
 //! `lockstep_input(len)` returns where to write `len` bytes, then
@@ -22,6 +29,14 @@ use std::cell::RefCell;
 
 #[path = "support/random_scene.rs"]
 mod random_scene;
+
+/// Natively there is nothing to run.
+fn main() {
+    eprintln!(
+        "plain_exports is a wasm module: cargo build --release -p lockstep-core \
+         --example plain_exports --target wasm32-unknown-unknown"
+    );
+}
 
 /// The module's state: one world, the input buffer JS writes into, and the
 /// last error message.
