@@ -76,4 +76,92 @@ for scene in scenes/*.toml; do
   done
   [ $status -ne 0 ] || echo "cross-arch: ok $name: $ticks ticks, x86_64 = i686 = aarch64, final $(tail -1 "$out/$name.x86_64")"
 done
+
+# --- wasm32 -----------------------------------------------------------------
+# The fourth architecture, two ways, on every example scene and on seeded
+# random scenes 1..20 (sphere, box, capsule and hull bodies, dynamic and
+# static, built through the core API from integers), TICKS ticks each:
+# - wasm32-wasip1: core's `scene_hashes` example (it needs nothing but
+#   lockstep-core) under Node's WASI (scripts/wasi-run.mjs);
+# - wasm32-unknown-unknown, the browser target: core's `plain_exports`
+#   example, a module that imports nothing (so no threads, files or clocks),
+#   driven from JS through its exports (scripts/plain-exports-run.mjs);
+# each compared with `scene_hashes` built natively; fails if any hash line
+# differs. The native scene lines are also checked against the golden files
+# (every 50th tick), so the example steps scenes as `lockstep sim` does.
+# lockstep-proto must build for wasm32-unknown-unknown too.
+# Installs the two rustup targets, and Debian's nodejs if `node` is missing.
+wasm32_check() {
+  local target_dir="${CARGO_TARGET_DIR:-target}"
+  local native="$target_dir/release/examples/scene_hashes"
+  local wasi="$target_dir/wasm32-wasip1/release/examples/scene_hashes.wasm"
+  local plain="$target_dir/wasm32-unknown-unknown/release/examples/plain_exports.wasm"
+  local installed t
+  if ! command -v node >/dev/null; then
+    echo "cross-arch: installing nodejs"
+    local sudo_cmd=""
+    [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
+    $sudo_cmd apt-get update -q >/dev/null
+    DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -q nodejs >/dev/null
+  fi
+  installed=$(rustup target list --installed)
+  for t in wasm32-wasip1 wasm32-unknown-unknown; do
+    grep -qx "$t" <<<"$installed" || rustup target add "$t"
+  done
+
+  echo "cross-arch: building scene_hashes natively; lockstep-core, lockstep-proto and the examples for wasm32-wasip1 and wasm32-unknown-unknown"
+  cargo build -q --release -p lockstep-core --example scene_hashes
+  # One invocation for both wasm targets, so their builds overlap.
+  cargo build -q --release -p lockstep-core -p lockstep-proto --lib \
+    --example scene_hashes --example plain_exports \
+    --target wasm32-wasip1 --target wasm32-unknown-unknown
+
+  local dir fail=0 compared=0 name what golden flavour
+  dir=$(mktemp -d)
+  compare() { # name what args...
+    name=$1 what=$2
+    shift 2
+    compared=$((compared + 1))
+    if ! "$native" "$@" --ticks "$ticks" >"$dir/$name.native"; then
+      echo "cross-arch: FAIL $what: the native example failed"
+      fail=1
+      return
+    fi
+    if [ "$(wc -l <"$dir/$name.native")" -ne "$ticks" ]; then
+      echo "cross-arch: FAIL $what: native printed $(wc -l <"$dir/$name.native") hash lines, expected $ticks"
+      fail=1
+      return
+    fi
+    node scripts/wasi-run.mjs "$wasi" "$@" --ticks "$ticks" >"$dir/$name.wasm32-wasip1" || true
+    node scripts/plain-exports-run.mjs "$plain" "$@" --ticks "$ticks" >"$dir/$name.wasm32-unknown-unknown" || true
+    local ok=1
+    for flavour in wasm32-wasip1 wasm32-unknown-unknown; do
+      if ! cmp -s "$dir/$name.native" "$dir/$name.$flavour"; then
+        echo "cross-arch: FAIL $what: $flavour differs from x86_64: $(diff "$dir/$name.native" "$dir/$name.$flavour" | head -3 | tr '\n' ' ')"
+        fail=1 ok=0
+      fi
+    done
+    [ $ok -eq 0 ] || echo "cross-arch: ok $what: $ticks ticks, x86_64 = wasm32-wasip1 = wasm32-unknown-unknown, final $(tail -1 "$dir/$name.native")"
+  }
+  for scene in scenes/*.toml; do
+    name=$(basename "$scene" .toml)
+    compare "$name" "$name" --scene "$scene"
+    golden="tests/golden/$name.hashes"
+    if [ -f "$golden" ] && ! cmp -s \
+      <(awk '$2 % 50 == 0 && $2 <= 1000' "$dir/$name.native") \
+      <(awk -v n="$ticks" '$2 <= n' "$golden"); then
+      echo "cross-arch: FAIL $name: the example's native hashes differ from $golden"
+      fail=1
+    fi
+  done
+  for seed in $(seq 1 20); do
+    compare "random$seed" "random scene $seed" --random "$seed"
+  done
+  rm -rf "$dir"
+  [ $fail -ne 0 ] || echo "cross-arch: ok wasm32: $compared scenes, x86_64 = wasm32-wasip1 = wasm32-unknown-unknown (under node $(node --version))"
+  wasm32_status=$fail
+}
+wasm32_status=0
+wasm32_check
+[ $wasm32_status -eq 0 ] || status=1
 exit $status
