@@ -387,19 +387,25 @@ fn a_sleeping_pile_stays_asleep_until_a_moving_ball_hits_it() {
     let _ = ball;
 }
 
-/// A stack of boxes settling on the ground with sleep off: after the first
-/// second most pairs barely move from tick to tick and rebuild their
-/// manifolds from the reuse cache.
-fn settling_stack() -> World {
+/// The default world with sleeping on or off and the default ground.
+fn grounded_world(sleep: bool) -> World {
     let mut w = World::new(WorldConfig {
         sleep: lockstep_core::solver::sleep::SleepConfig {
-            enabled: false,
+            enabled: sleep,
             ..Default::default()
         },
         ..WorldConfig::default()
     })
     .unwrap();
     common::ground(&mut w, lockstep_core::Material::default());
+    w
+}
+
+/// A stack of boxes settling on the ground with sleep off: after the first
+/// second most pairs barely move from tick to tick and rebuild their
+/// manifolds from the reuse cache.
+fn settling_stack() -> World {
+    let mut w = grounded_world(false);
     for i in 0..6 {
         let b = w
             .create_body(&BodyDesc::dynamic().name(format!("box{i}")).position(v(
@@ -476,15 +482,7 @@ fn a_reused_stack_stays_where_the_full_test_would_keep_it() {
 /// resting on the default ground and rolling without slip along +x at
 /// `v0`, with angular damping `c` (1/s); sleep on or off.
 fn rolling(shape: &str, v0: f64, c: f64, sleep: bool) -> (World, BodyHandle) {
-    let mut w = World::new(WorldConfig {
-        sleep: lockstep_core::solver::sleep::SleepConfig {
-            enabled: sleep,
-            ..Default::default()
-        },
-        ..WorldConfig::default()
-    })
-    .unwrap();
-    common::ground(&mut w, lockstep_core::Material::default());
+    let mut w = grounded_world(sleep);
     let (shape, rotation) = match shape {
         "ball" => (Shape::Sphere(Sphere { radius: s(0.5) }), Quat::IDENTITY),
         _ => (
