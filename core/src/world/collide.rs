@@ -293,6 +293,11 @@ impl World {
         // first pass walks only the active pairs (every pair with a moving
         // body is among them), the next ones every pair (a woken sleeper's
         // resting pairs are not active).
+        // Nothing asleep, nothing to wake: the passes would find no sleeper
+        // (the count is exact at any time, see `BodySet::sleeping_count`).
+        if self.bodies.sleeping_count() == 0 {
+            return 0;
+        }
         let mut total = 0;
         let mut all = false;
         loop {
