@@ -266,9 +266,10 @@ struct ActivePairs {
     index: Vec<u32>,
     /// Scratch for the next `index`.
     next_index: Vec<u32>,
-    /// Scratch: the merged pair array after a fast update that created or
-    /// dropped pairs.
-    merged: Vec<ContactPair>,
+    /// Scratch: the keys of `order`'s entries and whether each was a
+    /// candidate, for the in-place merge after a fast update that created
+    /// or dropped pairs.
+    keys: Vec<((u32, u32), bool)>,
     /// The pairs a fast update leaves active or asleep, in key order: an
     /// old pair updated in place (its index in the pair array) or a new
     /// one (its index in `ContactSet::next`, tagged with [`NEW_PAIR`]), and
@@ -542,7 +543,8 @@ impl ContactSet {
                 s.events.capacity(),
                 s.active.order.capacity(),
                 s.active.index.capacity() + s.active.next_index.capacity(),
-                s.pairs.capacity() + s.active.merged.capacity(),
+                s.pairs.capacity(),
+                s.active.keys.capacity(),
             ]
         };
         let caps = capacities(self);
@@ -641,34 +643,63 @@ impl ContactSet {
         } else {
             // Determinism: a merge by (A, B) key of the untouched resting
             // pairs with the updated active ones; the keys are distinct (a
-            // resting pair is never a candidate while nothing wakes).
-            a.merged.clear();
-            reserve_near(&mut a.merged, self.pairs.len() + self.next.len());
-            let mut rest = a.index.iter().copied().peekable();
-            let mut j = 0usize;
-            for (i, p) in self.pairs.iter().enumerate() {
-                if rest.peek() == Some(&(i as u32)) {
-                    rest.next();
-                    continue;
-                }
-                while j < a.order.len() && entry(a.order[j]).key() < p.key() {
-                    if a.order[j].1 {
-                        a.next_index.push(a.merged.len() as u32);
+            // resting pair is never a candidate while nothing wakes). Done
+            // in place, so the world keeps one pair array, not two.
+            a.keys.clear();
+            a.keys
+                .extend(a.order.iter().map(|&e| (entry(e).key(), e.1)));
+            // 1. Drop the active pairs the update dropped: every other pair
+            //    (resting, updated in place or kept asleep) stays, in order.
+            //    The old entries of `order` are ascending pair indices.
+            let mut olds = a.order.iter().filter(|e| e.0 & NEW_PAIR == 0).peekable();
+            let mut active = a.index.iter().copied().peekable();
+            let mut kept = 0usize;
+            for i in 0..self.pairs.len() {
+                let keep = if active.peek() == Some(&(i as u32)) {
+                    active.next();
+                    let updated = olds.peek().is_some_and(|e| e.0 == i as u32);
+                    if updated {
+                        olds.next();
                     }
-                    a.merged.push(*entry(a.order[j]));
-                    j += 1;
+                    updated
+                } else {
+                    true
+                };
+                if keep {
+                    self.pairs[kept] = self.pairs[i];
+                    kept += 1;
                 }
-                debug_assert!(j >= a.order.len() || entry(a.order[j]).key() != p.key());
-                a.merged.push(*p);
             }
-            while j < a.order.len() {
-                if a.order[j].1 {
-                    a.next_index.push(a.merged.len() as u32);
+            self.pairs.truncate(kept);
+            // 2. Merge the new pairs (in key order in `next`) in from the
+            //    back.
+            reserve_near(&mut self.pairs, kept + self.next.len());
+            self.pairs.extend_from_slice(&self.next);
+            let (mut i, mut j) = (kept, self.next.len());
+            while j > 0 {
+                let to = i + j - 1;
+                if i > 0 && self.pairs[i - 1].key() > self.next[j - 1].key() {
+                    self.pairs[to] = self.pairs[i - 1];
+                    i -= 1;
+                } else {
+                    self.pairs[to] = self.next[j - 1];
+                    j -= 1;
                 }
-                a.merged.push(*entry(a.order[j]));
-                j += 1;
             }
-            std::mem::swap(&mut self.pairs, &mut a.merged);
+            // 3. The new active list: where the candidates landed (the
+            //    entries of `order` are a subsequence of the array by key).
+            let mut want = a.keys.iter().peekable();
+            for (i, p) in self.pairs.iter().enumerate() {
+                if let Some(&&(key, cand)) = want.peek()
+                    && p.key() == key
+                {
+                    if cand {
+                        a.next_index.push(i as u32);
+                    }
+                    want.next();
+                }
+            }
+            debug_assert!(want.peek().is_none());
         }
         std::mem::swap(&mut a.index, &mut a.next_index);
         if capacities(self) != caps {
