@@ -307,19 +307,20 @@ fn edge_query<PA: Poly, PB: Poly>(
             let [blo, bhi] = b.p.edges()[eb];
             let [fb0, fb1] = b.p.edge_faces(eb);
             // B's normals enter negated (the Minkowski difference A − B).
-            let cba = -dot_sign(b.planes[fb0 as usize].0, arc_a);
-            let dba = -dot_sign(b.planes[fb1 as usize].0, arc_a);
+            let cba = -dot_sign(b.plane_at(fb0 as usize).0, arc_a);
+            let dba = -dot_sign(b.plane_at(fb1 as usize).0, arc_a);
             if cba * dba >= 0 {
                 continue;
             }
-            let arc_b = b.arcs[eb];
+            let arc_b = b.arc_at(eb);
             let adc = dot_sign(na, arc_b);
             let bdc = dot_sign(nb, arc_b);
             if adc * bdc >= 0 || cba * bdc <= 0 {
                 continue;
             }
-            let pb = b.verts[blo as usize];
-            let Some(mut axis) = unit_from_wide(cross_wide(ua, b.verts[bhi as usize] - pb)) else {
+            let pb = b.verts()[blo as usize];
+            let Some(mut axis) = unit_from_wide(cross_wide(ua, b.verts()[bhi as usize] - pb))
+            else {
                 continue;
             };
             if axis.dot_wide(na + nb) < 0 {
@@ -627,8 +628,8 @@ fn sat_and_clip<PA: Poly, PB: Poly>(
         let (ca, cb) = closest_segments(
             a.vertices()[a0 as usize],
             a.vertices()[a1 as usize],
-            pb.verts[b0 as usize],
-            pb.verts[b1 as usize],
+            pb.verts()[b0 as usize],
+            pb.verts()[b1 as usize],
         );
         let c = Cand {
             point: ca + (cb - ca).half(),

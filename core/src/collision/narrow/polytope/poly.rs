@@ -4,6 +4,8 @@
 //! B moved there ([`Moved`]), whose planes and arcs are computed only when
 //! a test asks for them.
 
+use std::mem::MaybeUninit;
+
 use super::super::BOX_FACE_LOOPS;
 use super::super::gjk::Rel;
 use super::{MAX_SAT_EDGES, MAX_SAT_FACES, MAX_SAT_VERTICES};
@@ -218,32 +220,75 @@ impl<P: Poly> Frame for Fixed<'_, P> {
 /// B moved into A's frame: every vertex at once (the face tests read them
 /// all); planes and arcs only as they are asked for, since the bounds
 /// leave most faces and edges of a pair untested.
+///
+/// The arrays are sized for the largest hull but left uninitialised: a
+/// hull-hull pair is built once per touching pair and step, and zeroing
+/// 20 KB each time was a seventh of a hull pile's instructions. Only the
+/// first `nv` vertices, and the planes and arcs whose bit is set in
+/// `planes_done` / `arcs_done`, are ever read.
 pub(super) struct Moved<'p, P: Poly> {
     pub(super) p: &'p P,
     rel: &'p Rel,
-    pub(super) verts: [Vec3; MAX_SAT_VERTICES],
-    pub(super) planes: [(Vec3, Scalar); MAX_SAT_FACES],
-    pub(super) arcs: [Vec3; MAX_SAT_EDGES],
-    /// Bit `f` of `planes_done`, bit `e` of `arcs_done`: computed.
+    /// The first `nv` are written by `new`.
+    verts: [MaybeUninit<Vec3>; MAX_SAT_VERTICES],
+    nv: usize,
+    planes: [MaybeUninit<(Vec3, Scalar)>; MAX_SAT_FACES],
+    arcs: [MaybeUninit<Vec3>; MAX_SAT_EDGES],
+    /// Bit `f` of `planes_done`, bit `e` of `arcs_done`: written.
     planes_done: [u64; MAX_SAT_FACES.div_ceil(64)],
     arcs_done: [u64; MAX_SAT_EDGES.div_ceil(64)],
 }
 
 impl<'p, P: Poly> Moved<'p, P> {
     pub(super) fn new(p: &'p P, rel: &'p Rel) -> Moved<'p, P> {
-        let mut verts = [Vec3::ZERO; MAX_SAT_VERTICES];
+        let mut verts = [const { MaybeUninit::uninit() }; MAX_SAT_VERTICES];
+        let mut nv = 0;
         for (slot, v) in verts.iter_mut().zip(p.vertices()) {
-            *slot = rel.point(*v);
+            slot.write(rel.point(*v));
+            nv += 1;
         }
         Moved {
             p,
             rel,
             verts,
-            planes: [(Vec3::ZERO, Scalar::ZERO); MAX_SAT_FACES],
-            arcs: [Vec3::ZERO; MAX_SAT_EDGES],
+            nv,
+            planes: [const { MaybeUninit::uninit() }; MAX_SAT_FACES],
+            arcs: [const { MaybeUninit::uninit() }; MAX_SAT_EDGES],
             planes_done: [0; MAX_SAT_FACES.div_ceil(64)],
             arcs_done: [0; MAX_SAT_EDGES.div_ceil(64)],
         }
+    }
+
+    /// Face `f`'s plane in A's frame, as [`Frame::plane`] gives it: the
+    /// stored one if computed, else computed now (the same value) without
+    /// storing it.
+    pub(super) fn plane_at(&self, f: usize) -> (Vec3, Scalar) {
+        if self.planes_done[f / 64] & (1u64 << (f % 64)) != 0 {
+            // SAFETY: the bit of `f` is set only after `planes[f]` was
+            // written (`Frame::plane`).
+            unsafe { self.planes[f].assume_init() }
+        } else {
+            self.compute_plane(f)
+        }
+    }
+
+    /// Edge `e`'s arc in A's frame, as [`Frame::arc`] gives it (computed
+    /// now if not stored, the same value).
+    pub(super) fn arc_at(&self, e: usize) -> Vec3 {
+        if self.arcs_done[e / 64] & (1u64 << (e % 64)) != 0 {
+            // SAFETY: the bit of `e` is set only after `arcs[e]` was written
+            // (`Frame::arc`).
+            unsafe { self.arcs[e].assume_init() }
+        } else {
+            let [f0, f1] = self.p.edge_faces(e);
+            let n0 = self.plane_at(f0 as usize).0;
+            self.plane_at(f1 as usize).0.cross(n0)
+        }
+    }
+
+    fn compute_plane(&self, f: usize) -> (Vec3, Scalar) {
+        let m = self.rel.rot.mul_vec(self.p.normal(f));
+        (m, self.p.offset(f) + m.dot(self.rel.t))
     }
 }
 
@@ -253,25 +298,31 @@ impl<P: Poly> Frame for Moved<'_, P> {
         self.p
     }
     fn verts(&self) -> &[Vec3] {
-        &self.verts[..self.p.vertices().len()]
+        let init = &self.verts[..self.nv];
+        // SAFETY: the first `nv` vertices were written in `new`, and
+        // `MaybeUninit<Vec3>` has the layout of `Vec3`.
+        unsafe { std::slice::from_raw_parts(init.as_ptr().cast::<Vec3>(), init.len()) }
     }
     fn plane(&mut self, f: usize) -> (Vec3, Scalar) {
         let bit = 1u64 << (f % 64);
         if self.planes_done[f / 64] & bit == 0 {
-            let m = self.rel.rot.mul_vec(self.p.normal(f));
-            self.planes[f] = (m, self.p.offset(f) + m.dot(self.rel.t));
+            let plane = self.compute_plane(f);
+            self.planes[f].write(plane);
             self.planes_done[f / 64] |= bit;
+            return plane;
         }
-        self.planes[f]
+        self.plane_at(f)
     }
     fn arc(&mut self, e: usize) -> Vec3 {
         let bit = 1u64 << (e % 64);
         if self.arcs_done[e / 64] & bit == 0 {
             let [f0, f1] = self.p.edge_faces(e);
             let n0 = self.plane(f0 as usize).0;
-            self.arcs[e] = self.plane(f1 as usize).0.cross(n0);
+            let arc = self.plane(f1 as usize).0.cross(n0);
+            self.arcs[e].write(arc);
             self.arcs_done[e / 64] |= bit;
+            return arc;
         }
-        self.arcs[e]
+        self.arc_at(e)
     }
 }
