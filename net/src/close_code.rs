@@ -16,6 +16,9 @@ pub const TIMED_OUT: u32 = 4;
 /// The server cannot serve the peer (too many connections, a full
 /// send queue).
 pub const OVERLOADED: u32 = 5;
+/// The peer's state hash stayed outside the majority: it diverged (or
+/// lies) and cannot follow the match any more.
+pub const DIVERGED: u32 = 6;
 
 /// The QUIC close code for a protocol [`CloseReason`].
 pub fn close_code_for(reason: CloseReason) -> u32 {
@@ -27,6 +30,7 @@ pub fn close_code_for(reason: CloseReason) -> u32 {
         | CloseReason::MatchInProgress
         | CloseReason::WrongRoom
         | CloseReason::VersionMismatch => REFUSED,
-        CloseReason::ProtocolViolation => PROTOCOL_VIOLATION,
+        CloseReason::ProtocolViolation | CloseReason::NoHashReports => PROTOCOL_VIOLATION,
+        CloseReason::Diverged => DIVERGED,
     }
 }

@@ -333,6 +333,11 @@ pub enum CloseReason {
     FellBehind,
     /// The room was shut down.
     RoomClosed,
+    /// The player's state hash stayed outside the majority, tick after
+    /// tick: it diverged, or it lies.
+    Diverged,
+    /// The player stopped reporting its state hash.
+    NoHashReports,
 }
 
 /// Final message to a player before the server closes the connection.

@@ -32,7 +32,7 @@ use crate::message::{
     BundleDatagram, ClientMessage, Close, CloseReason, HashReport, InputDatagram, Join, Ping,
     PlayerInput, ServerMessage, Slot, TickBundle, Welcome,
 };
-use arbiter::{Arbiter, Comparison, Recorded, SlotMask, bit, slots};
+use arbiter::{Arbiter, Comparison, Recorded, SlotMask, bit};
 use errors::close;
 use history::{FellBehind, History};
 use player::Player;
@@ -538,7 +538,7 @@ impl Room {
         self.next_tick += 1;
         self.stats.ticks_closed += 1;
         if let Some((t, c)) = self.arbiter.open(tick, now, expected) {
-            self.apply_comparison(t, c);
+            self.apply_comparison(now, t, c);
         }
     }
 
@@ -587,18 +587,49 @@ impl Room {
     fn run_arbiter(&mut self, now: Duration) {
         let connected = self.present_mask();
         for (tick, c) in self.arbiter.finalize(now, connected) {
-            self.apply_comparison(tick, c);
+            self.apply_comparison(now, tick, c);
         }
     }
 
-    fn apply_comparison(&mut self, _tick: u64, c: Comparison) {
+    fn apply_comparison(&mut self, now: Duration, tick: u64, c: Comparison) {
         self.stats.ticks_compared += 1;
         if c.mismatch {
             self.stats.mismatched_ticks += 1;
         }
-        for slot in slots(c.missing) {
-            if let Some(Some(p)) = self.players.get_mut(slot.index()) {
+        // Streaks: hashes missing on consecutive compared ticks, and ticks
+        // judged wrong in a row among the ticks the player reported.
+        let mut drop: Vec<(PlayerId, CloseReason, String)> = Vec::new();
+        for index in 0..self.players.len() {
+            let id = self.id_of(index);
+            let Some(p) = &mut self.players[index] else {
+                continue;
+            };
+            let b = bit(Slot(index as u8));
+            if c.missing & b != 0 {
                 p.stats.missing_hash_reports += 1;
+                p.missing_streak += 1;
+            } else if c.reported & b != 0 {
+                p.missing_streak = 0;
+                if c.wrong & b != 0 {
+                    p.wrong_streak += 1;
+                } else {
+                    p.wrong_streak = 0;
+                }
+            }
+            let (max_missing, max_wrong) =
+                (self.config.max_missing_reports, self.config.max_wrong_ticks);
+            if max_missing > 0 && p.missing_streak >= max_missing {
+                let detail = format!(
+                    "no state hash for {} ticks in a row (up to tick {tick})",
+                    p.missing_streak
+                );
+                drop.push((id, CloseReason::NoHashReports, detail));
+            } else if max_wrong > 0 && p.wrong_streak >= max_wrong {
+                let detail = format!(
+                    "state hash outside the majority on {} reported ticks in a row (up to tick {tick})",
+                    p.wrong_streak
+                );
+                drop.push((id, CloseReason::Diverged, detail));
             }
         }
         if let Some(notice) = c.notice {
@@ -613,6 +644,13 @@ impl Room {
                 }
             }
             self.events.push_back(RoomEvent::Desync(notice));
+        }
+        for (id, reason, detail) in drop {
+            let leave = match reason {
+                CloseReason::NoHashReports => LeaveReason::NoHashReports,
+                _ => LeaveReason::Diverged,
+            };
+            self.remove(now, id, leave, Some(close(reason, detail)));
         }
     }
 }

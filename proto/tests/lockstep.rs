@@ -171,8 +171,25 @@ fn a_round_trip_far_beyond_the_redundancy_still_delivers_everything() {
 fn a_wrong_hash_at_tick_300_from_one_of_four_players_is_named_at_tick_300() {
     let mut sim = Sim::new(config(), clean(4, 15), 3);
     sim.clients[2].corrupt_at = Some(300);
-    sim.run_until_delivered(600, Duration::from_secs(15));
-    sim.run_for(Duration::from_millis(500));
+    // It reports a wrong hash on every tick from 300 on, so the room drops
+    // it after `max_wrong_ticks` (180) of them, at tick 480.
+    sim.run_until_delivered(470, Duration::from_secs(15));
+    sim.run_for(Duration::from_millis(1000));
+    let left: Vec<_> = sim
+        .events
+        .iter()
+        .filter_map(|(_, e)| match e {
+            RoomEvent::PlayerLeft {
+                id,
+                reason,
+                from_tick,
+            } => Some((id.slot, *reason, *from_tick)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+    assert_eq!((left[0].0, left[0].1), (Slot(2), LeaveReason::Diverged));
+    assert!((480..=490).contains(&left[0].2), "{left:?}");
     let desyncs: Vec<_> = sim
         .events
         .iter()
@@ -197,9 +214,10 @@ fn a_wrong_hash_at_tick_300_from_one_of_four_players_is_named_at_tick_300() {
         assert_eq!(h.hash, Some(sim.clients[h.slot.index()].hashes[300]));
         assert_eq!(h.hash == Some(*majority_hash), h.slot != Slot(2));
     }
-    // Every tick from 300 on mismatched, but only one notice went out.
+    // Every tick from 300 until it left mismatched, but only one notice
+    // went out.
     let stats = sim.room.stats();
-    assert!(stats.mismatched_ticks >= 290, "{stats:?}");
+    assert_eq!(stats.mismatched_ticks, 180, "{stats:?}");
     assert_eq!(stats.desync_notices, 1);
     for c in &sim.clients {
         let got: Vec<_> = c

@@ -500,3 +500,113 @@ fn pings_measure_rtt_and_silence_drops_the_player() {
     room.handle_timeout(Duration::from_secs(6));
     assert!(room.next_tick() > before);
 }
+
+/// Plays `ticks` ticks at their deadlines: every present player sends its
+/// input in time, and `report(slot, tick)` gives the hash each reports once
+/// the tick closed (`None`: no report). Returns every event and transmit.
+fn play_reporting(
+    room: &mut Room,
+    ids: &[PlayerId],
+    ticks: u64,
+    report: impl Fn(usize, u64) -> Option<u64>,
+) -> (Vec<Transmit>, Vec<RoomEvent>) {
+    let (mut transmits, mut events) = (Vec::new(), Vec::new());
+    let mut gone = vec![false; ids.len()];
+    for tick in 0..ticks {
+        let now = after(room, tick);
+        for (i, &id) in ids.iter().enumerate() {
+            if !gone[i] {
+                room.handle_message(now, id, input(id, tick, vec![vec![1]]))
+                    .unwrap();
+            }
+        }
+        room.handle_timeout(now);
+        for (i, &id) in ids.iter().enumerate() {
+            if let (false, Some(hash)) = (gone[i], report(i, tick)) {
+                let r = ClientMessage::HashReport(HashReport {
+                    tick,
+                    hash,
+                    body_hashes: None,
+                });
+                room.handle_message(now, id, r).unwrap();
+            }
+        }
+        let (t, e) = drain(room);
+        for e in &e {
+            if let RoomEvent::PlayerLeft { id, .. } = e {
+                gone[ids.iter().position(|x| x == id).unwrap()] = true;
+            }
+        }
+        transmits.extend(t);
+        events.extend(e);
+    }
+    (transmits, events)
+}
+
+fn left(events: &[RoomEvent]) -> Vec<(PlayerId, LeaveReason, u64)> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            RoomEvent::PlayerLeft {
+                id,
+                reason,
+                from_tick,
+            } => Some((*id, *reason, *from_tick)),
+            _ => None,
+        })
+        .collect()
+}
+
+fn closes_to(transmits: &[Transmit], to: PlayerId) -> Vec<CloseReason> {
+    transmits
+        .iter()
+        .filter(|t| t.to == to)
+        .filter_map(|t| match &t.message {
+            ServerMessage::Close(c) => Some(c.reason),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A client that lies on even ticks and stays silent on odd ones is one
+/// divergence, announced once (it used to be announced every 2 ticks), and
+/// is dropped as diverged after `max_wrong_ticks` of its reports; the
+/// honest players play on.
+#[test]
+fn a_liar_alternating_with_silence_gets_one_notice_and_is_dropped() {
+    let (mut room, ids) = room(4);
+    let (transmits, events) = play_reporting(&mut room, &ids, 500, |i, tick| match i {
+        3 if tick % 2 == 1 => None,
+        3 => Some(9),
+        _ => Some(7),
+    });
+    let notices = events
+        .iter()
+        .filter(|e| matches!(e, RoomEvent::Desync(_)))
+        .count();
+    assert_eq!(notices, 1);
+    // Its 180th wrong report is tick 358; that tick compares as it arrives.
+    assert_eq!(left(&events), vec![(ids[3], LeaveReason::Diverged, 359)]);
+    assert_eq!(closes_to(&transmits, ids[3]), vec![CloseReason::Diverged]);
+    assert_eq!(room.player_count(), 3);
+    assert_eq!(room.config().max_wrong_ticks, 180);
+}
+
+/// Hash reports are not optional: a player that sends inputs but never a
+/// hash is dropped after `max_missing_reports` compared ticks without one
+/// (each compared at its 2 s timeout), and nobody else is.
+#[test]
+fn a_player_that_never_reports_its_hash_is_dropped() {
+    let (mut room, ids) = room(3);
+    let (transmits, events) = play_reporting(&mut room, &ids, 500, |i, _| (i != 1).then_some(7));
+    let gone = left(&events);
+    assert_eq!(gone.len(), 1, "{gone:?}");
+    assert_eq!((gone[0].0, gone[0].1), (ids[1], LeaveReason::NoHashReports));
+    // Tick 299 is compared at its timeout, 2 s (120 ticks) after it closed.
+    assert_eq!(gone[0].2, 420);
+    assert_eq!(
+        closes_to(&transmits, ids[1]),
+        vec![CloseReason::NoHashReports]
+    );
+    assert!(!events.iter().any(|e| matches!(e, RoomEvent::Desync(_))));
+}

@@ -36,8 +36,14 @@ struct Entry {
 pub(crate) struct Comparison {
     /// Expected players that never reported.
     pub missing: SlotMask,
+    /// Players that reported.
+    pub reported: SlotMask,
     /// Whether the reported hashes differed.
     pub mismatch: bool,
+    /// Reporters outside a strict majority of the reported hashes (empty
+    /// when they agree or no hash has a strict majority), on every
+    /// mismatched tick, announced or not.
+    pub wrong: SlotMask,
     /// The notice to raise; `None` when the hashes agree, or when this tick
     /// continues a divergence already reported.
     pub notice: Option<DesyncNotice>,
@@ -202,13 +208,28 @@ impl Arbiter {
             }
         }
         if groups.len() <= 1 {
-            self.last_groups = None;
+            // The divergence is over only when everyone in it reported and
+            // agreed: a player that diverges on some ticks and stays silent
+            // on the others must not raise a new notice each time it
+            // speaks again.
+            let involved = self
+                .last_groups
+                .as_ref()
+                .map_or(0, |g| g.iter().fold(0, |a, m| a | m));
+            if involved & !reported == 0 {
+                self.last_groups = None;
+            }
             return Comparison {
                 missing,
+                reported,
                 mismatch: false,
+                wrong: 0,
                 notice: None,
             };
         }
+        let reporters = reported.count_ones();
+        let majority = groups.iter().find(|(_, m)| m.count_ones() * 2 > reporters);
+        let wrong = majority.map_or(0, |&(_, m)| reported & !m);
         let masks: Vec<SlotMask> = groups.iter().map(|g| g.1).collect();
         let same_divergence = self
             .last_groups
@@ -218,12 +239,13 @@ impl Arbiter {
         if same_divergence {
             return Comparison {
                 missing,
+                reported,
                 mismatch: true,
+                wrong,
                 notice: None,
             };
         }
-        let reporters = reported.count_ones();
-        let verdict = match groups.iter().find(|(_, m)| m.count_ones() * 2 > reporters) {
+        let verdict = match majority {
             Some(&(majority_hash, m)) => Verdict::Majority {
                 majority_hash,
                 wrong: slots(reported & !m),
@@ -243,7 +265,9 @@ impl Arbiter {
         };
         Comparison {
             missing,
+            reported,
             mismatch: true,
+            wrong,
             notice: Some(notice),
         }
     }
@@ -300,6 +324,46 @@ mod tests {
             wrong: vec![Slot(1)],
         };
         assert_eq!(notices, vec![(3, wrong1.clone()), (8, wrong1)]);
+    }
+
+    /// A liar that reports a wrong hash on even ticks and nothing on odd
+    /// ones is one divergence, announced once, and judged wrong on every
+    /// tick it reports.
+    #[test]
+    fn a_liar_that_alternates_with_silence_is_announced_once() {
+        let mut a = Arbiter::new(16, T);
+        let mut notices = 0;
+        let mut judged_wrong = 0;
+        for tick in 0..40u64 {
+            let now = Duration::from_millis(tick * 100);
+            a.open(tick, now, 0b1111);
+            for s in 0..3 {
+                a.record(tick, Slot(s), 7);
+            }
+            if tick % 2 == 0 {
+                a.record(tick, Slot(3), 9);
+            }
+            // Odd ticks are compared at their timeout, without slot 3.
+            for (_, c) in a.finalize(now + T, 0b1111) {
+                notices += usize::from(c.notice.is_some());
+                judged_wrong += usize::from(c.wrong == 0b1000);
+            }
+        }
+        assert_eq!(notices, 1);
+        assert_eq!(judged_wrong, 20);
+        // Everyone agreeing again ends the divergence: the next lie is new.
+        a.open(40, Duration::ZERO, 0b1111);
+        for s in 0..4 {
+            a.record(40, Slot(s), 7);
+        }
+        a.open(41, Duration::ZERO, 0b1111);
+        for s in 0..3 {
+            a.record(41, Slot(s), 7);
+        }
+        a.record(41, Slot(3), 9);
+        let out = a.finalize(Duration::ZERO, 0b1111);
+        assert_eq!(out.len(), 2);
+        assert!(out[1].1.notice.is_some());
     }
 
     #[test]

@@ -40,6 +40,20 @@ pub struct RoomConfig {
     pub hash_timeout: Duration,
     /// A player heard from for this long is dropped. Default 5 s.
     pub silence_timeout: Duration,
+    /// A player whose state hash is missing on this many compared ticks in
+    /// a row (each compared at the latest `hash_timeout` after it closed)
+    /// is dropped with [`CloseReason::NoHashReports`](crate::CloseReason):
+    /// reports are not optional, or a client could avoid being judged.
+    /// 0: never. Default 300 (5 s at 60 Hz): with the hash timeout, a
+    /// player that talks but never reports goes after 7 s, and one that
+    /// went silent altogether is dropped as timed out first.
+    pub max_missing_reports: u32,
+    /// A player whose state hash is outside a strict majority on this many
+    /// of its reported ticks in a row is dropped with
+    /// [`CloseReason::Diverged`](crate::CloseReason): it diverged for good,
+    /// or it keeps lying (ticks it stays silent on do not break the run).
+    /// 0: never. Default 180 (3 s at 60 Hz).
+    pub max_wrong_ticks: u32,
     /// Interval between pings to each player (RTT and liveness). Default 1 s.
     pub ping_interval: Duration,
     /// Scene sent to each player in the welcome, opaque to the room.
@@ -62,6 +76,8 @@ impl RoomConfig {
             hash_window_ticks: 256,
             hash_timeout: Duration::from_secs(2),
             silence_timeout: Duration::from_secs(5),
+            max_missing_reports: 300,
+            max_wrong_ticks: 180,
             ping_interval: Duration::from_secs(1),
             scene,
             scene_hash,

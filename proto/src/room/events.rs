@@ -44,6 +44,14 @@ pub enum LeaveReason {
     FellBehind,
     /// The caller removed the player ([`Room::kick`](super::Room::kick)).
     Kicked,
+    /// Its state hash stayed outside the majority for
+    /// [`RoomConfig::max_wrong_ticks`](super::RoomConfig::max_wrong_ticks)
+    /// reported ticks in a row.
+    Diverged,
+    /// Its state hash was missing on
+    /// [`RoomConfig::max_missing_reports`](super::RoomConfig::max_missing_reports)
+    /// compared ticks in a row.
+    NoHashReports,
 }
 
 /// Something the caller may want to log, record or act on.

@@ -42,6 +42,11 @@ pub(crate) struct Player {
     /// Nonce and send time of the ping awaiting its pong.
     pub(crate) ping: Option<(u64, Duration)>,
     pub(crate) stats: PlayerStats,
+    /// Compared ticks in a row without this player's hash.
+    pub(crate) missing_streak: u32,
+    /// Ticks in a row, among those it reported, where its hash was outside
+    /// the majority.
+    pub(crate) wrong_streak: u32,
 }
 
 impl Player {
@@ -56,6 +61,8 @@ impl Player {
             next_ping_at: now,
             ping: None,
             stats: PlayerStats::default(),
+            missing_streak: 0,
+            wrong_streak: 0,
         }
     }
 
