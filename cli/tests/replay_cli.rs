@@ -191,3 +191,38 @@ fn a_changed_input_is_named_with_its_tick_and_the_player_s_ball() {
     assert!(bodies[0].starts_with("  at tick 50: body #"), "{out}");
     assert!(bodies[0].contains("\"player0\": expected "), "{out}");
 }
+
+/// A replay whose end record is missing (the server stopped while
+/// recording) is reported as cut, with the tick where it stops, not as a
+/// whole match: exit status 5. Cut inside a record, it says so too.
+#[test]
+fn a_replay_without_its_end_is_reported_as_cut_at_its_last_tick() {
+    let whole = record(120, None);
+    let end = lockstep_proto::replay::encode_record(&lockstep_proto::ReplayRecord::End {
+        ticks: 120,
+        reason: "test over".into(),
+    })
+    .expect("end record");
+    let at_boundary = &whole[..whole.len() - end.len()];
+    assert!(
+        lockstep_proto::Replay::parse(at_boundary)
+            .unwrap()
+            .end
+            .is_none()
+    );
+    let (code, out) = run("cut.replay", at_boundary);
+    assert_eq!(code, 5, "{out}");
+    assert!(
+        out.starts_with("CUT at tick 120: the file has no end record (the server"),
+        "{out}"
+    );
+    assert!(out.contains("120 hashes checked"), "{out}");
+    let (code, out) = run("cut-inside.replay", &whole[..whole.len() - 1]);
+    assert_eq!(code, 5, "{out}");
+    assert!(
+        out.starts_with(
+            "CUT at tick 120: the file has no end record and its last record is incomplete"
+        ),
+        "{out}"
+    );
+}

@@ -88,6 +88,15 @@ pub struct ReplayCheck {
     pub end: Option<String>,
 }
 
+impl ReplayCheck {
+    /// Whether the file is cut: no end record, or its last record cut
+    /// short. What it holds was checked, but the match went on past
+    /// [`ReplayCheck::ticks`].
+    pub fn is_cut(&self) -> bool {
+        self.truncated || self.end.is_none()
+    }
+}
+
 /// Why a replay does not verify.
 #[derive(Debug, Error)]
 pub enum ReplayVerifyError {
@@ -164,6 +173,10 @@ pub mod exit_status {
     pub const WRONG_RULES: u8 = 3;
     /// The replay's hashes use another state-hash layout.
     pub const WRONG_HASH_LAYOUT: u8 = 4;
+    /// Every hash the file holds matches, but the file is cut: it has no
+    /// end record (the server stopped while recording), so the match went
+    /// on past what it shows.
+    pub const CUT: u8 = 5;
 }
 
 impl ReplayVerifyError {
@@ -332,22 +345,27 @@ pub fn verify_replay_file(
 pub fn check_replay_command(path: &Path, game: &dyn RulesFactory) -> u8 {
     match verify_replay_file(path, game) {
         Ok(c) => {
-            println!(
-                "OK: {} ticks re-simulated, {} hashes checked ({} without an agreed hash), \
-                 {} players, {} desync notices recorded, final hash {:016x}{}",
-                c.ticks,
-                c.checked,
-                c.unchecked,
-                c.players,
-                c.desyncs_recorded,
-                c.final_hash,
-                if c.truncated {
-                    " (file cut short: checked up to the cut)"
-                } else {
-                    ""
-                }
+            let figures = format!(
+                "{} ticks re-simulated, {} hashes checked ({} without an agreed hash), \
+                 {} players, {} desync notices recorded, final hash {:016x}",
+                c.ticks, c.checked, c.unchecked, c.players, c.desyncs_recorded, c.final_hash,
             );
-            exit_status::OK
+            if c.is_cut() {
+                println!(
+                    "CUT at tick {}: the file has no end record{} (the server stopped while \
+                     recording); what it holds matches: {figures}",
+                    c.ticks,
+                    if c.truncated {
+                        " and its last record is incomplete"
+                    } else {
+                        ""
+                    },
+                );
+                exit_status::CUT
+            } else {
+                println!("OK: {figures}");
+                exit_status::OK
+            }
         }
         Err(ReplayVerifyError::Mismatch {
             tick,
