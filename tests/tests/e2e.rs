@@ -578,3 +578,130 @@ async fn graceful_shutdown_mid_match_finishes_the_tick_and_flushes_a_replay_that
     let check = verify_replay_file(&path, &Demo).expect("replay verifies");
     assert_eq!((check.ticks, check.checked), (m.ticks, m.ticks));
 }
+
+/// A raw player that keeps up with the match without simulating: it sends
+/// its input ahead, acknowledges bundles, and reports `report(tick)` for
+/// each closed tick (`None`: no report). Runs until the server closes it;
+/// returns the reason of the server's `Close`.
+async fn raw_reporter(
+    server: SocketAddr,
+    cert: PathBuf,
+    room: &'static str,
+    name: &'static str,
+    report: fn(u64) -> Option<u64>,
+) -> Option<(CloseReason, String)> {
+    let (_endpoint, connection, mut send, mut recv, slot) =
+        raw_join(server, &cert, room, name).await;
+    connection.send_datagram(inputs(slot, 0, 5)).unwrap();
+    let play = async {
+        let mut next = 0u64;
+        loop {
+            let Ok(d) = connection.read_datagram().await else {
+                return;
+            };
+            let Ok(ServerMessage::Bundles(b)) = ServerMessage::decode(&d) else {
+                continue;
+            };
+            for bundle in &b.bundles {
+                if bundle.tick != next {
+                    continue;
+                }
+                next += 1;
+                if let Some(hash) = report(bundle.tick) {
+                    let m = ClientMessage::HashReport(lockstep_proto::HashReport {
+                        tick: bundle.tick,
+                        hash,
+                        body_hashes: None,
+                    });
+                    if write_frame(&mut send, &m.encode().unwrap()).await.is_err() {
+                        return;
+                    }
+                }
+            }
+            // Inputs up to 4 ticks ahead, with the bundle ack.
+            let m = ClientMessage::Input(InputDatagram {
+                slot,
+                ack_bundle: next.checked_sub(1),
+                first_tick: next,
+                inputs: vec![vec![0, 0, 0]; 5],
+            });
+            if connection
+                .send_datagram(Bytes::from(m.encode().unwrap()))
+                .is_err()
+            {
+                return;
+            }
+        }
+    };
+    let closed = async {
+        let read = async {
+            while let Ok(Some(frame)) = read_frame(&mut recv).await {
+                if let Ok(ServerMessage::Close(c)) = ServerMessage::decode(&frame) {
+                    return Some((c.reason, c.detail));
+                }
+            }
+            None
+        };
+        tokio::time::timeout(Duration::from_secs(30), read)
+            .await
+            .ok()
+            .flatten()
+    };
+    tokio::select! {
+        () = play => None,
+        c = closed => c,
+    }
+}
+
+/// Two attacks on the hash vote, each by a raw client beside three honest
+/// bots: a liar that reports a fake hash on even ticks and nothing on odd
+/// ones (it used to raise a desync notice every 2 ticks), and a player that
+/// never reports (it used to be never judged). The liar gets one notice and
+/// is dropped as diverged; the silent reporter is dropped for its missing
+/// reports; the bots play on with 0 desyncs of their own and the replay
+/// re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_liar_alternating_with_silence_and_a_player_that_never_reports_are_dropped() {
+    let mut server = TestServer::start("vote", |c| {
+        c.room.start_players = 5;
+        c.room.match_ticks = Some(540);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let liar = tokio::spawn(raw_reporter(addr, cert.clone(), "vote", "liar", |t| {
+        (t % 2 == 0).then_some(0xbad)
+    }));
+    let mute = tokio::spawn(raw_reporter(addr, cert.clone(), "vote", "mute", |_| None));
+    let options = BotOptions::new(addr, &cert, "vote", 3);
+    let bots = bots_ok(run_bots(&options, std::future::pending()).await);
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    let (liar_reason, liar_detail) = liar.await.unwrap().expect("the liar is closed");
+    assert_eq!(liar_reason, CloseReason::Diverged, "{liar_detail}");
+    let (mute_reason, mute_detail) = mute.await.unwrap().expect("the mute player is closed");
+    assert_eq!(mute_reason, CloseReason::NoHashReports, "{mute_detail}");
+    // One notice for the liar's whole divergence, then nothing.
+    assert_eq!(ended.desyncs.len(), 1, "{:?}", ended.desyncs);
+    match &ended.desyncs[0].verdict {
+        Verdict::Majority { wrong, .. } => assert_eq!(wrong.len(), 1),
+        Verdict::Undecided => panic!("expected a majority verdict"),
+    }
+    assert_same_hashes(&bots, 540);
+    for b in &bots {
+        assert_eq!(b.desyncs().count(), 1, "the one notice, about the liar");
+    }
+    let left: Vec<_> = ended
+        .players
+        .iter()
+        .map(|p| (p.name.as_str(), p.left.as_ref().map(|l| l.1.as_str())))
+        .collect();
+    assert!(left.contains(&("liar", Some("Diverged"))), "{left:?}");
+    assert!(left.contains(&("mute", Some("NoHashReports"))), "{left:?}");
+    let check = verify_replay_file(&ended.replay.expect("replay"), &Demo).expect("replay verifies");
+    assert_eq!(check.ticks, 540);
+}
