@@ -179,6 +179,21 @@ impl Room {
         seated.peek().is_some() && seated.all(|p| p.pending.contains(self.next_tick))
     }
 
+    /// The seated players that have not sent their input for the first
+    /// tick yet, in slot order: whom a server drops when its lobby waited
+    /// long enough, so one player that never sends it cannot keep a match
+    /// from starting.
+    pub fn unready_players(&self) -> Vec<PlayerId> {
+        (0..self.players.len())
+            .filter(|&i| {
+                self.players[i]
+                    .as_ref()
+                    .is_some_and(|p| !p.pending.contains(self.next_tick))
+            })
+            .map(|i| self.id_of(i))
+            .collect()
+    }
+
     /// Starts the tick clock: tick 0 closes one tick period after `now`.
     ///
     /// # Errors

@@ -610,3 +610,22 @@ fn a_player_that_never_reports_its_hash_is_dropped() {
     );
     assert!(!events.iter().any(|e| matches!(e, RoomEvent::Desync(_))));
 }
+
+/// The players a lobby would drop: seated without their first input.
+#[test]
+fn unready_players_are_those_without_their_first_input() {
+    let mut room = Room::new(RoomConfig::new("arena", vec![], 1)).unwrap();
+    let ids: Vec<_> = (0..3)
+        .map(|i| room.join(MS, &join_msg(&format!("p{i}"))).unwrap())
+        .collect();
+    assert_eq!(room.unready_players(), ids);
+    for &id in &[ids[0], ids[2]] {
+        room.handle_message(MS, id, input(id, 0, vec![vec![1]]))
+            .unwrap();
+    }
+    assert_eq!(room.unready_players(), vec![ids[1]]);
+    assert!(!room.all_ready());
+    room.kick(MS, ids[1], CloseReason::TimedOut, "no first input");
+    assert!(room.unready_players().is_empty());
+    assert!(room.all_ready());
+}
