@@ -49,12 +49,33 @@ pub(crate) struct Peer {
 pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
     let remote = incoming.remote_address();
     let mut shutdown = shared.shutdown.clone();
-    let joined = tokio::select! {
-        r = tokio::time::timeout(JOIN_TIMEOUT, join(&shared, incoming)) => match r {
-            Ok(r) => r,
-            Err(_) => Err(("no join within 5 s".to_owned(), None, None)),
+    let deadline = tokio::time::Instant::now() + JOIN_TIMEOUT;
+    // The handshake and the join share one deadline; the connection is kept
+    // outside the timed part, so a client that never joins is refused with
+    // the reason rather than dropped without one.
+    let handshake = tokio::select! {
+        r = tokio::time::timeout_at(deadline, incoming) => match r {
+            Ok(Ok(c)) => Ok(c),
+            Ok(Err(e)) => Err(format!("handshake failed: {e}")),
+            Err(_) => Err("no handshake within 5 s".to_owned()),
         },
-        _ = shutdown.wait_for(|s| *s) => Err(("server shutting down".to_owned(), None, None)),
+        _ = shutdown.wait_for(|s| *s) => Err("server shutting down".to_owned()),
+    };
+    let connection = match handshake {
+        Ok(c) => c,
+        Err(reason) => {
+            shared.refused(remote, reason);
+            return;
+        }
+    };
+    let joined = tokio::select! {
+        r = tokio::time::timeout_at(deadline, join(&shared, connection.clone())) => match r {
+            Ok(r) => r,
+            Err(_) => Err(("no join within 5 s".to_owned(), Some(connection.clone()), None)),
+        },
+        _ = shutdown.wait_for(|s| *s) => {
+            Err(("server shutting down".to_owned(), Some(connection.clone()), None))
+        }
     };
     let (connection, recv, id, room_tx, writer) = match joined {
         Ok(v) => v,
@@ -92,11 +113,8 @@ type Refusal = (
     Option<tokio::task::JoinHandle<()>>,
 );
 
-/// Handshake, the first stream, the join frame, and a seat.
-async fn join(shared: &Arc<Shared>, incoming: quinn::Incoming) -> Result<Joined, Refusal> {
-    let connection = incoming
-        .await
-        .map_err(|e| (format!("handshake failed: {e}"), None, None))?;
+/// The first stream, the join frame, and a seat.
+async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joined, Refusal> {
     let fail = |reason: String| (reason, Some(connection.clone()), None);
     let (send, mut recv) = connection
         .accept_bi()

@@ -705,3 +705,37 @@ async fn a_liar_alternating_with_silence_and_a_player_that_never_reports_are_dro
     let check = verify_replay_file(&ended.replay.expect("replay"), &Demo).expect("replay verifies");
     assert_eq!(check.ticks, 540);
 }
+
+/// A connection that opens its stream but never sends a join is refused
+/// after 5 s with the join-refused close code and the reason (it used to be
+/// dropped with code 0 and no reason).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_connection_that_never_joins_is_refused_with_its_reason() {
+    let server = TestServer::start("nojoin", |_| {}).await;
+    let (_endpoint, connection, _send, _recv) = raw_connect(server.addr, &server.cert).await;
+    let started = Instant::now();
+    let closed = tokio::time::timeout(Duration::from_secs(10), connection.closed())
+        .await
+        .expect("closed within 10 s");
+    let waited = started.elapsed();
+    match closed {
+        quinn::ConnectionError::ApplicationClosed(c) => {
+            assert_eq!(
+                c.error_code,
+                quinn::VarInt::from_u32(lockstep_client::net::close_code::REFUSED)
+            );
+            assert_eq!(&c.reason[..], b"no join within 5 s");
+        }
+        other => panic!("expected an application close, got {other:?}"),
+    }
+    assert!(waited >= Duration::from_secs(4), "{waited:?}");
+    let report = server.shutdown().await;
+    assert!(
+        report
+            .refused
+            .iter()
+            .any(|(_, r)| r == "no join within 5 s"),
+        "{:?}",
+        report.refused
+    );
+}
