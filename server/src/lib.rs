@@ -67,6 +67,12 @@ pub struct RoomSettings {
     /// After the last tick, how long to wait for the last hash reports
     /// before closing the match.
     pub final_reports_timeout: Duration,
+    /// How long after its first join a lobby waits (`None`: for ever).
+    /// Then the seated players that have not sent their first input are
+    /// dropped (closed as timed out) and the match starts with the ready
+    /// ones, however few; with nobody ready the room closes. So a client
+    /// that joins and never plays cannot keep a match from starting.
+    pub lobby_timeout: Option<Duration>,
 }
 
 impl Default for RoomSettings {
@@ -79,6 +85,7 @@ impl Default for RoomSettings {
             silence_timeout: Duration::from_secs(5),
             match_ticks: None,
             final_reports_timeout: Duration::from_secs(2),
+            lobby_timeout: Some(Duration::from_secs(30)),
         }
     }
 }

@@ -739,3 +739,77 @@ async fn a_connection_that_never_joins_is_refused_with_its_reason() {
         report.refused
     );
 }
+
+/// A squatter that joins and answers but never sends its first input no
+/// longer keeps the match from starting: after the lobby timeout it is
+/// closed as timed out and the two bots play their match.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lobby_squatter_is_dropped_at_the_lobby_timeout_and_the_match_starts() {
+    let mut server = TestServer::start("squat", |c| {
+        c.room.start_players = 3;
+        c.room.match_ticks = Some(120);
+        c.room.lobby_timeout = Some(Duration::from_secs(2));
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let (_e, connection, _s, mut recv, _slot) = raw_join(addr, &cert, "squat", "squatter").await;
+    // It keeps the connection alive (QUIC keep-alives) but sends no input.
+    let options = BotOptions::new(addr, &cert, "squat", 2);
+    let bots = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    let (reason, detail) = close_reason(&mut recv)
+        .await
+        .expect("the squatter is closed");
+    assert_eq!(reason, CloseReason::TimedOut);
+    assert!(detail.contains("lobby timeout"), "{detail}");
+    let started = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchStarted { players, .. } => Some(*players),
+            _ => None,
+        })
+        .await;
+    assert_eq!(started, 2);
+    let bots = bots_ok(bots.await.expect("bots"));
+    assert_same_hashes(&bots, 120);
+    drop(connection);
+    server.shutdown().await;
+}
+
+/// Sixteen short-lived connections to sixteen new room names, with a limit
+/// of four rooms: each lobby closes when its only player leaves, so the
+/// next name always finds room, and no lobby leaves a replay file.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn empty_lobbies_close_and_leave_no_replay_files() {
+    let mut server = TestServer::start("rooms", |c| {
+        c.max_rooms = 4;
+        c.room.start_players = 2;
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    const NAMES: [&str; 16] = [
+        "r0", "r1", "r2", "r3", "r4", "r5", "r6", "r7", "r8", "r9", "r10", "r11", "r12", "r13",
+        "r14", "r15",
+    ];
+    for name in NAMES {
+        let (endpoint, connection, mut send, _recv, _slot) =
+            raw_join(addr, &cert, name, "visitor").await;
+        let leave = ClientMessage::Leave.encode().unwrap();
+        write_frame(&mut send, &leave).await.unwrap();
+        let _ = send.finish();
+        // The room closes once its only player left.
+        let closed = server
+            .wait_for(Duration::from_secs(10), |e| match e {
+                ServerEvent::MatchEnded(r) if r.room == name => Some(r.clone()),
+                _ => None,
+            })
+            .await;
+        assert_eq!(closed.ticks, 0);
+        assert!(closed.replay.is_none(), "{closed:?}");
+        connection.close(0u32.into(), b"bye");
+        endpoint.wait_idle().await;
+    }
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("e2e-rooms/replays");
+    let files = std::fs::read_dir(&dir).map(|d| d.count()).unwrap_or(0);
+    assert_eq!(files, 0, "no replay file in {}", dir.display());
+    let report = server.shutdown().await;
+    assert_eq!(report.matches.len(), 16);
+}

@@ -173,7 +173,28 @@ struct Seat {
 struct Replay {
     recorder: ReplayRecorder,
     path: PathBuf,
+    /// Open from the start of the match until a write fails.
     file: Option<File>,
+    /// Whether the match started (and the file was created, or tried).
+    started: bool,
+}
+
+impl Replay {
+    /// Creates the file as the match starts; what the recorder holds so
+    /// far (the lobby) is written at the next flush.
+    fn start(&mut self, room: &str) {
+        self.started = true;
+        match File::create(&self.path) {
+            Ok(f) => {
+                crate::log!(
+                    "room {room}: recording the replay to {}",
+                    self.path.display()
+                );
+                self.file = Some(f);
+            }
+            Err(e) => crate::log!("room {room}: cannot create {}: {e}", self.path.display()),
+        }
+    }
 }
 
 struct RoomTask {
@@ -189,6 +210,8 @@ struct RoomTask {
     players: Vec<PlayerReport>,
     desyncs: Vec<DesyncNotice>,
     replay: Option<Replay>,
+    /// When the first player joined (the lobby timeout counts from it).
+    first_join: Option<Duration>,
 }
 
 impl RoomTask {
@@ -228,20 +251,13 @@ impl RoomTask {
                 })
                 .collect();
             let path = dir.join(format!("{safe}-{secs}-{seq}.replay"));
-            let file = match File::create(&path) {
-                Ok(f) => {
-                    crate::log!("room {name}: recording the replay to {}", path.display());
-                    Some(f)
-                }
-                Err(e) => {
-                    crate::log!("room {name}: cannot create {}: {e}", path.display());
-                    None
-                }
-            };
+            // The file is created when the match starts: a lobby that
+            // closes before leaves no empty replay behind.
             Some(Replay {
                 recorder,
                 path,
-                file,
+                file: None,
+                started: false,
             })
         });
         crate::log!("room {name}: opened");
@@ -259,6 +275,7 @@ impl RoomTask {
             players: Vec::new(),
             desyncs: Vec::new(),
             replay,
+            first_join: None,
         }
     }
 
@@ -307,7 +324,14 @@ impl RoomTask {
     fn next_wake(&self) -> Duration {
         let now = self.now();
         match self.phase {
-            Phase::Lobby | Phase::Running { .. } => self
+            Phase::Lobby => {
+                let room = self
+                    .room
+                    .poll_timeout()
+                    .unwrap_or(now + Duration::from_secs(1));
+                self.lobby_deadline().map_or(room, |d| room.min(d))
+            }
+            Phase::Running { .. } => self
                 .room
                 .poll_timeout()
                 .unwrap_or(now + Duration::from_secs(1)),
@@ -315,6 +339,16 @@ impl RoomTask {
             Phase::Finishing { until, resend_at } => resend_at.min(until),
             Phase::Done => now,
         }
+    }
+
+    /// When the lobby stops waiting: `lobby_timeout` after the first join.
+    fn lobby_deadline(&self) -> Option<Duration> {
+        let first = self.first_join?;
+        Some(first + self.settings().lobby_timeout?)
+    }
+
+    fn lobby_expired(&self, now: Duration) -> bool {
+        self.lobby_deadline().is_some_and(|d| now >= d)
     }
 
     fn period(&self) -> Duration {
@@ -381,10 +415,38 @@ impl RoomTask {
                 if self.shutting_down {
                     return;
                 }
-                let start = usize::from(self.settings().start_players);
+                if self.room.player_count() == 0 && !self.players.is_empty() {
+                    // Everyone who joined left before the match: the room
+                    // closes instead of holding a slot of the server.
+                    self.end_reason = "every player left the lobby".into();
+                    self.phase = Phase::Done;
+                    return;
+                }
+                let mut start = usize::from(self.settings().start_players);
+                if self.lobby_expired(now) {
+                    // Nobody may hold the match back: the players without
+                    // their first input go, and the ready ones start.
+                    for id in self.room.unready_players() {
+                        self.room.kick(
+                            now,
+                            id,
+                            CloseReason::TimedOut,
+                            "no first input within the lobby timeout",
+                        );
+                    }
+                    if self.room.player_count() == 0 {
+                        self.end_reason = "nobody was ready within the lobby timeout".into();
+                        self.phase = Phase::Done;
+                        return;
+                    }
+                    start = 1;
+                }
                 if self.room.player_count() >= start && self.room.all_ready() {
                     // all_ready() is true, so the room has not started.
                     let _ = self.room.start(now);
+                    if let Some(r) = self.replay.as_mut() {
+                        r.start(&self.name);
+                    }
                     let end = self.settings().match_ticks;
                     self.phase = Phase::Running { epoch: now, end };
                     let players = self.room.player_count();
@@ -517,6 +579,7 @@ impl RoomTask {
                 };
                 match result {
                     Ok(id) => {
+                        self.first_join.get_or_insert(now);
                         self.players.push(PlayerReport {
                             slot: id.slot,
                             name: join.player_name.clone(),

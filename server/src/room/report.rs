@@ -73,6 +73,10 @@ impl RoomTask {
         let Some(r) = self.replay.as_mut() else {
             return;
         };
+        if !r.started {
+            // No file before the match starts; the recorder keeps the lobby.
+            return;
+        }
         let bytes = r.recorder.take_bytes();
         if let Some(f) = r.file.as_mut() {
             let ok = f.write_all(&bytes).and_then(|()| f.flush());
@@ -127,7 +131,11 @@ impl RoomTask {
             mismatched_ticks: stats.mismatched_ticks,
             desyncs: self.desyncs.clone(),
             players: self.players.clone(),
-            replay: self.replay.as_ref().map(|r| r.path.clone()),
+            replay: self
+                .replay
+                .as_ref()
+                .filter(|r| r.started && r.file.is_some())
+                .map(|r| r.path.clone()),
             replay_hashed_ticks: self
                 .replay
                 .as_ref()

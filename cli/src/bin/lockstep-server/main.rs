@@ -74,6 +74,17 @@ struct Cli {
     /// End each match after this many ticks.
     #[arg(long)]
     match_ticks: Option<u64>,
+    /// Seconds a lobby waits after its first join; then players without
+    /// their first input are dropped and the ready ones start (0: wait for
+    /// ever).
+    #[arg(long, default_value_t = 30.0)]
+    lobby_timeout: f64,
+    /// Most rooms open at once; a join for a new room beyond it is refused.
+    #[arg(long, default_value_t = 16)]
+    max_rooms: usize,
+    /// Most connections at once; beyond it a connection is refused at once.
+    #[arg(long, default_value_t = 256)]
+    max_connections: usize,
 }
 
 async fn terminate() {
@@ -132,6 +143,10 @@ async fn main() -> ExitCode {
     config.room.tick_rate = cli.tick_rate;
     config.room.input_delay = cli.input_delay;
     config.room.match_ticks = cli.match_ticks;
+    config.room.lobby_timeout =
+        (cli.lobby_timeout > 0.0).then(|| Duration::from_secs_f64(cli.lobby_timeout.min(86_400.0)));
+    config.max_rooms = cli.max_rooms.max(1);
+    config.max_connections = cli.max_connections.max(1);
     if cli.demo {
         let mut options = DemoOptions::new();
         options.server = config;
