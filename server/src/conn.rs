@@ -95,7 +95,8 @@ pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
             return;
         }
     };
-    read_loop(&connection, recv, id, &room_tx).await;
+    let rate = shared.config.room.max_messages_per_second;
+    read_loop(&connection, recv, id, &room_tx, rate).await;
     let _ = writer.await;
 }
 
@@ -184,12 +185,74 @@ pub(crate) fn send_close(writer: &mpsc::Sender<WriterCmd>, close: &Close) {
 
 /// Forwards the client's frames and datagrams to the room until the
 /// connection ends or the client misbehaves.
+/// A token bucket over a connection's messages: `rate` a second, and as
+/// many in a burst. Past it, datagrams are dropped and counted and stream
+/// frames wait (the stream's flow control then slows the sender).
+struct RateLimit {
+    rate: f64,
+    tokens: f64,
+    last: tokio::time::Instant,
+    /// Datagrams dropped since the room was last told.
+    dropped: u64,
+    told: tokio::time::Instant,
+}
+
+impl RateLimit {
+    fn new(rate: u32) -> RateLimit {
+        let now = tokio::time::Instant::now();
+        let rate = f64::from(rate.max(1));
+        RateLimit {
+            rate,
+            tokens: rate,
+            last: now,
+            dropped: 0,
+            told: now,
+        }
+    }
+
+    fn refill(&mut self) {
+        let now = tokio::time::Instant::now();
+        let dt = now.duration_since(self.last).as_secs_f64();
+        self.last = now;
+        self.tokens = (self.tokens + dt * self.rate).min(self.rate);
+    }
+
+    /// Takes a token if there is one.
+    fn take(&mut self) -> bool {
+        self.refill();
+        if self.tokens >= 1.0 {
+            self.tokens -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+
+    /// How long until a token is free.
+    fn wait(&mut self) -> Duration {
+        self.refill();
+        Duration::from_secs_f64(((1.0 - self.tokens) / self.rate).max(0.0))
+    }
+
+    /// The drops to report, at most once a second.
+    fn report(&mut self) -> Option<u64> {
+        let now = tokio::time::Instant::now();
+        if self.dropped == 0 || now.duration_since(self.told) < Duration::from_secs(1) {
+            return None;
+        }
+        self.told = now;
+        Some(std::mem::take(&mut self.dropped))
+    }
+}
+
 async fn read_loop(
     connection: &quinn::Connection,
     mut recv: quinn::RecvStream,
     id: PlayerId,
     room_tx: &mpsc::Sender<RoomCmd>,
+    rate: u32,
 ) {
+    let mut limit = RateLimit::new(rate);
     // Frames are read by their own task so a frame is never cut in half
     // when a datagram wins the select.
     let (frames_tx, mut frames_rx) = mpsc::channel(64);
@@ -205,7 +268,13 @@ async fn read_loop(
     loop {
         let cmd = tokio::select! {
             frame = frames_rx.recv() => match frame {
-                Some(Ok(Some(bytes))) => checked(id, &bytes, Channel::Reliable),
+                Some(Ok(Some(bytes))) => {
+                    if !limit.take() {
+                        tokio::time::sleep(limit.wait()).await;
+                        limit.take();
+                    }
+                    checked(id, &bytes, Channel::Reliable)
+                }
                 Some(Ok(None)) | None => RoomCmd::Gone { id, why: "stream finished".into() },
                 Some(Err(FrameError::Length(e))) => RoomCmd::Misbehaved {
                     id,
@@ -214,11 +283,32 @@ async fn read_loop(
                 Some(Err(e)) => RoomCmd::Gone { id, why: e.to_string() },
             },
             datagram = connection.read_datagram() => match datagram {
+                Ok(_) if !limit.take() => {
+                    limit.dropped += 1;
+                    match limit.report() {
+                        Some(dropped) => RoomCmd::Throttled { id, dropped },
+                        None => continue,
+                    }
+                }
                 Ok(bytes) => checked(id, &bytes, Channel::Datagram),
                 Err(e) => RoomCmd::Gone { id, why: e.to_string() },
             },
         };
-        let last = !matches!(cmd, RoomCmd::Message { .. });
+        let cmd = match (limit.report(), cmd) {
+            // Drops not yet told go to the room before the next message.
+            (Some(dropped), cmd @ RoomCmd::Message { .. }) => {
+                if room_tx
+                    .send(RoomCmd::Throttled { id, dropped })
+                    .await
+                    .is_err()
+                {
+                    break;
+                }
+                cmd
+            }
+            (_, cmd) => cmd,
+        };
+        let last = !matches!(cmd, RoomCmd::Message { .. } | RoomCmd::Throttled { .. });
         if room_tx.send(cmd).await.is_err() || last {
             break;
         }

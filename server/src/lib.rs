@@ -73,6 +73,11 @@ pub struct RoomSettings {
     /// ones, however few; with nobody ready the room closes. So a client
     /// that joins and never plays cannot keep a match from starting.
     pub lobby_timeout: Option<Duration>,
+    /// Messages a second each connection may send (and as many in a
+    /// burst): past it datagrams are dropped and counted (logged once a
+    /// second, [`PlayerReport::datagrams_dropped`]) and stream frames wait.
+    /// A player at 60 Hz sends about 2 datagrams and 1 frame a tick.
+    pub max_messages_per_second: u32,
 }
 
 impl Default for RoomSettings {
@@ -86,6 +91,7 @@ impl Default for RoomSettings {
             match_ticks: None,
             final_reports_timeout: Duration::from_secs(2),
             lobby_timeout: Some(Duration::from_secs(30)),
+            max_messages_per_second: 1000,
         }
     }
 }
@@ -263,6 +269,9 @@ pub struct PlayerReport {
     pub inputs_substituted: u64,
     /// Hash reports accepted.
     pub hash_reports: u64,
+    /// Datagrams dropped for coming faster than
+    /// [`RoomSettings::max_messages_per_second`].
+    pub datagrams_dropped: u64,
     /// How long they were connected.
     pub connected_for: Duration,
 }

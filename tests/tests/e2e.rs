@@ -813,3 +813,58 @@ async fn empty_lobbies_close_and_leave_no_replay_files() {
     let report = server.shutdown().await;
     assert_eq!(report.matches.len(), 16);
 }
+
+/// A player that floods valid (redundant) input datagrams is throttled:
+/// past the per-connection rate the excess is dropped and counted, the
+/// flooder stays, and the bots' match completes in sync.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_flood_of_valid_datagrams_is_throttled_and_counted() {
+    let mut server = TestServer::start("flood", |c| {
+        c.room.start_players = 3;
+        c.room.match_ticks = Some(180);
+        c.room.max_messages_per_second = 400;
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let (_e, connection, _s, _recv, slot) = raw_join(addr, &cert, "flood", "flooder").await;
+    let first = inputs(slot, 0, 5);
+    connection.send_datagram(first.clone()).unwrap();
+    let options = BotOptions::new(addr, &cert, "flood", 2);
+    let bots = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    // 5,000 copies of its first inputs in about a second (the same bytes
+    // each time: redundant, never a violation).
+    for _ in 0..50 {
+        for _ in 0..100 {
+            let _ = connection.send_datagram(first.clone());
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let bots = bots_ok(bots.await.expect("bots"));
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    assert_same_hashes(&bots, 180);
+    assert_eq!(ended.mismatched_ticks, 0);
+    let flooder = ended
+        .players
+        .iter()
+        .find(|p| p.name == "flooder")
+        .expect("flooder");
+    assert!(
+        flooder.datagrams_dropped > 1000,
+        "dropped {}",
+        flooder.datagrams_dropped
+    );
+    for p in ended.players.iter().filter(|p| p.name != "flooder") {
+        assert_eq!(p.datagrams_dropped, 0, "{}", p.name);
+    }
+}

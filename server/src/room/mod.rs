@@ -48,6 +48,9 @@ pub(crate) enum RoomCmd {
     Misbehaved { id: PlayerId, detail: String },
     /// The connection ended.
     Gone { id: PlayerId, why: String },
+    /// Datagrams dropped over the connection's rate limit since the last
+    /// such report (at most one a second).
+    Throttled { id: PlayerId, dropped: u64 },
 }
 
 /// The registry's handle on a room task.
@@ -594,6 +597,7 @@ impl RoomTask {
                             max_datagram_up: 0,
                             inputs_substituted: 0,
                             hash_reports: 0,
+                            datagrams_dropped: 0,
                             connected_for: Duration::ZERO,
                         });
                         self.seats[id.slot.index()] = Some(Seat {
@@ -654,6 +658,17 @@ impl RoomTask {
                 }
             }
             RoomCmd::Misbehaved { id, detail } => self.expel(id, &detail),
+            RoomCmd::Throttled { id, dropped } => {
+                if let Some(seat) = self.seat(id) {
+                    let report = seat.report;
+                    self.players[report].datagrams_dropped += dropped;
+                    crate::log!(
+                        "room {}: slot {}: {dropped} datagrams over the rate limit dropped",
+                        self.name,
+                        id.slot.0
+                    );
+                }
+            }
             RoomCmd::Gone { id, why } => {
                 if let Some(seat) = self.seat(id)
                     && !seat.closing

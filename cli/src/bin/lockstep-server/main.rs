@@ -85,6 +85,10 @@ struct Cli {
     /// Most connections at once; beyond it a connection is refused at once.
     #[arg(long, default_value_t = 256)]
     max_connections: usize,
+    /// Messages a second each connection may send; past it datagrams are
+    /// dropped (counted and logged) and stream frames wait.
+    #[arg(long, default_value_t = 1000)]
+    max_messages_per_second: u32,
 }
 
 async fn terminate() {
@@ -147,6 +151,7 @@ async fn main() -> ExitCode {
         (cli.lobby_timeout > 0.0).then(|| Duration::from_secs_f64(cli.lobby_timeout.min(86_400.0)));
     config.max_rooms = cli.max_rooms.max(1);
     config.max_connections = cli.max_connections.max(1);
+    config.room.max_messages_per_second = cli.max_messages_per_second.max(1);
     if cli.demo {
         let mut options = DemoOptions::new();
         options.server = config;
