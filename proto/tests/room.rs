@@ -409,17 +409,7 @@ fn a_client_that_never_acknowledges_falls_behind_and_is_dropped() {
         room.handle_timeout(after(&room, tick));
     }
     let (transmits, events) = drain(&mut room);
-    let left: Vec<_> = events
-        .iter()
-        .filter_map(|e| match e {
-            RoomEvent::PlayerLeft {
-                id,
-                reason,
-                from_tick,
-            } => Some((*id, *reason, *from_tick)),
-            _ => None,
-        })
-        .collect();
+    let left = left(&events);
     // Bundle 0 leaves the 32-tick history when tick 32 closes.
     assert_eq!(left, vec![(ids[1], LeaveReason::FellBehind, 33)]);
     assert!(transmits.iter().any(|t| t.to == ids[1]

@@ -420,6 +420,14 @@ fn inputs(slot: Slot, first_tick: u64, n: usize) -> Bytes {
 
 /// Reads frames until the server's close message; returns its reason.
 async fn close_reason(recv: &mut quinn::RecvStream) -> Option<(CloseReason, String)> {
+    close_reason_within(recv, Duration::from_secs(10)).await
+}
+
+/// [`close_reason`], waiting up to `limit`.
+async fn close_reason_within(
+    recv: &mut quinn::RecvStream,
+    limit: Duration,
+) -> Option<(CloseReason, String)> {
     let read = async {
         while let Ok(Some(frame)) = read_frame(recv).await {
             if let Ok(ServerMessage::Close(c)) = ServerMessage::decode(&frame) {
@@ -428,10 +436,7 @@ async fn close_reason(recv: &mut quinn::RecvStream) -> Option<(CloseReason, Stri
         }
         None
     };
-    tokio::time::timeout(Duration::from_secs(10), read)
-        .await
-        .ok()
-        .flatten()
+    tokio::time::timeout(limit, read).await.ok().flatten()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -633,20 +638,7 @@ async fn raw_reporter(
             }
         }
     };
-    let closed = async {
-        let read = async {
-            while let Ok(Some(frame)) = read_frame(&mut recv).await {
-                if let Ok(ServerMessage::Close(c)) = ServerMessage::decode(&frame) {
-                    return Some((c.reason, c.detail));
-                }
-            }
-            None
-        };
-        tokio::time::timeout(Duration::from_secs(30), read)
-            .await
-            .ok()
-            .flatten()
-    };
+    let closed = close_reason_within(&mut recv, Duration::from_secs(30));
     tokio::select! {
         () = play => None,
         c = closed => c,
