@@ -228,6 +228,65 @@ fn body_hashes_name_the_body_that_changed() {
     assert_eq!(diff, vec![target]);
 }
 
+/// A body's field dump holds exactly the words of its hash (the fields
+/// before its contacts, hashed in order, give its body hash), and after one
+/// nudge the one field that differs is the one nudged, by exactly one ulp.
+#[test]
+fn body_fields_are_the_hashed_words_and_name_the_field_that_changed() {
+    let mut a = build();
+    let mut b = build();
+    for t in 0..300 {
+        drive(&mut a, t);
+        drive(&mut b, t);
+        a.step();
+        b.step();
+    }
+    for (handle, hash) in a.body_hashes() {
+        let fields = a.body_fields(handle).unwrap();
+        let mut h = lockstep_core::hash::StateHasher::new();
+        for f in fields
+            .iter()
+            .take_while(|f| !f.name.starts_with("contact "))
+        {
+            for &w in &f.words {
+                h.word(w);
+            }
+        }
+        assert_eq!(h.finish(), hash, "body {handle}");
+    }
+    // The ground's dump carries its contacts.
+    let floor = a.find_body("ground").unwrap();
+    assert!(
+        a.body_fields(floor)
+            .unwrap()
+            .iter()
+            .any(|f| f.name.contains("impulses"))
+    );
+    let target = b.find_body("box11").unwrap();
+    let v = b.body(target).unwrap().angular_velocity();
+    b.set_angular_velocity(
+        target,
+        v + Vec3::new(Scalar::ZERO, Scalar::DELTA, Scalar::ZERO),
+    )
+    .unwrap();
+    let (fa, fb) = (
+        a.body_fields(target).unwrap(),
+        b.body_fields(target).unwrap(),
+    );
+    assert_eq!(fa.len(), fb.len());
+    let differ: Vec<_> = fa.iter().zip(&fb).filter(|(x, y)| x != y).collect();
+    let names: Vec<&str> = differ.iter().map(|(x, _)| x.name.as_str()).collect();
+    // The angular velocity and the momentum it implies are both set.
+    assert!(names.contains(&"angular_velocity"), "{names:?}");
+    let (x, y) = differ
+        .iter()
+        .find(|(x, _)| x.name == "angular_velocity")
+        .unwrap();
+    assert_eq!(x.kind, lockstep_core::world::FieldKind::Scalar);
+    assert_eq!(y.words[1].wrapping_sub(x.words[1]), 1);
+    assert_eq!((x.words[0], x.words[2]), (y.words[0], y.words[2]));
+}
+
 /// Records the stages it is told about (preallocated: an observer must not
 /// allocate), and raises an overflow fault at each one when `faulty`.
 struct Recorder {

@@ -833,6 +833,66 @@ impl ContactSet {
     }
 }
 
+impl ContactSet {
+    /// Feeds `field` the state of every pair that the world hash carries and
+    /// that involves one of `colliders` (a body's colliders), in pair order:
+    /// for a body's field dump. Each pair gives its state words, normal,
+    /// points, impulses and a hash of its reuse cache, named after its two
+    /// colliders.
+    pub(crate) fn visit_pairs_of(
+        &self,
+        colliders: &[ColliderHandle],
+        field: &mut impl FnMut(String, crate::world::FieldKind, &[u64]),
+    ) {
+        use crate::world::FieldKind::{Scalar as Q, Word};
+        let s = |v: Scalar| v.to_bits() as u64;
+        for p in &self.pairs {
+            let carries = p.touching || p.manifold.count != 0;
+            if !carries || !colliders.iter().any(|&c| c == p.a || c == p.b) {
+                continue;
+            }
+            let name = |what: &str| {
+                format!(
+                    "contact c{}:{}-c{}:{} {what}",
+                    p.a.0.index, p.a.0.generation, p.b.0.index, p.b.0.generation
+                )
+            };
+            let points = p.manifold.points();
+            let kind = match p.kind {
+                PairKind::Solid => 0,
+                PairKind::Trigger => 1,
+            };
+            let mut state = vec![kind, p.touching as u64, p.manifold.count as u64];
+            state.extend(points.iter().map(|pt| pt.id.0 as u64));
+            field(name("kind, touching, count, point ids"), Word, &state);
+            let n = p.manifold.normal;
+            field(name("normal"), Q, &[s(n.x), s(n.y), s(n.z)]);
+            let mut geometry = Vec::with_capacity(points.len() * 4);
+            for pt in points {
+                geometry.extend([s(pt.point.x), s(pt.point.y), s(pt.point.z), s(pt.depth)]);
+            }
+            field(name("points (x, y, z, depth)"), Q, &geometry);
+            let mut impulses: Vec<u64> = p.impulses[..points.len()]
+                .iter()
+                .map(|i| s(i.normal))
+                .collect();
+            impulses.extend([
+                s(p.friction.tangent[0]),
+                s(p.friction.tangent[1]),
+                s(p.friction.twist),
+            ]);
+            field(
+                name("impulses (normal per point, tangent 1, tangent 2, twist)"),
+                Q,
+                &impulses,
+            );
+            let mut h = crate::hash::StateHasher::new();
+            p.reuse.hash_into(&mut h, points.len());
+            field(name("reuse cache hash"), Word, &[h.finish()]);
+        }
+    }
+}
+
 fn hash_point(h: &mut crate::hash::StateHasher, p: &ContactPoint) {
     h.vec3(p.point);
     h.scalar(p.depth);

@@ -15,7 +15,7 @@ pub use config::{
     MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig, WorldError,
 };
 pub use observe::{Stage, StepObserver};
-pub use state_hash::STATE_HASH_VERSION;
+pub use state_hash::{BodyField, FieldKind, STATE_HASH_VERSION};
 
 use serde::{Deserialize, Serialize};
 

@@ -83,60 +83,235 @@ impl World {
     }
 
     fn body_hash_of(&self, b: &BodyHot, cold: &BodyCold) -> u64 {
+        let mut h = HashSink(StateHasher::new());
+        self.visit_body(b, cold, &mut h);
+        h.0.finish()
+    }
+
+    /// Every hashed field of one body, in hash order, with its raw words:
+    /// exactly the words its body hash is made of (so two peers whose body
+    /// hashes differ differ in at least one of these). Then the body's
+    /// contacts: the state of every contact pair one of its colliders
+    /// carries, as the world hash holds them.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`](super::WorldError::InvalidBody) for a
+    /// stale handle.
+    pub fn body_fields(&self, handle: BodyHandle) -> Result<Vec<BodyField>, super::WorldError> {
+        let (Some(hot), Some(cold)) = (self.bodies.hot(handle), self.bodies.cold(handle)) else {
+            return Err(super::WorldError::InvalidBody(handle));
+        };
+        let mut out = FieldList(Vec::new());
+        self.visit_body(hot, cold, &mut out);
+        self.contacts
+            .visit_pairs_of(&cold.colliders, &mut |name, kind, words| {
+                out.0.push(BodyField {
+                    name,
+                    kind,
+                    words: words.to_vec(),
+                });
+            });
+        Ok(out.0)
+    }
+
+    /// The hash of the contact state alone (the part of
+    /// [`state_hash`](World::state_hash) after the bodies): when two peers'
+    /// body hashes all agree but their world hashes do not, this names the
+    /// contact cache as the difference.
+    pub fn contacts_hash(&self) -> u64 {
         let mut h = StateHasher::new();
-        h.word(b.kind.code());
-        h.word(b.sleeping as u64 | (b.isotropic as u64) << 1 | (b.bullet as u64) << 2);
-        h.vec3(b.center);
-        h.quat(b.rotation);
-        h.vec3(b.linear_velocity);
-        h.vec3(b.angular_velocity);
-        h.vec3(b.angular_momentum);
-        h.vec3(b.force);
-        h.vec3(b.torque);
-        h.scalar(b.inv_mass);
-        h.sym(&b.inertia);
-        h.sym(&b.inv_inertia);
-        h.scalar(b.linear_damping);
-        h.scalar(b.angular_damping);
-        h.scalar(b.gravity_scale);
-        h.word(b.rest_ticks as u64);
-        h.vec3(cold.local_center);
-        h.scalar(cold.mass);
-        h.word(cold.mass_override as u64);
+        self.contacts.hash_into(&mut h);
+        h.finish()
+    }
+
+    /// Feeds `sink` every hashed field of a body, in hash order.
+    fn visit_body(&self, b: &BodyHot, cold: &BodyCold, sink: &mut impl FieldSink) {
+        use FieldKind::{Int, Scalar as Q, Word};
+        let s = |v: crate::math::Scalar| v.to_bits() as u64;
+        let v3 = |v: crate::math::Vec3| [s(v.x), s(v.y), s(v.z)];
+        let tr = |t: &crate::math::Transform| {
+            let (p, q) = (t.translation, t.rotation);
+            [s(p.x), s(p.y), s(p.z), s(q.x), s(q.y), s(q.z), s(q.w)]
+        };
+        let sym = |m: &crate::math::SymMat3| [m.xx, m.yy, m.zz, m.xy, m.xz, m.yz].map(s);
+        let q = b.rotation;
+        sink.field(FieldName::Body("kind"), Word, &[b.kind.code()]);
+        let flags = b.sleeping as u64 | (b.isotropic as u64) << 1 | (b.bullet as u64) << 2;
+        sink.field(
+            FieldName::Body("flags (sleeping, isotropic, bullet)"),
+            Word,
+            &[flags],
+        );
+        sink.field(FieldName::Body("center_of_mass"), Q, &v3(b.center));
+        sink.field(
+            FieldName::Body("rotation (x, y, z, w)"),
+            Q,
+            &[s(q.x), s(q.y), s(q.z), s(q.w)],
+        );
+        sink.field(
+            FieldName::Body("linear_velocity"),
+            Q,
+            &v3(b.linear_velocity),
+        );
+        sink.field(
+            FieldName::Body("angular_velocity"),
+            Q,
+            &v3(b.angular_velocity),
+        );
+        sink.field(
+            FieldName::Body("angular_momentum"),
+            Q,
+            &v3(b.angular_momentum),
+        );
+        sink.field(FieldName::Body("force"), Q, &v3(b.force));
+        sink.field(FieldName::Body("torque"), Q, &v3(b.torque));
+        sink.field(FieldName::Body("inv_mass"), Q, &[s(b.inv_mass)]);
+        sink.field(FieldName::Body("inertia"), Q, &sym(&b.inertia));
+        sink.field(FieldName::Body("inv_inertia"), Q, &sym(&b.inv_inertia));
+        sink.field(FieldName::Body("linear_damping"), Q, &[s(b.linear_damping)]);
+        sink.field(
+            FieldName::Body("angular_damping"),
+            Q,
+            &[s(b.angular_damping)],
+        );
+        sink.field(FieldName::Body("gravity_scale"), Q, &[s(b.gravity_scale)]);
+        sink.field(
+            FieldName::Body("sleep_timer (rest ticks)"),
+            Word,
+            &[b.rest_ticks as u64],
+        );
+        sink.field(FieldName::Body("local_center"), Q, &v3(cold.local_center));
+        sink.field(FieldName::Body("mass"), Q, &[s(cold.mass)]);
+        sink.field(
+            FieldName::Body("mass_override"),
+            Word,
+            &[cold.mass_override as u64],
+        );
         match &cold.kinematic_target {
             Some(t) => {
-                h.word(1);
-                h.transform(t);
+                sink.field(FieldName::Body("kinematic_target set"), Word, &[1]);
+                sink.field(FieldName::Body("kinematic_target"), Q, &tr(t));
             }
-            None => h.word(0),
+            None => sink.field(FieldName::Body("kinematic_target set"), Word, &[0]),
         }
-        h.word(cold.colliders.len() as u64);
-        for ch in &cold.colliders {
-            h.word(ch.0.index as u64);
-            h.word(ch.0.generation as u64);
+        sink.field(
+            FieldName::Body("collider count"),
+            Word,
+            &[cold.colliders.len() as u64],
+        );
+        for (i, ch) in cold.colliders.iter().enumerate() {
+            let handle = [ch.0.index as u64, ch.0.generation as u64];
+            sink.field(FieldName::Collider(i, "handle"), Word, &handle);
             let Some(c) = self.colliders.get(ch.0) else {
-                h.word(u64::MAX);
+                sink.field(FieldName::Collider(i, "missing"), Word, &[u64::MAX]);
                 continue;
             };
-            h.transform(&c.local_pose);
+            sink.field(FieldName::Collider(i, "local_pose"), Q, &tr(&c.local_pose));
             match c.mass_spec {
                 MassSpec::Density(d) => {
-                    h.word(0);
-                    h.scalar(d);
+                    sink.field(FieldName::Collider(i, "mass_spec kind"), Word, &[0]);
+                    sink.field(FieldName::Collider(i, "density"), Q, &[s(d)]);
                 }
                 MassSpec::Mass(m) => {
-                    h.word(1);
-                    h.scalar(m);
+                    sink.field(FieldName::Collider(i, "mass_spec kind"), Word, &[1]);
+                    sink.field(FieldName::Collider(i, "mass"), Q, &[s(m)]);
                 }
             }
-            h.scalar(c.material.friction);
-            h.scalar(c.material.restitution);
-            h.word(c.filter.category as u64);
-            h.word(c.filter.mask as u64);
-            h.int(c.filter.group as i64);
-            h.word(c.is_trigger as u64);
-            h.word(c.shape_hash);
+            sink.field(
+                FieldName::Collider(i, "friction"),
+                Q,
+                &[s(c.material.friction)],
+            );
+            sink.field(
+                FieldName::Collider(i, "restitution"),
+                Q,
+                &[s(c.material.restitution)],
+            );
+            let (cat, mask) = (c.filter.category as u64, c.filter.mask as u64);
+            sink.field(
+                FieldName::Collider(i, "filter category, mask"),
+                Word,
+                &[cat, mask],
+            );
+            sink.field(
+                FieldName::Collider(i, "filter group"),
+                Int,
+                &[c.filter.group as i64 as u64],
+            );
+            sink.field(
+                FieldName::Collider(i, "is_trigger"),
+                Word,
+                &[c.is_trigger as u64],
+            );
+            sink.field(FieldName::Collider(i, "shape_hash"), Word, &[c.shape_hash]);
         }
-        h.finish()
+    }
+}
+
+/// How a dumped field's words read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum FieldKind {
+    /// Unsigned words (flags, counts, handles, hashes).
+    Word,
+    /// Signed integers (two's complement).
+    Int,
+    /// Q32.32 fixed-point values: the raw bits of a [`Scalar`](crate::Scalar).
+    Scalar,
+}
+
+/// One field of a body's state as its hash sees it: a name, how to read it,
+/// and its raw words.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BodyField {
+    /// What it is, e.g. `linear_velocity` or `collider[0] friction`.
+    pub name: String,
+    /// How its words read.
+    pub kind: FieldKind,
+    /// The raw words, in hash order.
+    pub words: Vec<u64>,
+}
+
+/// A field's name without allocating (the hashing path never formats).
+enum FieldName {
+    Body(&'static str),
+    Collider(usize, &'static str),
+}
+
+impl FieldName {
+    fn text(&self) -> String {
+        match self {
+            FieldName::Body(n) => (*n).to_owned(),
+            FieldName::Collider(i, n) => format!("collider[{i}] {n}"),
+        }
+    }
+}
+
+/// Receives a body's fields in hash order.
+trait FieldSink {
+    fn field(&mut self, name: FieldName, kind: FieldKind, words: &[u64]);
+}
+
+/// Hashes the words, as the body hash always did.
+struct HashSink(StateHasher);
+
+impl FieldSink for HashSink {
+    #[inline(always)]
+    fn field(&mut self, _: FieldName, _: FieldKind, words: &[u64]) {
+        for &w in words {
+            self.0.word(w);
+        }
+    }
+}
+
+/// Collects the fields for a dump.
+struct FieldList(Vec<BodyField>);
+
+impl FieldSink for FieldList {
+    fn field(&mut self, name: FieldName, kind: FieldKind, words: &[u64]) {
+        self.0.push(BodyField {
+            name: name.text(),
+            kind,
+            words: words.to_vec(),
+        });
     }
 }
