@@ -146,6 +146,9 @@ pub async fn run_bot(
                         ClientEvent::Fault { tick, faults } => {
                             eprintln!("{name} (slot {slot}): fault at tick {tick}: {faults}")
                         }
+                        ClientEvent::DesyncLocated(r) => {
+                            eprintln!("{name} (slot {slot}): {r}")
+                        }
                     }
                 }
             },

@@ -22,6 +22,7 @@
 #![warn(missing_docs)]
 
 pub mod codec;
+pub mod forensics;
 pub mod limits;
 pub mod message;
 pub mod replay;
@@ -30,6 +31,10 @@ pub mod room;
 pub mod session;
 
 pub use codec::{DecodeError, EncodeError, FRAME_HEADER_BYTES, encode_frame, frame_length};
+pub use forensics::{
+    BodyDiff, BodyDump, DesyncReport, FieldDiff, FieldDump, FieldKind, Probe, ProbeAnswer,
+    ProbeAsk, ProbeReply, ProbeStatus, SuspectReport,
+};
 pub use limits::*;
 pub use message::{
     BundleDatagram, Channel, ClientMessage, Close, CloseReason, DesyncNotice, HashReport,

@@ -68,3 +68,30 @@ pub const MAX_MESSAGE_BYTES: usize = MAX_SCENE_BYTES + 4096;
 /// Largest input window (ticks ahead of the next open tick for which the room
 /// accepts inputs) a welcome may announce; bounds the client's input ring.
 pub const MAX_INPUT_WINDOW: u16 = 1024;
+
+/// Most bodies one field probe asks for, and most bodies a desync report
+/// lists per player.
+pub const MAX_PROBE_BODIES: usize = 8;
+
+/// Most fields in one body's dump.
+pub const MAX_DUMP_FIELDS: usize = 128;
+
+/// Most words in one dumped field.
+pub const MAX_FIELD_WORDS: usize = 32;
+
+/// Longest field name, in UTF-8 bytes.
+pub const MAX_FIELD_NAME_BYTES: usize = 96;
+
+/// Most snapshot bytes one probe reply carries (the snapshot is fetched in
+/// chunks of at most this size).
+pub const MAX_SNAPSHOT_CHUNK_BYTES: usize = 32 << 10;
+
+/// Largest snapshot a room fetches for a desync bundle (chunk by chunk).
+pub const MAX_PROBE_SNAPSHOT_BYTES: usize = 64 << 20;
+
+/// Most bodies a world may list in a body-hash probe reply's total.
+pub const MAX_PROBE_TOTAL_BODIES: usize = 1 << 20;
+
+/// Most differing fields a desync report lists in all (what lies beyond is
+/// counted, not listed).
+pub const MAX_REPORT_FIELDS: usize = 256;

@@ -104,6 +104,8 @@ pub enum ClientMessage {
     Pong(Pong),
     /// Leave the room for good (reliable).
     Leave,
+    /// The answer to a [`Probe`](crate::forensics::Probe) (reliable).
+    ProbeReply(crate::forensics::ProbeReply),
 }
 
 impl ClientMessage {
@@ -111,7 +113,9 @@ impl ClientMessage {
     pub fn channel(&self) -> Channel {
         match self {
             Self::Input(_) | Self::Pong(_) => Channel::Datagram,
-            Self::Join(_) | Self::HashReport(_) | Self::Leave => Channel::Reliable,
+            Self::Join(_) | Self::HashReport(_) | Self::Leave | Self::ProbeReply(_) => {
+                Channel::Reliable
+            }
         }
     }
 
@@ -123,6 +127,7 @@ impl ClientMessage {
             Self::HashReport(_) => "hash report",
             Self::Pong(_) => "pong",
             Self::Leave => "leave",
+            Self::ProbeReply(_) => "probe reply",
         }
     }
 
@@ -163,6 +168,7 @@ impl ClientMessage {
                 None => Ok(()),
             },
             Self::Pong(_) | Self::Leave => Ok(()),
+            Self::ProbeReply(r) => r.validate(),
         }
     }
 }
@@ -362,6 +368,10 @@ pub enum ServerMessage {
     Ping(Ping),
     /// Participation ended (reliable).
     Close(Close),
+    /// A question about a past tick, to locate a desync (reliable).
+    Probe(crate::forensics::Probe),
+    /// Where a desync lies: bodies and fields (reliable).
+    DesyncReport(crate::forensics::DesyncReport),
 }
 
 impl ServerMessage {
@@ -369,7 +379,11 @@ impl ServerMessage {
     pub fn channel(&self) -> Channel {
         match self {
             Self::Bundles(_) | Self::Ping(_) => Channel::Datagram,
-            Self::Welcome(_) | Self::Desync(_) | Self::Close(_) => Channel::Reliable,
+            Self::Welcome(_)
+            | Self::Desync(_)
+            | Self::Close(_)
+            | Self::Probe(_)
+            | Self::DesyncReport(_) => Channel::Reliable,
         }
     }
 
@@ -381,6 +395,8 @@ impl ServerMessage {
             Self::Desync(_) => "desync notice",
             Self::Ping(_) => "ping",
             Self::Close(_) => "close",
+            Self::Probe(_) => "probe",
+            Self::DesyncReport(_) => "desync report",
         }
     }
 
@@ -442,6 +458,8 @@ impl ServerMessage {
             Self::Close(c) => check_len(c.detail.len(), MAX_DETAIL_BYTES, |len, max| {
                 Violation::DetailTooLong { len, max }
             }),
+            Self::Probe(p) => p.validate(),
+            Self::DesyncReport(r) => r.validate(),
         }
     }
 }

@@ -28,6 +28,7 @@ use bincode::config::{Configuration, Limit, LittleEndian, Varint};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::forensics::DesyncReport;
 use crate::limits::{MAX_MESSAGE_BYTES, MAX_PLAYERS};
 use crate::message::{DesyncNotice, Slot, TickBundle};
 use crate::room::RoomEvent;
@@ -39,7 +40,12 @@ pub const REPLAY_MAGIC: [u8; 8] = *b"LSREPLAY";
 ///
 /// Version 2 added what made the replay to the header (engine version,
 /// state-hash layout, the rules' id and version) and per-body hash records.
-pub const REPLAY_FORMAT_VERSION: u16 = 2;
+/// Version 3 added desync reports and snapshot records (desync bundles);
+/// version 2 files are still read (they cannot hold those records).
+pub const REPLAY_FORMAT_VERSION: u16 = 3;
+
+/// The oldest format version this build reads.
+pub const REPLAY_OLDEST_READABLE: u16 = 2;
 
 /// The engine version recorded in new replays: the workspace version, which
 /// lockstep-core, lockstep-proto and the server share.
@@ -153,6 +159,24 @@ pub enum ReplayRecord {
     },
     /// The room found a desync at this tick (the notice it sent).
     Desync(DesyncNotice),
+    /// Where a desync lies: the report the room sent to the players.
+    Located(DesyncReport),
+    /// A piece of the world snapshot after `tick` (a desync bundle's last
+    /// agreed state): the pieces of one snapshot follow each other, offsets
+    /// ascending from 0, until `total` bytes.
+    Snapshot {
+        /// The tick.
+        tick: u64,
+        /// The agreed hash of that tick, which the snapshot was checked
+        /// against.
+        hash: u64,
+        /// The snapshot's whole length.
+        total: u64,
+        /// Offset of this piece.
+        offset: u64,
+        /// The piece.
+        bytes: Vec<u8>,
+    },
     /// The match ended normally after `ticks` ticks.
     End {
         /// Ticks played.
@@ -182,7 +206,7 @@ pub enum ReplayError {
     /// Written by another version of the format (version 1 replays predate
     /// the header's engine, hash-layout and rules fields).
     #[error(
-        "replay format version {found}, this build reads version {expected}{}",
+        "replay format version {found}, this build reads versions {REPLAY_OLDEST_READABLE} to {expected}{}",
         if *found < *expected {
             " (an older replay, recorded before replays said which engine, hash layout and rules made them: re-record it)"
         } else {
@@ -228,6 +252,12 @@ pub enum ReplayError {
         expected: u64,
         /// The tick found.
         found: u64,
+    },
+    /// Snapshot pieces that do not follow each other.
+    #[error("record at byte {offset}: a snapshot piece out of order")]
+    BadSnapshot {
+        /// Offset of the record in the file.
+        offset: usize,
     },
     /// A hash for a tick whose bundle is not (yet) in the file, or two
     /// different hashes for one tick.
@@ -276,6 +306,10 @@ pub struct Replay {
     pub body_hashes: Vec<(u64, Vec<u64>)>,
     /// Desync notices the room raised.
     pub desyncs: Vec<DesyncNotice>,
+    /// Where the room located them.
+    pub located: Vec<DesyncReport>,
+    /// A bundle's snapshot: tick, agreed hash, bytes (complete only).
+    pub snapshot: Option<(u64, u64, Vec<u8>)>,
     /// Ticks played and the reason, if the match ended normally.
     pub end: Option<(u64, String)>,
     /// Whether the file ends inside a record (the server stopped while
@@ -300,7 +334,7 @@ impl Replay {
             return Err(ReplayError::NoHeader);
         };
         let found = u16::from_le_bytes(*version);
-        if found != REPLAY_FORMAT_VERSION {
+        if !(REPLAY_OLDEST_READABLE..=REPLAY_FORMAT_VERSION).contains(&found) {
             return Err(ReplayError::WrongVersion {
                 found,
                 expected: REPLAY_FORMAT_VERSION,
@@ -350,6 +384,11 @@ impl Replay {
             departures: replay_parts.departures,
             body_hashes: replay_parts.body_hashes,
             desyncs: replay_parts.desyncs,
+            located: replay_parts.located,
+            snapshot: replay_parts
+                .snapshot
+                .filter(|(_, _, total, b)| b.len() as u64 == *total)
+                .map(|(t, h, _, b)| (t, h, b)),
             end: replay_parts.end,
             truncated,
         })
@@ -369,11 +408,14 @@ struct Parts {
     departures: Vec<(Slot, u64, String)>,
     body_hashes: Vec<(u64, Vec<u64>)>,
     desyncs: Vec<DesyncNotice>,
+    located: Vec<DesyncReport>,
+    snapshot: Option<(u64, u64, u64, Vec<u8>)>,
     end: Option<(u64, String)>,
 }
 
 impl Parts {
     fn add(&mut self, record: ReplayRecord, offset: usize) -> Result<(), ReplayError> {
+        let at = offset;
         match record {
             ReplayRecord::Header(_) => return Err(ReplayError::MisplacedHeader { offset }),
             ReplayRecord::PlayerJoined {
@@ -414,6 +456,27 @@ impl Parts {
                 self.body_hashes.push((tick, hashes));
             }
             ReplayRecord::Desync(n) => self.desyncs.push(n),
+            ReplayRecord::Located(r) => self.located.push(r),
+            ReplayRecord::Snapshot {
+                tick,
+                hash,
+                total,
+                offset,
+                bytes,
+            } => {
+                let fresh = offset == 0;
+                let s = self.snapshot.get_or_insert((tick, hash, total, Vec::new()));
+                if fresh {
+                    *s = (tick, hash, total, Vec::new());
+                }
+                if (s.0, s.1, s.2) != (tick, hash, total)
+                    || offset != s.3.len() as u64
+                    || s.3.len() as u64 + bytes.len() as u64 > total
+                {
+                    return Err(ReplayError::BadSnapshot { offset: at });
+                }
+                s.3.extend_from_slice(&bytes);
+            }
             ReplayRecord::End { ticks, reason } => self.end = Some((ticks, reason)),
         }
         Ok(())
@@ -538,7 +601,10 @@ impl ReplayRecorder {
                 self.decide(false);
             }
             RoomEvent::Desync(notice) => self.push(&ReplayRecord::Desync(notice.clone())),
-            RoomEvent::LateInput { .. } => {}
+            RoomEvent::DesyncLocated(report) => {
+                self.push(&ReplayRecord::Located(report.clone()));
+            }
+            RoomEvent::LateInput { .. } | RoomEvent::DesyncSnapshot { .. } => {}
         }
     }
 
@@ -763,9 +829,16 @@ mod tests {
             e,
             ReplayError::WrongVersion {
                 found: 1,
-                expected: 2
+                expected: REPLAY_FORMAT_VERSION
             }
         ));
+        // Version 2 files (no desync reports, no snapshots) still read.
+        let mut r = three_players();
+        r.on_event(&closed(0, &[0, 1, 2]));
+        r.finish("done");
+        let mut v2 = r.take_bytes();
+        v2[8] = 2;
+        assert_eq!(Replay::parse(&v2).unwrap().ticks.len(), 1);
         let text = e.to_string();
         assert!(
             text.contains("version 1") && text.contains("re-record"),

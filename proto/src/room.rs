@@ -14,6 +14,7 @@ mod config;
 mod errors;
 mod events;
 mod history;
+mod locate;
 mod player;
 
 use std::collections::VecDeque;
@@ -35,6 +36,7 @@ use crate::message::{
 use arbiter::{Arbiter, Comparison, Recorded, SlotMask, bit};
 use errors::close;
 use history::{FellBehind, History};
+use locate::{Locator, Output};
 use player::Player;
 
 /// A lockstep room: see the module documentation for how to drive it.
@@ -88,6 +90,9 @@ pub struct Room {
     events: VecDeque<RoomEvent>,
     ping_nonce: u64,
     stats: RoomStats,
+    locator: Locator,
+    /// The last compared tick whose hashes agreed, with that hash.
+    last_agreed: Option<(u64, u64)>,
 }
 
 impl Room {
@@ -100,6 +105,8 @@ impl Room {
         config.validate()?;
         let seats = usize::from(config.max_players);
         Ok(Self {
+            locator: Locator::new(config.locate_timeout),
+            last_agreed: None,
             history: History::new(config.history_ticks as usize),
             arbiter: Arbiter::new(config.hash_window_ticks as usize, config.hash_timeout),
             players: (0..seats).map(|_| None).collect(),
@@ -237,6 +244,12 @@ impl Room {
                 self.remove(now, from, LeaveReason::Left, None);
                 Ok(())
             }
+            ClientMessage::ProbeReply(r) => {
+                let mut out = Vec::new();
+                self.locator.on_reply(from.slot, r, &mut out);
+                self.apply_search(out);
+                Ok(())
+            }
         }
     }
 
@@ -280,6 +293,9 @@ impl Room {
             }
         }
         self.run_arbiter(now);
+        let mut out = Vec::new();
+        self.locator.on_timeout(now, &mut out);
+        self.apply_search(out);
         for index in 0..self.players.len() {
             let nonce = self.ping_nonce;
             let Some(p) = &mut self.players[index] else {
@@ -313,6 +329,7 @@ impl Room {
         tick.into_iter()
             .chain(players)
             .chain(self.arbiter.next_deadline())
+            .chain(self.locator.deadline())
             .min()
     }
 
@@ -418,6 +435,9 @@ impl Room {
             reason,
             from_tick: self.next_tick,
         });
+        let mut out = Vec::new();
+        self.locator.player_left(id.slot, &mut out);
+        self.apply_search(out);
         // Ticks that were only waiting for this player's hash can be compared.
         self.run_arbiter(now);
     }
@@ -610,6 +630,8 @@ impl Room {
         self.stats.ticks_compared += 1;
         if c.mismatch {
             self.stats.mismatched_ticks += 1;
+        } else if let Some(h) = c.agreed {
+            self.last_agreed = Some((tick, h));
         }
         // Streaks: hashes missing on consecutive compared ticks, and ticks
         // judged wrong in a row among the ticks the player reported.
@@ -658,7 +680,18 @@ impl Room {
                     });
                 }
             }
+            let before = self
+                .last_agreed
+                .filter(|&(t, _)| t + 1 == notice.tick)
+                .map(|(_, h)| h);
+            let mut out = Vec::new();
+            if !self.config.locate_timeout.is_zero()
+                && self.locator.start(now, &notice, before, &mut out)
+            {
+                self.stats.desync_searches += 1;
+            }
             self.events.push_back(RoomEvent::Desync(notice));
+            self.apply_search(out);
         }
         for (id, reason, detail) in drop {
             let leave = match reason {
@@ -666,6 +699,47 @@ impl Room {
                 _ => LeaveReason::Diverged,
             };
             self.remove(now, id, leave, Some(close(reason, detail)));
+        }
+    }
+
+    /// Sends the search's probes, and announces its report and snapshot.
+    fn apply_search(&mut self, out: Vec<Output>) {
+        for o in out {
+            match o {
+                Output::Probe(slot, probe) => {
+                    if self.players.get(slot.index()).is_some_and(Option::is_some) {
+                        let to = self.id_of(slot.index());
+                        self.transmits.push_back(Transmit {
+                            to,
+                            message: ServerMessage::Probe(probe),
+                        });
+                    }
+                }
+                Output::Report(report) => {
+                    self.stats.desyncs_located += 1;
+                    for index in 0..self.players.len() {
+                        if self.players[index].is_some() {
+                            let to = self.id_of(index);
+                            self.transmits.push_back(Transmit {
+                                to,
+                                message: ServerMessage::DesyncReport(report.clone()),
+                            });
+                        }
+                    }
+                    self.events.push_back(RoomEvent::DesyncLocated(report));
+                }
+                Output::Snapshot {
+                    tick,
+                    agreed_hash,
+                    from,
+                    bytes,
+                } => self.events.push_back(RoomEvent::DesyncSnapshot {
+                    tick,
+                    agreed_hash,
+                    from,
+                    bytes,
+                }),
+            }
         }
     }
 }

@@ -50,6 +50,12 @@ pub enum SessionEvent {
     },
     /// The server ended the session.
     Closed(Close),
+    /// The room asks about a past tick to locate a desync: answer with
+    /// [`Session::reply_probe`] (clients keep a short ring of past states
+    /// for this).
+    Probe(crate::forensics::Probe),
+    /// The room located a desync: the bodies and fields that differ.
+    DesyncLocated(crate::forensics::DesyncReport),
 }
 
 /// Why a session call was refused.
@@ -294,6 +300,10 @@ impl Session {
                 self.closed = true;
                 self.events.push_back(SessionEvent::Closed(c));
             }
+            ServerMessage::Probe(p) => self.events.push_back(SessionEvent::Probe(p)),
+            ServerMessage::DesyncReport(r) => {
+                self.events.push_back(SessionEvent::DesyncLocated(r));
+            }
         }
         Ok(())
     }
@@ -413,6 +423,18 @@ impl Session {
                 hash,
                 body_hashes,
             }));
+        Ok(())
+    }
+
+    /// Queues the answer to a [`SessionEvent::Probe`] (reliable).
+    ///
+    /// # Errors
+    /// [`SessionError::Closed`] after the session closed.
+    pub fn reply_probe(&mut self, reply: crate::forensics::ProbeReply) -> Result<(), SessionError> {
+        if self.closed {
+            return Err(SessionError::Closed);
+        }
+        self.reliable.push_back(ClientMessage::ProbeReply(reply));
         Ok(())
     }
 

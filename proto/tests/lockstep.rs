@@ -5,9 +5,10 @@ mod common;
 
 use std::time::Duration;
 
-use common::{LinkConfig, Sim, input_for};
+use common::{CORRUPT_BODY, LinkConfig, SNAPSHOT_LEN, Sim, input_for};
 use lockstep_proto::{
-    CloseReason, LeaveReason, RoomConfig, RoomEvent, SessionEvent, Slot, TickBundle, Verdict,
+    CloseReason, LeaveReason, ProbeStatus, RoomConfig, RoomEvent, SessionEvent, Slot, TickBundle,
+    Verdict,
 };
 
 fn config() -> RoomConfig {
@@ -230,6 +231,138 @@ fn a_wrong_hash_at_tick_300_from_one_of_four_players_is_named_at_tick_300() {
             .collect();
         assert_eq!(got, vec![(300, Some(c.hashes[300]))]);
     }
+}
+
+/// The room locates the desync: it asks the majority's first player and the
+/// corrupted one for body hashes, then for the one differing body's fields,
+/// and fetches the majority's snapshot of tick 299 in two chunks; the
+/// report names body 5 and its `linear_velocity`, goes to every player and
+/// comes after the checked snapshot.
+#[test]
+fn a_desync_is_located_to_the_body_and_field_and_the_last_agreed_snapshot_fetched() {
+    let mut sim = Sim::new(config(), clean(4, 15), 3);
+    sim.clients[2].corrupt_at = Some(300);
+    sim.run_until_delivered(340, Duration::from_secs(15));
+    let notice_at = sim
+        .events
+        .iter()
+        .find(|(_, e)| matches!(e, RoomEvent::Desync(_)))
+        .map(|(t, _)| *t)
+        .expect("a notice");
+    let located: Vec<_> = sim
+        .events
+        .iter()
+        .filter_map(|(t, e)| match e {
+            RoomEvent::DesyncLocated(r) => Some((*t, r.clone())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(located.len(), 1, "{located:?}");
+    let (at, r) = &located[0];
+    // Three round trips of 30 ms each (hashes, fields; the snapshot's two
+    // chunks run beside them).
+    assert!(
+        *at - notice_at <= Duration::from_millis(120),
+        "{:?}",
+        *at - notice_at
+    );
+    assert_eq!((r.tick, r.reference, r.majority), (300, Slot(0), true));
+    assert_eq!(r.reference_status, ProbeStatus::Complete);
+    assert_eq!(r.suspects.len(), 1);
+    let s = &r.suspects[0];
+    assert_eq!(
+        (s.slot, s.status, s.bodies_differing),
+        (Slot(2), ProbeStatus::Complete, 1)
+    );
+    assert!(!s.contacts_differ);
+    assert_eq!(s.bodies.len(), 1);
+    let b = &s.bodies[0];
+    assert_eq!(
+        (b.index, b.handle, b.name.as_str()),
+        (CORRUPT_BODY, CORRUPT_BODY + 1, "body5")
+    );
+    assert_eq!(b.fields.len(), 1, "{:?}", b.fields);
+    assert_eq!(b.fields[0].name, "linear_velocity");
+    assert_eq!((b.fields[0].expected[0], b.fields[0].got[0]), (0, 1));
+    assert_eq!(r.first_body().map(|b| b.index), Some(CORRUPT_BODY));
+    let text = r.to_string();
+    assert!(text.contains("body #5 \"body5\""), "{text}");
+    assert!(
+        text.contains("0.00000000023283064365386962890625 (0x0000000000000001)"),
+        "{text}"
+    );
+    // The snapshot of tick 299 from slot 0, whole, before the report.
+    let snaps: Vec<_> = sim
+        .events
+        .iter()
+        .filter_map(|(t, e)| match e {
+            RoomEvent::DesyncSnapshot {
+                tick,
+                agreed_hash,
+                from,
+                bytes,
+            } => Some((*t, *tick, *agreed_hash, *from, bytes.len())),
+            _ => None,
+        })
+        .collect();
+    let h299 = sim.clients[0].hashes[299];
+    assert_eq!(snaps.len(), 1);
+    assert_eq!(
+        (snaps[0].1, snaps[0].2, snaps[0].3, snaps[0].4),
+        (299, Some(h299), Slot(0), SNAPSHOT_LEN)
+    );
+    assert!(snaps[0].0 <= *at);
+    // Every player got the report.
+    for c in &sim.clients {
+        let got: Vec<_> = c
+            .events
+            .iter()
+            .filter_map(|e| match e {
+                SessionEvent::DesyncLocated(r) => Some(r.tick),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(got, vec![300], "{}", c.name);
+    }
+    // Slots 1 and 3 agree with the reference and were not asked.
+    for i in [1, 3] {
+        assert!(
+            !sim.clients[i]
+                .events
+                .iter()
+                .any(|e| matches!(e, SessionEvent::Probe(_))),
+            "slot {i} was probed"
+        );
+    }
+    assert_eq!(sim.room.stats().desyncs_located, 1);
+    assert!(sim.rejections.is_empty(), "{:?}", sim.rejections);
+}
+
+/// A client that no longer has the tick answers `Unavailable`; one that
+/// does not answer is waited for until the locate timeout: the report still
+/// comes, saying so.
+#[test]
+fn a_search_whose_players_cannot_answer_still_reports() {
+    let mut cfg = config();
+    cfg.locate_timeout = Duration::from_millis(500);
+    let mut sim = Sim::new(cfg, clean(3, 15), 9);
+    sim.clients[1].corrupt_at = Some(200);
+    // Slot 1 goes silent right after its wrong report: no answers.
+    sim.clients[1].silent_after = Some(203);
+    sim.run_until_delivered(300, Duration::from_secs(15));
+    let r = sim
+        .events
+        .iter()
+        .find_map(|(_, e)| match e {
+            RoomEvent::DesyncLocated(r) => Some(r.clone()),
+            _ => None,
+        })
+        .expect("a report");
+    assert_eq!(r.tick, 200);
+    assert_eq!(r.suspects.len(), 1);
+    assert_eq!(r.suspects[0].status, ProbeStatus::NoAnswer);
+    assert!(r.suspects[0].bodies.is_empty());
+    assert!(r.to_string().contains("NoAnswer"));
 }
 
 #[test]

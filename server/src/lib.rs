@@ -208,6 +208,17 @@ pub enum ServerEvent {
         /// The notice sent to the players.
         notice: DesyncNotice,
     },
+    /// The room located a desync: the bodies and fields that differ.
+    DesyncLocated {
+        /// The room.
+        room: String,
+        /// The report sent to the players.
+        report: lockstep_proto::DesyncReport,
+        /// The desync bundle, if one was written.
+        bundle: Option<PathBuf>,
+        /// When the report was made.
+        at: Instant,
+    },
     /// A connection was refused or a player removed for cause.
     Refused {
         /// The peer.
@@ -289,6 +300,11 @@ pub struct RoomReport {
     pub mismatched_ticks: u64,
     /// Every desync notice, in order.
     pub desyncs: Vec<DesyncNotice>,
+    /// Where the room located them (one search at a time: a notice raised
+    /// during a search has no report).
+    pub located: Vec<lockstep_proto::DesyncReport>,
+    /// The desync bundles written (with a replay directory only).
+    pub bundles: Vec<PathBuf>,
     /// Every player who was seated, by join order.
     pub players: Vec<PlayerReport>,
     /// The replay file, if recorded.

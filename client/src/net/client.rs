@@ -89,6 +89,12 @@ pub struct ClientOptions {
     pub body_hashes_every: u64,
     /// How long connecting and joining may take.
     pub connect_timeout: Duration,
+    /// Ticks of past states kept to answer the room's probes when a desync
+    /// is located (one snapshot per tick: about 27 kB and 30 µs for the
+    /// demo's 66 bodies; memory grows with the scene). 0: keep none, and
+    /// answer every probe as unavailable. Default 64 (about 1 s at 60 Hz,
+    /// longer than a report's round trip).
+    pub forensics_ticks: usize,
 }
 
 impl ClientOptions {
@@ -109,6 +115,7 @@ impl ClientOptions {
             max_ticks: None,
             body_hashes_every: 0,
             connect_timeout: Duration::from_secs(10),
+            forensics_ticks: 64,
         }
     }
 }
@@ -189,6 +196,8 @@ pub enum ClientEvent {
     },
     /// The server ended the session.
     Closed(Close),
+    /// The room located a desync: the bodies and fields that differ.
+    DesyncLocated(lockstep_proto::DesyncReport),
 }
 
 /// Bytes and datagrams one connection moved, for bandwidth figures.
@@ -443,7 +452,9 @@ impl Client {
             Ok(())
         });
         let start_tick = self.session.start_tick();
+        let history = super::forensics::History::new(self.options.forensics_ticks);
         LiveClient {
+            history,
             endpoint: self.endpoint,
             connection: self.connection,
             session: self.session,
@@ -638,6 +649,7 @@ pub struct LiveClient {
     next_tick: u64,
     stream_ended: Option<String>,
     left: bool,
+    history: super::forensics::History,
 }
 
 impl std::fmt::Debug for LiveClient {
@@ -713,14 +725,25 @@ impl LiveClient {
     pub fn poll(&mut self, mut input: impl FnMut(u64) -> Vec<u8>) -> Result<Polled, ClientError> {
         let mut out = Polled::default();
         let result = self.poll_inner(&mut input, &mut out);
+        let mut answered = false;
         while let Some(ev) = self.session.poll_event() {
             out.events.push(match ev {
                 SessionEvent::Desync { notice, local_hash } => {
                     ClientEvent::Desync { notice, local_hash }
                 }
                 SessionEvent::Closed(c) => ClientEvent::Closed(c),
+                SessionEvent::DesyncLocated(r) => ClientEvent::DesyncLocated(r),
+                SessionEvent::Probe(p) => {
+                    let reply = self.history.answer(&p);
+                    answered |= self.session.reply_probe(reply).is_ok();
+                    continue;
+                }
             });
         }
+        let result = match result {
+            Ok(()) if answered => self.flush(),
+            r => r,
+        };
         result.map(|()| out)
     }
 
@@ -785,6 +808,7 @@ impl LiveClient {
                 .apply_inputs(&mut self.world, bundle.tick, &inputs);
             let step = self.world.step();
             let hash = self.world.state_hash();
+            self.history.record(bundle.tick, &self.world);
             let every = self.options.body_hashes_every;
             let bodies = (every > 0 && bundle.tick.is_multiple_of(every)).then(|| {
                 self.world

@@ -47,6 +47,8 @@ pub(crate) struct Comparison {
     /// The notice to raise; `None` when the hashes agree, or when this tick
     /// continues a divergence already reported.
     pub notice: Option<DesyncNotice>,
+    /// The hash a strict majority of the reporters hold, if any.
+    pub agreed: Option<u64>,
 }
 
 /// Outcome of recording one report.
@@ -225,6 +227,7 @@ impl Arbiter {
                 mismatch: false,
                 wrong: 0,
                 notice: None,
+                agreed: groups.first().map(|g| g.0),
             };
         }
         let reporters = reported.count_ones();
@@ -243,6 +246,7 @@ impl Arbiter {
                 mismatch: true,
                 wrong,
                 notice: None,
+                agreed: majority.map(|g| g.0),
             };
         }
         let verdict = match majority {
@@ -269,6 +273,7 @@ impl Arbiter {
             mismatch: true,
             wrong,
             notice: Some(notice),
+            agreed: majority.map(|g| g.0),
         }
     }
 }

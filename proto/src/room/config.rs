@@ -56,6 +56,11 @@ pub struct RoomConfig {
     pub max_wrong_ticks: u32,
     /// Interval between pings to each player (RTT and liveness). Default 1 s.
     pub ping_interval: Duration,
+    /// How long the search for where a desync lies (body hashes, then field
+    /// dumps, and the snapshot for the desync bundle) may wait for answers
+    /// before reporting what it has. Zero: no search, notices only.
+    /// Default 10 s.
+    pub locate_timeout: Duration,
     /// Scene sent to each player in the welcome, opaque to the room.
     pub scene: Vec<u8>,
     /// Hash of `scene`, sent alongside it.
@@ -79,6 +84,7 @@ impl RoomConfig {
             max_missing_reports: 300,
             max_wrong_ticks: 180,
             ping_interval: Duration::from_secs(1),
+            locate_timeout: Duration::from_secs(10),
             scene,
             scene_hash,
         }

@@ -1,6 +1,7 @@
 //! What the room hands back to its caller: transmits, events, counters, and
 //! the player handle they are addressed with.
 
+use crate::forensics::DesyncReport;
 use crate::message::{Channel, DesyncNotice, ServerMessage, Slot, TickBundle};
 
 /// Handle of a seated player: the slot plus a generation, so a message or
@@ -85,6 +86,22 @@ pub enum RoomEvent {
     },
     /// Players' hashes differ; the same notice was queued to every player.
     Desync(DesyncNotice),
+    /// The search started by a desync notice is over: the bodies and
+    /// fields that differ (the same report was queued to every player).
+    DesyncLocated(DesyncReport),
+    /// The snapshot of the last agreed tick before a desync, from a player
+    /// of the majority, for the desync bundle. Check it against
+    /// `agreed_hash` before trusting it: the room cannot read it.
+    DesyncSnapshot {
+        /// Its tick.
+        tick: u64,
+        /// The hash the players agreed on for that tick, if known.
+        agreed_hash: Option<u64>,
+        /// Who sent it.
+        from: Slot,
+        /// The engine's snapshot bytes.
+        bytes: Vec<u8>,
+    },
 }
 
 /// Room-wide counters.
@@ -98,4 +115,9 @@ pub struct RoomStats {
     pub mismatched_ticks: u64,
     /// Desync notices raised (one per divergence, not per tick).
     pub desync_notices: u64,
+    /// Searches started for where a desync lies (one runs at a time; a
+    /// notice raised during a search is not searched).
+    pub desync_searches: u64,
+    /// Searches that ended with a report.
+    pub desyncs_located: u64,
 }

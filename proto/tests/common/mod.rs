@@ -9,9 +9,9 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use lockstep_proto::{
-    Channel, ClientMessage, FRAME_HEADER_BYTES, MAX_DATAGRAM_BYTES, PlayerId, Rejection, Room,
-    RoomConfig, RoomEvent, ServerMessage, Session, SessionEvent, TickBundle, encode_frame,
-    frame_length,
+    BodyDump, Channel, ClientMessage, FRAME_HEADER_BYTES, FieldDump, FieldKind, MAX_DATAGRAM_BYTES,
+    PlayerId, Probe, ProbeAnswer, ProbeAsk, ProbeReply, Rejection, Room, RoomConfig, RoomEvent,
+    ServerMessage, Session, SessionEvent, TickBundle, encode_frame, frame_length,
 };
 
 /// SplitMix64: tiny, seeded, good enough to drive link models and fuzzing.
@@ -385,6 +385,12 @@ impl Sim {
                 continue;
             };
             while let Some(e) = s.poll_event() {
+                if let SessionEvent::Probe(p) = &e
+                    && !silent
+                {
+                    let reply = answer_probe(&c.hashes, c.corrupt_at, p);
+                    s.reply_probe(reply).expect("reply accepted");
+                }
                 c.events.push(e);
             }
             if silent {
@@ -469,5 +475,79 @@ impl Sim {
                 _ => None,
             })
             .collect()
+    }
+}
+
+/// Bodies in the synthetic world the probes see.
+pub const PROBE_BODIES: u32 = 10;
+/// The body a corrupted client differs in.
+pub const CORRUPT_BODY: u32 = 5;
+/// The length of the synthetic snapshot (two chunks).
+pub const SNAPSHOT_LEN: usize = 40_000;
+
+/// A client's answer to a probe about its synthetic world: ten bodies whose
+/// hashes are all zero but body 5's, which is one from the corrupted tick on
+/// (its `linear_velocity` field then reads 1 instead of 0); the snapshot of
+/// a tick is its state hash repeated.
+pub fn answer_probe(hashes: &[u64], corrupt_at: Option<u64>, p: &Probe) -> ProbeReply {
+    let Some(&state) = hashes.get(p.tick as usize) else {
+        return ProbeReply {
+            tick: p.tick,
+            answer: ProbeAnswer::Unavailable,
+        };
+    };
+    let bad = corrupt_at.is_some_and(|t| p.tick >= t);
+    let answer = match &p.ask {
+        ProbeAsk::BodyHashes { from } => ProbeAnswer::BodyHashes {
+            total: PROBE_BODIES,
+            from: *from,
+            contacts: 0,
+            hashes: (*from..PROBE_BODIES)
+                .map(|i| u64::from(bad && i == CORRUPT_BODY))
+                .collect(),
+        },
+        ProbeAsk::Fields { bodies } => ProbeAnswer::Fields {
+            bodies: bodies
+                .iter()
+                .map(|&index| BodyDump {
+                    index,
+                    handle: index + 1,
+                    generation: 0,
+                    name: format!("body{index}"),
+                    fields: vec![
+                        FieldDump {
+                            name: "mass".into(),
+                            kind: FieldKind::Scalar,
+                            words: vec![7 << 32],
+                        },
+                        FieldDump {
+                            name: "linear_velocity".into(),
+                            kind: FieldKind::Scalar,
+                            words: vec![u64::from(bad && index == CORRUPT_BODY), 0, 0],
+                        },
+                    ],
+                })
+                .collect(),
+        },
+        ProbeAsk::Snapshot { offset } => {
+            let all: Vec<u8> = state
+                .to_le_bytes()
+                .iter()
+                .copied()
+                .cycle()
+                .take(SNAPSHOT_LEN)
+                .collect();
+            let start = (*offset as usize).min(SNAPSHOT_LEN);
+            let end = (start + lockstep_proto::MAX_SNAPSHOT_CHUNK_BYTES).min(SNAPSHOT_LEN);
+            ProbeAnswer::Snapshot {
+                total: SNAPSHOT_LEN as u32,
+                offset: start as u32,
+                bytes: all[start..end].to_vec(),
+            }
+        }
+    };
+    ProbeReply {
+        tick: p.tick,
+        answer,
     }
 }

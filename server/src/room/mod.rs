@@ -7,6 +7,7 @@
 //! so a late wake-up delays one tick, not every tick after it. After every
 //! call into the room, its transmits and events are drained.
 
+mod bundle;
 mod report;
 
 use report::fill_traffic;
@@ -212,6 +213,14 @@ struct RoomTask {
     seats: Vec<Option<Seat>>,
     players: Vec<PlayerReport>,
     desyncs: Vec<DesyncNotice>,
+    /// Located desyncs, in order.
+    located: Vec<lockstep_proto::DesyncReport>,
+    /// Desync bundles written.
+    bundles: Vec<PathBuf>,
+    /// When the last desync notice went out (for the time to locate it).
+    notice_at: Option<Instant>,
+    /// The reference's checked snapshot, until the report comes.
+    desync_snapshot: Option<bundle::CheckedSnapshot>,
     replay: Option<Replay>,
     /// When the first player joined (the lobby timeout counts from it).
     first_join: Option<Duration>,
@@ -277,6 +286,10 @@ impl RoomTask {
             seats,
             players: Vec::new(),
             desyncs: Vec::new(),
+            located: Vec::new(),
+            bundles: Vec::new(),
+            notice_at: None,
+            desync_snapshot: None,
             replay,
             first_join: None,
         }
@@ -840,8 +853,16 @@ impl RoomTask {
                     room: self.name.clone(),
                     notice: notice.clone(),
                 });
+                self.notice_at = Some(Instant::now());
                 self.desyncs.push(notice);
             }
+            RoomEvent::DesyncLocated(report) => self.on_desync_located(report),
+            RoomEvent::DesyncSnapshot {
+                tick,
+                agreed_hash,
+                from,
+                bytes,
+            } => self.on_desync_snapshot(tick, agreed_hash, from, bytes),
         }
     }
 }

@@ -130,6 +130,8 @@ impl RoomTask {
             ticks_compared: stats.ticks_compared,
             mismatched_ticks: stats.mismatched_ticks,
             desyncs: self.desyncs.clone(),
+            located: self.located.clone(),
+            bundles: self.bundles.clone(),
             players: self.players.clone(),
             replay: self
                 .replay

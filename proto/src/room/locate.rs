@@ -1,0 +1,458 @@
+//! The room's search for where a desync lies: probes to the reference and
+//! the suspects, first for body hashes, then for the differing bodies'
+//! fields; and, for the desync bundle, the reference's snapshot of the last
+//! agreed tick. One search at a time; a notice raised while one runs is not
+//! searched (it is still announced).
+
+use std::time::Duration;
+
+use crate::forensics::field_diffs;
+use crate::forensics::{
+    BodyDiff, BodyDump, DesyncReport, Probe, ProbeAnswer, ProbeAsk, ProbeReply, ProbeStatus,
+    SuspectReport,
+};
+use crate::limits::{MAX_PROBE_BODIES, MAX_REPORT_FIELDS};
+use crate::message::{DesyncNotice, Slot, Verdict};
+
+/// What the search asks the room to do.
+#[derive(Debug)]
+pub(crate) enum Output {
+    /// Send this probe to this player.
+    Probe(Slot, Probe),
+    /// The search is over: announce, log and record this report.
+    Report(DesyncReport),
+    /// The reference's snapshot after `tick` arrived whole.
+    Snapshot {
+        /// Its tick (the one before the desync).
+        tick: u64,
+        /// The agreed hash of that tick, if the room knew it.
+        agreed_hash: Option<u64>,
+        /// Who sent it.
+        from: Slot,
+        /// The snapshot.
+        bytes: Vec<u8>,
+    },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum PeerState {
+    /// Waiting for a body-hash chunk.
+    Hashes,
+    /// Hashes complete; waiting for the next stage.
+    HashesDone,
+    /// Waiting for field dumps.
+    Fields,
+    /// Every answer came.
+    Done,
+    Unavailable,
+    NoAnswer,
+}
+
+#[derive(Debug)]
+struct Peer {
+    slot: Slot,
+    state: PeerState,
+    total: Option<u32>,
+    contacts: u64,
+    hashes: Vec<u64>,
+    dumps: Vec<BodyDump>,
+}
+
+impl Peer {
+    fn new(slot: Slot) -> Self {
+        Self {
+            slot,
+            state: PeerState::Hashes,
+            total: None,
+            contacts: 0,
+            hashes: Vec::new(),
+            dumps: Vec::new(),
+        }
+    }
+
+    fn has_hashes(&self) -> bool {
+        matches!(
+            self.state,
+            PeerState::HashesDone | PeerState::Fields | PeerState::Done
+        )
+    }
+
+    fn status(&self) -> ProbeStatus {
+        match self.state {
+            PeerState::Unavailable => ProbeStatus::Unavailable,
+            PeerState::Done | PeerState::HashesDone => ProbeStatus::Complete,
+            _ => ProbeStatus::NoAnswer,
+        }
+    }
+}
+
+#[derive(Debug)]
+struct SnapshotFetch {
+    slot: Slot,
+    tick: u64,
+    agreed_hash: Option<u64>,
+    total: Option<u32>,
+    bytes: Vec<u8>,
+}
+
+#[derive(Debug)]
+struct Search {
+    tick: u64,
+    deadline: Duration,
+    majority: bool,
+    /// `peers[0]` is the reference.
+    peers: Vec<Peer>,
+    /// The bodies whose fields were asked for, ascending.
+    bodies: Vec<u32>,
+    snapshot: Option<SnapshotFetch>,
+}
+
+/// One search at a time, with its deadline.
+#[derive(Debug)]
+pub(crate) struct Locator {
+    search: Option<Search>,
+    timeout: Duration,
+}
+
+impl Locator {
+    pub(crate) fn new(timeout: Duration) -> Self {
+        Self {
+            search: None,
+            timeout,
+        }
+    }
+
+    /// When the running search gives up waiting.
+    pub(crate) fn deadline(&self) -> Option<Duration> {
+        self.search.as_ref().map(|s| s.deadline)
+    }
+
+    /// Starts a search for `notice` unless one runs (returns whether it
+    /// started). `agreed_before` is the agreed hash of the tick before, if
+    /// the room knows it: the snapshot of that tick is fetched from the
+    /// reference for the desync bundle.
+    pub(crate) fn start(
+        &mut self,
+        now: Duration,
+        notice: &DesyncNotice,
+        agreed_before: Option<u64>,
+        out: &mut Vec<Output>,
+    ) -> bool {
+        if self.search.is_some() {
+            return false;
+        }
+        let reported: Vec<(Slot, u64)> = notice
+            .hashes
+            .iter()
+            .filter_map(|p| p.hash.map(|h| (p.slot, h)))
+            .collect();
+        let reference = match &notice.verdict {
+            Verdict::Majority { majority_hash, .. } => {
+                reported.iter().find(|(_, h)| h == majority_hash).copied()
+            }
+            Verdict::Undecided => reported.first().copied(),
+        };
+        let Some((reference, reference_hash)) = reference else {
+            return false;
+        };
+        let mut peers = vec![Peer::new(reference)];
+        peers.extend(
+            reported
+                .iter()
+                .filter(|(_, h)| *h != reference_hash)
+                .map(|&(s, _)| Peer::new(s)),
+        );
+        if peers.len() < 2 {
+            return false;
+        }
+        for p in &peers {
+            out.push(Output::Probe(
+                p.slot,
+                Probe {
+                    tick: notice.tick,
+                    ask: ProbeAsk::BodyHashes { from: 0 },
+                },
+            ));
+        }
+        let snapshot = notice.tick.checked_sub(1).map(|tick| {
+            out.push(Output::Probe(
+                reference,
+                Probe {
+                    tick,
+                    ask: ProbeAsk::Snapshot { offset: 0 },
+                },
+            ));
+            SnapshotFetch {
+                slot: reference,
+                tick,
+                agreed_hash: agreed_before,
+                total: None,
+                bytes: Vec::new(),
+            }
+        });
+        self.search = Some(Search {
+            tick: notice.tick,
+            deadline: now.saturating_add(self.timeout),
+            majority: matches!(notice.verdict, Verdict::Majority { .. }),
+            peers,
+            bodies: Vec::new(),
+            snapshot,
+        });
+        true
+    }
+
+    /// Takes a player's answer. Answers to no running probe are ignored; an
+    /// answer that does not fit what was asked ends that player's part.
+    pub(crate) fn on_reply(&mut self, slot: Slot, reply: ProbeReply, out: &mut Vec<Output>) {
+        let Some(s) = &mut self.search else {
+            return;
+        };
+        if let Some(f) = &mut s.snapshot
+            && f.slot == slot
+            && f.tick == reply.tick
+            && matches!(
+                reply.answer,
+                ProbeAnswer::Snapshot { .. } | ProbeAnswer::Unavailable
+            )
+        {
+            match reply.answer {
+                ProbeAnswer::Snapshot {
+                    total,
+                    offset,
+                    bytes,
+                } if f.total.is_none_or(|t| t == total)
+                    && offset as usize == f.bytes.len()
+                    && (!bytes.is_empty() || total == 0)
+                    && f.bytes.len() + bytes.len() <= total as usize =>
+                {
+                    f.total = Some(total);
+                    f.bytes.extend_from_slice(&bytes);
+                    if f.bytes.len() == total as usize {
+                        out.push(Output::Snapshot {
+                            tick: f.tick,
+                            agreed_hash: f.agreed_hash,
+                            from: f.slot,
+                            bytes: std::mem::take(&mut f.bytes),
+                        });
+                        s.snapshot = None;
+                    } else {
+                        out.push(Output::Probe(
+                            slot,
+                            Probe {
+                                tick: f.tick,
+                                ask: ProbeAsk::Snapshot {
+                                    offset: f.bytes.len() as u32,
+                                },
+                            },
+                        ));
+                    }
+                }
+                _ => s.snapshot = None,
+            }
+            self.advance(out);
+            return;
+        }
+        if reply.tick != s.tick {
+            return;
+        }
+        let Some(p) = s.peers.iter_mut().find(|p| p.slot == slot) else {
+            return;
+        };
+        match (p.state, reply.answer) {
+            (PeerState::Hashes | PeerState::Fields, ProbeAnswer::Unavailable) => {
+                p.state = PeerState::Unavailable;
+            }
+            (
+                PeerState::Hashes,
+                ProbeAnswer::BodyHashes {
+                    total,
+                    from,
+                    contacts,
+                    hashes,
+                },
+            ) if p.total.is_none_or(|t| t == total)
+                && from as usize == p.hashes.len()
+                && p.hashes.len() + hashes.len() <= total as usize
+                && (!hashes.is_empty() || total as usize == p.hashes.len()) =>
+            {
+                p.total = Some(total);
+                p.contacts = contacts;
+                p.hashes.extend_from_slice(&hashes);
+                if p.hashes.len() == total as usize {
+                    p.state = PeerState::HashesDone;
+                } else {
+                    out.push(Output::Probe(
+                        slot,
+                        Probe {
+                            tick: s.tick,
+                            ask: ProbeAsk::BodyHashes {
+                                from: p.hashes.len() as u32,
+                            },
+                        },
+                    ));
+                }
+            }
+            (PeerState::Fields, ProbeAnswer::Fields { bodies }) => {
+                let asked = &s.bodies;
+                let fits = bodies.windows(2).all(|w| w[0].index < w[1].index)
+                    && bodies.iter().all(|b| asked.contains(&b.index));
+                p.dumps = if fits { bodies } else { Vec::new() };
+                p.state = if fits {
+                    PeerState::Done
+                } else {
+                    PeerState::NoAnswer
+                };
+            }
+            (PeerState::Hashes | PeerState::Fields, _) => p.state = PeerState::NoAnswer,
+            _ => {}
+        }
+        self.advance(out);
+    }
+
+    /// A player left: its part of the search ends.
+    pub(crate) fn player_left(&mut self, slot: Slot, out: &mut Vec<Output>) {
+        let Some(s) = &mut self.search else {
+            return;
+        };
+        if s.snapshot.as_ref().is_some_and(|f| f.slot == slot) {
+            s.snapshot = None;
+        }
+        for p in s.peers.iter_mut().filter(|p| p.slot == slot) {
+            if matches!(p.state, PeerState::Hashes | PeerState::Fields) {
+                p.state = PeerState::NoAnswer;
+            }
+        }
+        self.advance(out);
+    }
+
+    /// Ends a search past its deadline with what it has.
+    pub(crate) fn on_timeout(&mut self, now: Duration, out: &mut Vec<Output>) {
+        let Some(s) = &mut self.search else {
+            return;
+        };
+        if now < s.deadline {
+            return;
+        }
+        s.snapshot = None;
+        for p in &mut s.peers {
+            if matches!(p.state, PeerState::Hashes | PeerState::Fields) {
+                p.state = PeerState::NoAnswer;
+            }
+        }
+        self.advance(out);
+    }
+
+    /// Moves to the field stage once every hash list is in, and reports
+    /// once every dump is in.
+    fn advance(&mut self, out: &mut Vec<Output>) {
+        let Some(s) = &mut self.search else {
+            return;
+        };
+        if s.peers.iter().any(|p| p.state == PeerState::Hashes) {
+            return;
+        }
+        if s.peers.iter().any(|p| p.state == PeerState::HashesDone) {
+            // Every hash list is in: pick the bodies to dump.
+            let mut bodies: Vec<u32> = Vec::new();
+            if s.peers[0].has_hashes() {
+                let reference = &s.peers[0].hashes;
+                for p in s.peers[1..].iter().filter(|p| p.has_hashes()) {
+                    bodies.extend(differing(reference, &p.hashes).take(MAX_PROBE_BODIES));
+                }
+            }
+            bodies.sort_unstable();
+            bodies.dedup();
+            bodies.truncate(MAX_PROBE_BODIES);
+            s.bodies = bodies;
+            for p in &mut s.peers {
+                if p.state == PeerState::HashesDone {
+                    if s.bodies.is_empty() {
+                        p.state = PeerState::Done;
+                    } else {
+                        p.state = PeerState::Fields;
+                        out.push(Output::Probe(
+                            p.slot,
+                            Probe {
+                                tick: s.tick,
+                                ask: ProbeAsk::Fields {
+                                    bodies: s.bodies.clone(),
+                                },
+                            },
+                        ));
+                    }
+                }
+            }
+        }
+        // The report comes last, after the snapshot arrived or failed, so
+        // a bundle written on the report has its snapshot.
+        if s.snapshot.is_some() || s.peers.iter().any(|p| p.state == PeerState::Fields) {
+            return;
+        }
+        out.push(Output::Report(report(s)));
+        self.search = None;
+    }
+}
+
+/// Indices whose hashes differ (a body only one side has differs).
+fn differing<'a>(a: &'a [u64], b: &'a [u64]) -> impl Iterator<Item = u32> + 'a {
+    (0..a.len().max(b.len()))
+        .filter(move |&i| a.get(i) != b.get(i))
+        .map(|i| i as u32)
+}
+
+fn report(s: &Search) -> DesyncReport {
+    let reference = &s.peers[0];
+    let mut budget = MAX_REPORT_FIELDS;
+    let mut omitted = 0u32;
+    let suspects = s.peers[1..]
+        .iter()
+        .map(|p| {
+            let both = reference.has_hashes() && p.has_hashes();
+            let differ: Vec<u32> = if both {
+                differing(&reference.hashes, &p.hashes).collect()
+            } else {
+                Vec::new()
+            };
+            let bodies = differ
+                .iter()
+                .filter(|i| s.bodies.contains(i))
+                .map(|&index| {
+                    let r = reference.dumps.iter().find(|b| b.index == index);
+                    let g = p.dumps.iter().find(|b| b.index == index);
+                    let named = r.or(g);
+                    let mut fields = match (r, g) {
+                        (Some(r), Some(g)) => field_diffs(r, g),
+                        _ => Vec::new(),
+                    };
+                    if fields.len() > budget {
+                        omitted += (fields.len() - budget) as u32;
+                        fields.truncate(budget);
+                    }
+                    budget -= fields.len();
+                    BodyDiff {
+                        index,
+                        handle: named.map_or(u32::MAX, |b| b.handle),
+                        generation: named.map_or(0, |b| b.generation),
+                        name: named.map(|b| b.name.clone()).unwrap_or_default(),
+                        fields,
+                    }
+                })
+                .collect();
+            SuspectReport {
+                slot: p.slot,
+                status: p.status(),
+                bodies_differing: differ.len() as u32,
+                contacts_differ: both && reference.contacts != p.contacts,
+                bodies,
+            }
+        })
+        .collect();
+    DesyncReport {
+        tick: s.tick,
+        reference: reference.slot,
+        majority: s.majority,
+        reference_status: reference.status(),
+        suspects,
+        fields_omitted: omitted,
+    }
+}
