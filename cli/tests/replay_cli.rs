@@ -226,3 +226,120 @@ fn a_replay_without_its_end_is_reported_as_cut_at_its_last_tick() {
         "{out}"
     );
 }
+
+/// The demo world after `ticks` ticks of the two players [`record`] plays.
+fn world_after(ticks: u64) -> lockstep_core::World {
+    let mut world = DemoGame::world().expect("demo scene");
+    let mut game = DemoGame::new(&world).expect("demo game");
+    for tick in 0..ticks {
+        let bundle = TickBundle {
+            tick,
+            inputs: (0..2u8)
+                .map(|s| PlayerInput {
+                    slot: Slot(s),
+                    input: bot_input(7, s, tick).encode(),
+                    substituted: false,
+                })
+                .collect(),
+        };
+        apply_bundle(&mut world, &mut game, &bundle);
+    }
+    world
+}
+
+/// A desync bundle of tick 60 (61 ticks recorded): the room's report says
+/// slot 1's body #5 had one ulp more x velocity than slot 0's, whose values
+/// `expected` overrides when given; the snapshot is the world after tick 59
+/// (or `snapshot` when given).
+fn bundle(expected: Option<Vec<u64>>, snapshot: Option<Vec<u8>>) -> Vec<u8> {
+    use lockstep_proto::replay::encode_record;
+    use lockstep_proto::{
+        BodyDiff, DesyncReport, FieldDiff, ProbeStatus, ReplayRecord, SuspectReport,
+    };
+    let at_59 = world_after(60);
+    let at_60 = world_after(61);
+    let dump = lockstep_client::net::dump_bodies(&at_60, &[5]).remove(0);
+    let v = dump
+        .fields
+        .iter()
+        .find(|f| f.name == "linear_velocity")
+        .unwrap()
+        .words
+        .clone();
+    let mut got = v.clone();
+    got[0] = got[0].wrapping_add(1);
+    let report = DesyncReport {
+        tick: 60,
+        reference: Slot(0),
+        majority: false,
+        reference_status: ProbeStatus::Complete,
+        suspects: vec![SuspectReport {
+            slot: Slot(1),
+            status: ProbeStatus::Complete,
+            bodies_differing: 1,
+            contacts_differ: false,
+            bodies: vec![BodyDiff {
+                index: 5,
+                handle: dump.handle,
+                generation: dump.generation,
+                name: dump.name.clone(),
+                fields: vec![FieldDiff {
+                    name: "linear_velocity".into(),
+                    kind: lockstep_proto::FieldKind::Scalar,
+                    expected: expected.unwrap_or(v),
+                    got,
+                }],
+            }],
+        }],
+        fields_omitted: 0,
+    };
+    let snap = snapshot.unwrap_or_else(|| at_59.snapshot());
+    let mut bytes = record(61, None);
+    bytes.extend(encode_record(&ReplayRecord::Located(report)).unwrap());
+    let piece = ReplayRecord::Snapshot {
+        tick: 59,
+        hash: at_59.state_hash(),
+        total: snap.len() as u64,
+        offset: 0,
+        bytes: snap,
+    };
+    bytes.extend(encode_record(&piece).unwrap());
+    bytes
+}
+
+#[test]
+fn a_desync_bundle_reproduces_the_body_and_field_diff_offline() {
+    let (code, out) = run("good.bundle", &bundle(None, None));
+    assert_eq!(code, 0, "{out}");
+    assert!(
+        out.starts_with(
+            "BUNDLE REPRODUCED: 60 agreed hashes checked up to tick 60, the snapshot of tick 59 matches"
+        ),
+        "{out}"
+    );
+    assert!(out.contains("body #5 \"player0\""), "{out}");
+    assert!(out.contains("linear_velocity:"), "{out}");
+}
+
+#[test]
+fn a_bundle_whose_majority_values_this_machine_does_not_produce_exits_one() {
+    let (code, out) = run("other.bundle", &bundle(Some(vec![0, 0, 0]), None));
+    assert_eq!(code, 1, "{out}");
+    assert!(out.starts_with("BUNDLE NOT REPRODUCED"), "{out}");
+    // This machine's values are shown as the expected ones.
+    assert!(
+        !out.contains("expected [0 (0x0000000000000000), 0 "),
+        "{out}"
+    );
+}
+
+#[test]
+fn a_bundle_with_a_foreign_snapshot_is_refused_with_its_tick() {
+    let other = world_after(30).snapshot();
+    let (code, out) = run("snap.bundle", &bundle(None, Some(other)));
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        out.contains("the snapshot of tick 59: agreed hash"),
+        "{out}"
+    );
+}

@@ -305,6 +305,11 @@ pub struct RoomReport {
     pub located: Vec<lockstep_proto::DesyncReport>,
     /// The desync bundles written (with a replay directory only).
     pub bundles: Vec<PathBuf>,
+    /// Bytes of desync probes and reports the room sent (encoded messages,
+    /// without stream framing): what locating desyncs cost downstream.
+    pub forensics_bytes_down: u64,
+    /// Bytes of probe replies the room received.
+    pub forensics_bytes_up: u64,
     /// Every player who was seated, by join order.
     pub players: Vec<PlayerReport>,
     /// The replay file, if recorded.

@@ -94,6 +94,10 @@ impl fmt::Display for KitFailure {
                                 writeln!(f, "    {b}")?;
                             }
                         }
+                        ReplayVerifyError::NotReproduced { offline, .. } => {
+                            writeln!(f, "; this machine's values are the expected ones:")?;
+                            write!(f, "{offline}")?;
+                        }
                         ReplayVerifyError::Mismatch { bodies: None, .. } => writeln!(
                             f,
                             "; the replay holds no body hashes from that tick on, so the bodies cannot be named"
@@ -116,7 +120,10 @@ impl fmt::Debug for KitFailure {
 
 impl std::error::Error for KitFailure {}
 
-/// The `*.replay` files of `dir`, in name order.
+/// The `*.replay` files and `*.bundle` desync bundles of `dir`, in name
+/// order. A bundle passes when re-simulating it gives the majority's
+/// values in every field the room reported (the desync still reproduces,
+/// and the engine and rules still simulate like the majority did).
 ///
 /// # Errors
 /// The folder cannot be read.
@@ -124,7 +131,11 @@ pub fn replay_files(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     for entry in std::fs::read_dir(dir)? {
         let path = entry?.path();
-        if path.is_file() && path.extension().is_some_and(|e| e == "replay") {
+        if path.is_file()
+            && path
+                .extension()
+                .is_some_and(|e| e == "replay" || e == "bundle")
+        {
             files.push(path);
         }
     }

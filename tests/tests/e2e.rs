@@ -213,8 +213,18 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
         }),
     )];
     let bots = bots_ok(run_bots(&options, std::future::pending()).await);
+    let mut notice_at = None;
+    let mut located_at = None;
     let ended = server
         .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::Desync { .. } => {
+                notice_at = Some(Instant::now());
+                None
+            }
+            ServerEvent::DesyncLocated { at, .. } => {
+                located_at = Some(*at);
+                None
+            }
             ServerEvent::MatchEnded(r) => Some(r.clone()),
             _ => None,
         })
@@ -250,11 +260,72 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
         assert_eq!(n[0].tick, 300);
     }
     // The replay keeps the majority's hashes: it verifies.
-    let check = verify_replay_file(&ended.replay.expect("replay"), &Demo).expect("replay verifies");
+    let check =
+        verify_replay_file(ended.replay.as_ref().expect("replay"), &Demo).expect("replay verifies");
     assert_eq!(
         (check.ticks, check.checked, check.desyncs_recorded),
         (420, 420, 1)
     );
+    // Located on that tick: the nudged body (the scene's first dynamic
+    // body) and its linear velocity, found by the odd bot's dump against
+    // slot 0's.
+    assert_eq!(ended.located.len(), 1, "{:?}", ended.located);
+    let r = &ended.located[0];
+    println!("{r}");
+    assert_eq!((r.tick, r.reference, r.majority), (300, Slot(0), true));
+    assert_eq!(r.suspects.len(), 1);
+    assert_eq!(r.suspects[0].slot, Slot(2));
+    assert_eq!(r.suspects[0].status, lockstep_proto::ProbeStatus::Complete);
+    let world = lockstep_core::scene::load_world(DemoGame::SCENE, "demo").unwrap();
+    let nudged = world
+        .body_handles()
+        .find(|&h| world.body(h).unwrap().kind() == lockstep_core::BodyKind::Dynamic)
+        .unwrap();
+    let first = r.first_body().expect("a diverging body");
+    assert_eq!(
+        (first.handle, first.name.as_str()),
+        (nudged.index(), world.body(nudged).unwrap().name())
+    );
+    let names: Vec<&str> = first.fields.iter().map(|f| f.name.as_str()).collect();
+    assert!(names.contains(&"linear_velocity"), "{names:?}");
+    // Every player was told where, in the same words.
+    for b in &bots {
+        let got: Vec<_> = b
+            .events
+            .iter()
+            .filter_map(|e| match e {
+                lockstep_client::net::ClientEvent::DesyncLocated(x) => Some(x),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(got, vec![r], "slot {}", b.slot.0);
+    }
+    // The replay holds the report too.
+    let replay = Replay::parse(&std::fs::read(ended.replay.as_ref().unwrap()).unwrap()).unwrap();
+    assert_eq!(replay.located, vec![r.clone()]);
+    // The bundle re-simulates offline to the same diff, its snapshot of
+    // tick 299 checked, and passes as a regression test.
+    assert_eq!(ended.bundles.len(), 1);
+    let bundle = Replay::parse(&std::fs::read(&ended.bundles[0]).unwrap()).unwrap();
+    let c = lockstep_client::offline::reproduce_bundle(&bundle, &Demo).expect("bundle reproduces");
+    assert_eq!(c.snapshot_tick, Some(299));
+    assert_eq!(c.hashes_checked, 300);
+    assert!(c.reproduces());
+    assert_eq!(c.offline.to_string(), r.to_string());
+    let kit = verify_replay_file(&ended.bundles[0], &Demo).expect("the bundle passes");
+    assert_eq!(kit.checked, 300);
+    let (notice_at, located_at) = (notice_at.unwrap(), located_at.unwrap());
+    println!(
+        "localization: {} B down (probes and reports to 4 players), {} B up (replies), located {:.1} ms after the notice, bundle {} B",
+        ended.forensics_bytes_down,
+        ended.forensics_bytes_up,
+        located_at
+            .saturating_duration_since(notice_at)
+            .as_secs_f64()
+            * 1e3,
+        std::fs::metadata(&ended.bundles[0]).unwrap().len()
+    );
+    assert!(located_at.saturating_duration_since(notice_at) < Duration::from_secs(2));
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

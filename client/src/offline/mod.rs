@@ -1,11 +1,13 @@
 //! Offline tools: run a scene file without a server, verify a replay, tune
 //! a scene's settings.
 
+mod bundle;
 mod dump;
 mod replay;
 mod sim;
 pub mod tune;
 
+pub use bundle::{BundleCheck, is_bundle, reproduce_bundle};
 pub use dump::{BodyDump, StateDump, dump_state};
 pub use replay::{
     BodiesAt, BodyDiff, ReplayCheck, ReplayVerifyError, apply_bundle, check_header,

@@ -145,6 +145,29 @@ pub enum ReplayVerifyError {
         /// This engine's (`STATE_HASH_VERSION`).
         ours: u64,
     },
+    /// The file has no located desync to reproduce.
+    #[error("not a desync bundle: no located desync in it")]
+    NotABundle,
+    /// The bundle's snapshot does not restore, or does not match the
+    /// re-simulation at its tick.
+    #[error("the snapshot of tick {tick}: {detail}")]
+    BadSnapshot {
+        /// Its tick.
+        tick: u64,
+        /// What was wrong.
+        detail: String,
+    },
+    /// Re-simulating the bundle does not give the majority's values in the
+    /// reported fields.
+    #[error(
+        "the desync of tick {tick} does not reproduce: this machine's values differ from the majority's"
+    )]
+    NotReproduced {
+        /// The desync's tick.
+        tick: u64,
+        /// The report with this machine's values as the expected ones.
+        offline: Box<lockstep_proto::DesyncReport>,
+    },
     /// The first tick whose re-simulated hash differs from the agreed one.
     #[error("mismatch at tick {tick}: expected {expected:016x}, got {got:016x}")]
     Mismatch {
@@ -184,7 +207,9 @@ impl ReplayVerifyError {
     /// [`exit_status`]).
     pub fn exit_status(&self) -> u8 {
         match self {
-            Self::Mismatch { .. } => exit_status::MISMATCH,
+            Self::Mismatch { .. } | Self::NotReproduced { .. } | Self::BadSnapshot { .. } => {
+                exit_status::MISMATCH
+            }
             Self::WrongRules { .. } => exit_status::WRONG_RULES,
             Self::WrongHashLayout { .. } => exit_status::WRONG_HASH_LAYOUT,
             _ => exit_status::INVALID,
@@ -335,7 +360,27 @@ pub fn verify_replay_file(
         path: path.to_path_buf(),
         source,
     })?;
-    verify_replay(&Replay::parse(&bytes)?, game)
+    let replay = Replay::parse(&bytes)?;
+    if super::bundle::is_bundle(&replay) {
+        let c = super::bundle::reproduce_bundle(&replay, game)?;
+        if !c.reproduces() {
+            return Err(ReplayVerifyError::NotReproduced {
+                tick: c.recorded.tick,
+                offline: Box::new(c.offline),
+            });
+        }
+        return Ok(ReplayCheck {
+            ticks: c.recorded.tick + 1,
+            checked: c.hashes_checked,
+            unchecked: c.recorded.tick + 1 - c.hashes_checked,
+            players: replay.players.len(),
+            desyncs_recorded: replay.desyncs.len(),
+            final_hash: 0,
+            truncated: false,
+            end: Some(format!("desync bundle of tick {}", c.recorded.tick)),
+        });
+    }
+    verify_replay(&replay, game)
 }
 
 /// What `lockstep replay FILE` does, for any game: verifies the file with
@@ -343,6 +388,9 @@ pub fn verify_replay_file(
 /// bodies that differ (stdout), or the error (stderr), and returns the exit
 /// status ([`exit_status`]). A game's own replay tool is a `main` around it.
 pub fn check_replay_command(path: &Path, game: &dyn RulesFactory) -> u8 {
+    if let Some(status) = check_bundle_command(path, game) {
+        return status;
+    }
     match verify_replay_file(path, game) {
         Ok(c) => {
             let figures = format!(
@@ -386,4 +434,42 @@ pub fn check_replay_command(path: &Path, game: &dyn RulesFactory) -> u8 {
             e.exit_status()
         }
     }
+}
+
+/// `lockstep replay BUNDLE`: re-simulates a desync bundle and prints the
+/// body/field diff between this machine and the diverging players. `None`
+/// when the file is not a bundle (a plain replay).
+fn check_bundle_command(path: &Path, game: &dyn RulesFactory) -> Option<u8> {
+    let replay = Replay::parse(&std::fs::read(path).ok()?).ok()?;
+    if !super::bundle::is_bundle(&replay) {
+        return None;
+    }
+    Some(match super::bundle::reproduce_bundle(&replay, game) {
+        Ok(c) => {
+            let snapshot = c.snapshot_tick.map_or_else(
+                || "no snapshot in the bundle".to_owned(),
+                |t| format!("the snapshot of tick {t} matches"),
+            );
+            let verdict = if c.reproduces() {
+                "REPRODUCED"
+            } else {
+                "NOT REPRODUCED (this machine differs from the majority too)"
+            };
+            println!(
+                "BUNDLE {verdict}: {} agreed hashes checked up to tick {}, {snapshot}; \
+                 this machine's values are the expected ones below",
+                c.hashes_checked, c.recorded.tick
+            );
+            print!("{}", c.offline);
+            if c.reproduces() {
+                exit_status::OK
+            } else {
+                exit_status::MISMATCH
+            }
+        }
+        Err(e) => {
+            eprintln!("lockstep replay: error: {e}");
+            e.exit_status()
+        }
+    })
 }

@@ -221,6 +221,8 @@ struct RoomTask {
     notice_at: Option<Instant>,
     /// The reference's checked snapshot, until the report comes.
     desync_snapshot: Option<bundle::CheckedSnapshot>,
+    /// Bytes of probes and reports sent, and of probe replies received.
+    forensics_bytes: (u64, u64),
     replay: Option<Replay>,
     /// When the first player joined (the lobby timeout counts from it).
     first_join: Option<Duration>,
@@ -290,6 +292,7 @@ impl RoomTask {
             bundles: Vec::new(),
             notice_at: None,
             desync_snapshot: None,
+            forensics_bytes: (0, 0),
             replay,
             first_join: None,
         }
@@ -648,6 +651,9 @@ impl RoomTask {
                     }
                     _ => (None, None),
                 };
+                if matches!(msg, ClientMessage::ProbeReply(_)) {
+                    self.forensics_bytes.1 += len as u64;
+                }
                 if channel == Channel::Datagram {
                     let p = &mut self.players[report];
                     p.datagrams_up += 1;
@@ -732,7 +738,9 @@ impl RoomTask {
     fn transmit(&mut self, to: PlayerId, message: ServerMessage) {
         let now = self.now();
         let name = self.name.clone();
-        let Some(seat) = self.seat(to) else { return };
+        if self.seat(to).is_none() {
+            return;
+        }
         let bytes = match message.encode() {
             Ok(b) => b,
             Err(e) => {
@@ -741,6 +749,13 @@ impl RoomTask {
                 return;
             }
         };
+        if matches!(
+            message,
+            ServerMessage::Probe(_) | ServerMessage::DesyncReport(_)
+        ) {
+            self.forensics_bytes.0 += bytes.len() as u64;
+        }
+        let Some(seat) = self.seat(to) else { return };
         match message.channel() {
             Channel::Datagram => {
                 let len = bytes.len();

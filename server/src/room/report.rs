@@ -131,6 +131,8 @@ impl RoomTask {
             mismatched_ticks: stats.mismatched_ticks,
             desyncs: self.desyncs.clone(),
             located: self.located.clone(),
+            forensics_bytes_down: self.forensics_bytes.0,
+            forensics_bytes_up: self.forensics_bytes.1,
             bundles: self.bundles.clone(),
             players: self.players.clone(),
             replay: self
