@@ -117,3 +117,48 @@ fn a_bad_scene_file_is_a_clear_error_with_file_line_and_column() {
     assert_eq!(zero.status.code(), Some(2));
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `lockstep-server token` prints a token the server's check accepts for
+/// that room and seat; a short secret is refused with its reason.
+#[test]
+fn the_token_subcommand_prints_a_token_that_verifies() {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let secret = dir.join("token-secret");
+    std::fs::write(&secret, b"a secret of more than sixteen bytes").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
+        .args([
+            "token", "--room", "arena", "--seat", "2", "--player", "alice",
+        ])
+        .arg("--secret-file")
+        .arg(&secret)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let token = String::from_utf8(out.stdout).unwrap();
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs();
+    let ticket = lockstep_proto::token::verify(
+        b"a secret of more than sixteen bytes",
+        token.trim(),
+        "arena",
+        now,
+    )
+    .unwrap();
+    assert_eq!(ticket.claims.seat, Some(lockstep_proto::Slot(2)));
+    assert_eq!(ticket.claims.player, "alice");
+    assert!(ticket.claims.expires >= now + 3500);
+    std::fs::write(&secret, b"short").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
+        .args(["token", "--room", "arena", "--player", "alice"])
+        .arg("--secret-file")
+        .arg(&secret)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("shorter than 16 bytes"),
+        "{out:?}"
+    );
+}

@@ -41,6 +41,8 @@ pub struct BotOptions {
     /// Body hashes with every K-th tick's report (0: never); see
     /// [`ClientOptions::body_hashes_every`].
     pub body_hashes_every: u64,
+    /// Join tokens, bot `i` presenting `tokens[i]` (none past the list).
+    pub tokens: Vec<String>,
     /// Print desync notices and closes to stderr as they happen.
     pub verbose: bool,
 }
@@ -89,6 +91,7 @@ impl BotOptions {
             game,
             game_of_bot: Vec::new(),
             body_hashes_every: 0,
+            tokens: Vec::new(),
             verbose: false,
         }
     }
@@ -111,6 +114,7 @@ impl BotOptions {
         );
         o.max_ticks = self.ticks;
         o.body_hashes_every = self.body_hashes_every;
+        o.token = self.tokens.get(index).cloned();
         o
     }
 }

@@ -29,7 +29,9 @@ pub fn close_code_for(reason: CloseReason) -> u32 {
         CloseReason::RoomFull
         | CloseReason::MatchInProgress
         | CloseReason::WrongRoom
-        | CloseReason::VersionMismatch => REFUSED,
+        | CloseReason::VersionMismatch
+        | CloseReason::SeatTaken
+        | CloseReason::BadToken => REFUSED,
         CloseReason::ProtocolViolation | CloseReason::NoHashReports => PROTOCOL_VIOLATION,
         CloseReason::Diverged => DIVERGED,
     }

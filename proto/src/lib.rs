@@ -29,6 +29,7 @@ pub mod replay;
 mod ring;
 pub mod room;
 pub mod session;
+pub mod token;
 
 pub use codec::{DecodeError, EncodeError, FRAME_HEADER_BYTES, encode_frame, frame_length};
 pub use forensics::{

@@ -8,7 +8,8 @@
 /// bytes, little-endian) so a peer built from another version is refused with
 /// [`DecodeError::WrongVersion`](crate::DecodeError::WrongVersion) instead of
 /// being misread. Bump it on any change to a message layout.
-pub const PROTOCOL_VERSION: u16 = 1;
+/// Version 2 added the join token and the desync probes and report.
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Bytes taken by the version header in front of every encoded message.
 pub const VERSION_HEADER_BYTES: usize = 2;

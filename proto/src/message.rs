@@ -54,6 +54,9 @@ pub struct Join {
     pub room: String,
     /// Display name of the player.
     pub player_name: String,
+    /// A signed join token (see [`token`](crate::token)), when the server
+    /// requires one or the player holds one.
+    pub token: Option<String>,
 }
 
 /// One input datagram: the player's inputs for the consecutive ticks
@@ -143,7 +146,12 @@ impl ClientMessage {
                 })?;
                 check_len(j.player_name.len(), MAX_NAME_BYTES, |len, max| {
                     Violation::NameTooLong { len, max }
-                })
+                })?;
+                check_len(
+                    j.token.as_ref().map_or(0, String::len),
+                    crate::token::MAX_TOKEN_BYTES,
+                    |len, max| Violation::NameTooLong { len, max },
+                )
             }
             Self::Input(d) => {
                 check_slot(d.slot)?;
@@ -344,6 +352,12 @@ pub enum CloseReason {
     Diverged,
     /// The player stopped reporting its state hash.
     NoHashReports,
+    /// The join's token names a seat another player holds, or the token
+    /// already seats another connection.
+    SeatTaken,
+    /// The server requires a valid join token and the join had none, or a
+    /// bad one (the detail says what was wrong).
+    BadToken,
 }
 
 /// Final message to a player before the server closes the connection.

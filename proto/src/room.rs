@@ -128,6 +128,23 @@ impl Room {
     /// # Errors
     /// [`JoinError`]; the caller sends its [`JoinError::to_close`].
     pub fn join(&mut self, now: Duration, join: &Join) -> Result<PlayerId, JoinError> {
+        self.join_with_ticket(now, join, None)
+    }
+
+    /// [`Room::join`] for a join whose token the caller verified
+    /// ([`token::verify`](crate::token::verify)): a seat token seats the
+    /// player in exactly that seat, and one token seats one player at a
+    /// time, so votes are counted per granted seat.
+    ///
+    /// # Errors
+    /// As [`Room::join`], and [`JoinError::SeatTaken`],
+    /// [`JoinError::NoSuchSeat`], [`JoinError::TokenInUse`].
+    pub fn join_with_ticket(
+        &mut self,
+        now: Duration,
+        join: &Join,
+        ticket: Option<&crate::token::Ticket>,
+    ) -> Result<PlayerId, JoinError> {
         if join.protocol_version != PROTOCOL_VERSION {
             return Err(JoinError::VersionMismatch {
                 client: join.protocol_version,
@@ -140,8 +157,26 @@ impl Room {
         if self.epoch.is_some() {
             return Err(JoinError::MatchInProgress);
         }
-        let Some(index) = self.players.iter().position(Option::is_none) else {
-            return Err(JoinError::RoomFull(self.config.max_players));
+        if let Some(t) = ticket
+            && let Some(i) = self
+                .players
+                .iter()
+                .position(|p| p.as_ref().is_some_and(|p| p.ticket == Some(t.key)))
+        {
+            return Err(JoinError::TokenInUse(i as u8));
+        }
+        let index = match ticket.and_then(|t| t.claims.seat) {
+            Some(seat) => match self.players.get(seat.index()) {
+                None => return Err(JoinError::NoSuchSeat(seat.0)),
+                Some(Some(_)) => return Err(JoinError::SeatTaken(seat.0)),
+                Some(None) => seat.index(),
+            },
+            None => {
+                let Some(index) = self.players.iter().position(Option::is_none) else {
+                    return Err(JoinError::RoomFull(self.config.max_players));
+                };
+                index
+            }
         };
         // The index is below max_players, a u8.
         let slot = Slot(index as u8);
@@ -150,12 +185,9 @@ impl Room {
             generation: self.generations[index],
         };
         let window = usize::from(self.config.input_window);
-        self.players[index] = Some(Player::new(
-            join.player_name.clone(),
-            self.next_tick,
-            window,
-            now,
-        ));
+        let mut player = Player::new(join.player_name.clone(), self.next_tick, window, now);
+        player.ticket = ticket.map(|t| t.key);
+        self.players[index] = Some(player);
         self.transmits.push_back(Transmit {
             to: id,
             message: ServerMessage::Welcome(Welcome {

@@ -156,10 +156,20 @@ pub struct Session {
 impl Session {
     /// The join message for `room`, to send before any session exists.
     pub fn join_message(room: &str, player_name: &str) -> ClientMessage {
+        Self::join_message_with_token(room, player_name, None)
+    }
+
+    /// The join message carrying a join token.
+    pub fn join_message_with_token(
+        room: &str,
+        player_name: &str,
+        token: Option<String>,
+    ) -> ClientMessage {
         ClientMessage::Join(Join {
             protocol_version: PROTOCOL_VERSION,
             room: room.to_owned(),
             player_name: player_name.to_owned(),
+            token,
         })
     }
 

@@ -31,6 +31,7 @@ fn client_samples() -> Vec<ClientMessage> {
             protocol_version: PROTOCOL_VERSION,
             room: "arena".into(),
             player_name: "Zoë".into(),
+            token: None,
         }),
         ClientMessage::Input(InputDatagram {
             slot: Slot(3),

@@ -16,6 +16,7 @@ fn join_msg(name: &str) -> Join {
         protocol_version: PROTOCOL_VERSION,
         room: "arena".into(),
         player_name: name.into(),
+        token: None,
     }
 }
 

@@ -63,9 +63,10 @@ fn message_sizes_for_a_4_player_room_with_8_byte_inputs() {
         protocol_version: PROTOCOL_VERSION,
         room: "arena".into(),
         player_name: "player-1".into(),
+        token: None,
     });
-    // 3 + version 1 + (1 + 5) + (1 + 8)
-    assert_eq!(len_c(&join), 19);
+    // 3 + version 1 + (1 + 5) + (1 + 8) + no token 1
+    assert_eq!(len_c(&join), 20);
     // 3 + slot 1 + ack Some 1+3 + first tick 3 + count 1 + k × (len 1 + 8)
     assert_eq!(len_c(&input(1)), 21);
     assert_eq!(len_c(&input(5)), 57);

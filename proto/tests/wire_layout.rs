@@ -7,8 +7,8 @@ use lockstep_proto::{
     PlayerInput, ServerMessage, Slot, TickBundle, Verdict,
 };
 
-/// The version header: protocol version 1, little-endian.
-const V: [u8; 2] = [1, 0];
+/// The version header: protocol version 2, little-endian.
+const V: [u8; 2] = [2, 0];
 
 fn with_header(body: &[u8]) -> Vec<u8> {
     [&V[..], body].concat()
@@ -17,15 +17,43 @@ fn with_header(body: &[u8]) -> Vec<u8> {
 #[test]
 fn client_messages_have_the_documented_bytes() {
     let join = ClientMessage::Join(Join {
-        protocol_version: 1,
+        protocol_version: 2,
         room: "ab".into(),
         player_name: "p".into(),
+        token: None,
     });
-    // variant 0; u16 varint 1; string = varint length + UTF-8; string.
+    // variant 0; u16 varint 2; string = varint length + UTF-8; string;
+    // no token: Option tag 0.
     assert_eq!(
         join.encode().unwrap(),
-        with_header(&[0, 1, 2, b'a', b'b', 1, b'p'])
+        with_header(&[0, 2, 2, b'a', b'b', 1, b'p', 0])
     );
+    let join = ClientMessage::Join(Join {
+        protocol_version: 2,
+        room: "ab".into(),
+        player_name: "p".into(),
+        token: Some("0f".into()),
+    });
+    // A token: Option tag 1, then the string.
+    assert_eq!(
+        join.encode().unwrap(),
+        with_header(&[0, 2, 2, b'a', b'b', 1, b'p', 1, 2, b'0', b'f'])
+    );
+    let probe = ServerMessage::Probe(lockstep_proto::Probe {
+        tick: 300,
+        ask: lockstep_proto::ProbeAsk::Fields { bodies: vec![5] },
+    });
+    // variant 5; tick 300 (251, u16 LE); ask variant 1; 1 body: u32 5.
+    assert_eq!(
+        probe.encode().unwrap(),
+        with_header(&[5, 251, 0x2c, 0x01, 1, 1, 5])
+    );
+    let reply = ClientMessage::ProbeReply(lockstep_proto::ProbeReply {
+        tick: 7,
+        answer: lockstep_proto::ProbeAnswer::Unavailable,
+    });
+    // variant 5; tick 7; answer variant 0.
+    assert_eq!(reply.encode().unwrap(), with_header(&[5, 7, 0]));
 
     let input = ClientMessage::Input(InputDatagram {
         slot: Slot(3),

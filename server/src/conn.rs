@@ -138,6 +138,18 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
         writer: writer_tx.clone(),
         remote: connection.remote_address(),
     };
+    let ticket = match check_token(shared, &join) {
+        Ok(t) => t,
+        Err(e) => {
+            let close = close_of(CloseReason::BadToken, e.to_string());
+            send_close(&writer_tx, &close);
+            let why = format!(
+                "join of {:?} to room {:?} refused: {}",
+                join.player_name, join.room, close.detail
+            );
+            return Err((why, Some(connection), Some(writer)));
+        }
+    };
     let room_tx = match room::find_or_open(shared, &join.room) {
         Ok(tx) => tx,
         Err(close) => {
@@ -147,6 +159,7 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
     };
     let (reply_tx, reply_rx) = oneshot::channel();
     let request = RoomCmd::Join {
+        ticket,
         join: join.clone(),
         peer,
         reply: reply_tx,
@@ -396,4 +409,27 @@ pub(crate) fn close_of(reason: CloseReason, detail: impl Into<String>) -> Close 
         detail.truncate(cut);
     }
     Close { reason, detail }
+}
+
+/// The join's token, verified when the server has a secret: `None` when it
+/// carries none (allowed unless tokens are required) or the server has no
+/// secret (development: tokens are not checked).
+fn check_token(
+    shared: &Shared,
+    join: &lockstep_proto::Join,
+) -> Result<Option<lockstep_proto::token::Ticket>, lockstep_proto::token::TokenError> {
+    use lockstep_proto::token::{TokenError, verify};
+    let Some(secret) = &shared.config.token_secret else {
+        return Ok(None);
+    };
+    match &join.token {
+        None if shared.config.require_tokens => Err(TokenError::Missing),
+        None => Ok(None),
+        Some(t) => {
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs());
+            verify(secret, t, &join.room, now).map(Some)
+        }
+    }
 }

@@ -119,6 +119,12 @@ pub struct ServerConfig {
     pub max_rooms: usize,
     /// Most connections at once; beyond it a connection is refused at once.
     pub max_connections: usize,
+    /// The secret join tokens are signed with (at least 16 bytes). With it,
+    /// a join that carries a token is seated only if the token verifies
+    /// (and in the token's seat); see [`issue_token`].
+    pub token_secret: Option<Vec<u8>>,
+    /// Refuse joins without a valid token (needs `token_secret`).
+    pub require_tokens: bool,
     /// Where the server reports what happens (listening address, matches,
     /// a status per room per second, desyncs), for the demo and tests.
     pub events: Option<mpsc::UnboundedSender<ServerEvent>>,
@@ -148,6 +154,8 @@ impl ServerConfig {
             replay_dir: Some(PathBuf::from("out/replays")),
             max_rooms: 16,
             max_connections: 256,
+            token_secret: None,
+            require_tokens: false,
             events: None,
         }
     }
@@ -414,6 +422,21 @@ pub async fn run(
         })?;
     let scene_hash = world.state_hash();
     room::check_settings(&config, scene_hash)?;
+    match &config.token_secret {
+        Some(s) if s.len() < lockstep_proto::token::MIN_SECRET_BYTES => {
+            return Err(ServerError::Config(format!(
+                "the token secret has {} bytes; at least {} are needed",
+                s.len(),
+                lockstep_proto::token::MIN_SECRET_BYTES
+            )));
+        }
+        None if config.require_tokens => {
+            return Err(ServerError::Config(
+                "tokens are required but no token secret is set".into(),
+            ));
+        }
+        _ => {}
+    }
     if let Some(dir) = &config.replay_dir {
         std::fs::create_dir_all(dir).map_err(|e| ServerError::Io(dir.clone(), e))?;
     }
@@ -494,4 +517,34 @@ pub async fn run(
     crate::log!("server stopped");
     let report = shared.report.lock().map(|r| r.clone()).unwrap_or_default();
     Ok(report)
+}
+
+/// A join token for a seat (or any seat, `seat: None`) of `room`, for
+/// `player`, valid for `ttl` from `now`: what a matchmaker hands a player
+/// it placed. The server checks it against the same `secret`
+/// ([`ServerConfig::token_secret`]).
+///
+/// # Errors
+/// [`lockstep_proto::token::TokenError::Unissuable`] for a secret shorter
+/// than 16 bytes, names over 64 bytes or a seat out of range.
+pub fn issue_token(
+    secret: &[u8],
+    room: &str,
+    seat: Option<u8>,
+    player: &str,
+    ttl: Duration,
+    now: std::time::SystemTime,
+) -> Result<String, lockstep_proto::token::TokenError> {
+    let now = now
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    lockstep_proto::token::issue(
+        secret,
+        &lockstep_proto::token::JoinClaims {
+            room: room.to_owned(),
+            seat: seat.map(lockstep_proto::Slot),
+            player: player.to_owned(),
+            expires: now.saturating_add(ttl.as_secs()),
+        },
+    )
 }

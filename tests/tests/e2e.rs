@@ -931,3 +931,128 @@ async fn a_flood_of_valid_datagrams_is_throttled_and_counted() {
         assert_eq!(p.datagrams_dropped, 0, "{}", p.name);
     }
 }
+
+/// With `--require-tokens`: a join without a token, with an expired one, one
+/// for another room or one signed with another secret is refused with its
+/// reason; a seat token seats its holder in its seat, and nobody else gets
+/// that seat or a second seat with the same token while it is held; bots
+/// holding seat tokens play a match in sync.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connection() {
+    use lockstep_client::net::{Client, ClientError, ClientOptions};
+    use lockstep_server::issue_token;
+    use std::time::SystemTime;
+    let secret = b"an e2e secret longer than 16 bytes".to_vec();
+    let key = secret.clone();
+    let server = TestServer::start("tokens", move |c| {
+        c.room.start_players = 2;
+        c.room.match_ticks = Some(120);
+        c.token_secret = Some(key);
+        c.require_tokens = true;
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let now = SystemTime::now();
+    let token = |room: &str, seat: Option<u8>, player: &str| {
+        issue_token(&secret, room, seat, player, Duration::from_secs(600), now).unwrap()
+    };
+    let join = |token: Option<String>| {
+        let cert = cert.clone();
+        async move {
+            let mut o = ClientOptions::new(addr, &cert, "tokens", "p");
+            o.token = token;
+            Client::connect(o, &Demo).await
+        }
+    };
+    let refused = |r: Result<Client, ClientError>| match r {
+        Err(ClientError::Refused { reason, detail }) => (reason, detail),
+        Err(e) => panic!("expected a refusal, got {e}"),
+        Ok(c) => panic!("expected a refusal, got a seat: {c:?}"),
+    };
+    let (reason, detail) = refused(join(None).await);
+    assert_eq!(
+        (reason, detail.as_str()),
+        (CloseReason::BadToken, "no join token")
+    );
+    let old = issue_token(
+        &secret,
+        "tokens",
+        Some(0),
+        "p",
+        Duration::from_secs(60),
+        now - Duration::from_secs(3600),
+    )
+    .unwrap();
+    let (reason, detail) = refused(join(Some(old)).await);
+    assert_eq!(reason, CloseReason::BadToken);
+    assert!(detail.starts_with("join token expired at "), "{detail}");
+    let (reason, detail) = refused(join(Some(token("elsewhere", Some(0), "p"))).await);
+    assert_eq!(
+        (reason, detail.as_str()),
+        (
+            CloseReason::BadToken,
+            "join token is for room \"elsewhere\""
+        )
+    );
+    let forged = issue_token(
+        b"a guess at the secret, 16+ bytes",
+        "tokens",
+        Some(0),
+        "p",
+        Duration::from_secs(600),
+        now,
+    )
+    .unwrap();
+    let (reason, detail) = refused(join(Some(forged)).await);
+    assert_eq!(
+        (reason, detail.as_str()),
+        (CloseReason::BadToken, "join token signature invalid")
+    );
+    // A seat token seats its holder in its seat ...
+    let seat3 = token("tokens", Some(3), "alice");
+    let holder = join(Some(seat3.clone())).await.expect("seated");
+    assert_eq!(holder.slot(), Slot(3));
+    // ... the same token seats nobody else, nor does another token for the
+    // held seat, nor a seat the room does not have.
+    let (reason, detail) = refused(join(Some(seat3)).await);
+    assert_eq!(
+        (reason, detail.as_str()),
+        (
+            CloseReason::SeatTaken,
+            "this join token already seats slot 3"
+        )
+    );
+    let (reason, detail) = refused(join(Some(token("tokens", Some(3), "mallory"))).await);
+    assert_eq!(
+        (reason, detail.as_str()),
+        (CloseReason::SeatTaken, "seat 3 is taken")
+    );
+    let (reason, _) = refused(join(Some(token("tokens", Some(12), "p"))).await);
+    assert_eq!(reason, CloseReason::BadToken);
+    // An any-seat token takes the lowest free seat, once.
+    let any = token("tokens", None, "bob");
+    let second = join(Some(any.clone())).await.expect("seated");
+    assert_eq!(second.slot(), Slot(0));
+    let (reason, _) = refused(join(Some(any)).await);
+    assert_eq!(reason, CloseReason::SeatTaken);
+    drop((holder, second));
+    // Bots with seat tokens play a match in sync.
+    let mut options = BotOptions::new(addr, &cert, "tokens-play", 2);
+    options.tokens = vec![
+        token("tokens-play", Some(1), "bot-0"),
+        token("tokens-play", Some(0), "bot-1"),
+    ];
+    let bots = bots_ok(run_bots(&options, std::future::pending()).await);
+    assert_eq!((bots[0].slot, bots[1].slot), (Slot(1), Slot(0)));
+    assert_same_hashes(&bots, 120);
+    for b in &bots {
+        assert_eq!(b.desyncs().count(), 0);
+    }
+    let report = server.shutdown().await;
+    let refusals = report
+        .refused
+        .iter()
+        .filter(|r| format!("{r:?}").contains("token"))
+        .count();
+    assert!(refusals >= 5, "{:?}", report.refused);
+}

@@ -34,6 +34,10 @@ struct Cli {
     /// the server's replay can name diverging bodies.
     #[arg(long, default_value_t = 0, value_name = "K")]
     body_hashes_every: u64,
+    /// A join token (`lockstep-server token`); repeat it once per bot, bot
+    /// i presenting the i-th.
+    #[arg(long = "token", value_name = "TOKEN")]
+    tokens: Vec<String>,
 }
 
 #[tokio::main]
@@ -43,6 +47,7 @@ async fn main() -> ExitCode {
     options.seed = cli.seed;
     options.ticks = cli.ticks;
     options.body_hashes_every = cli.body_hashes_every;
+    options.tokens = cli.tokens;
     options.verbose = true;
     let stop = async {
         let _ = tokio::signal::ctrl_c().await;

@@ -95,6 +95,9 @@ pub struct ClientOptions {
     /// answer every probe as unavailable. Default 64 (about 1 s at 60 Hz,
     /// longer than a report's round trip).
     pub forensics_ticks: usize,
+    /// The join token to present (`lockstep-server token`, or a
+    /// matchmaker's), for servers that require one.
+    pub token: Option<String>,
 }
 
 impl ClientOptions {
@@ -116,6 +119,7 @@ impl ClientOptions {
             body_hashes_every: 0,
             connect_timeout: Duration::from_secs(10),
             forensics_ticks: 64,
+            token: None,
         }
     }
 }
@@ -324,7 +328,11 @@ impl Client {
                 .open_bi()
                 .await
                 .map_err(|e| ClientError::ConnectionLost(e.to_string()))?;
-            let join = Session::join_message(&options.room, &options.player_name);
+            let join = Session::join_message_with_token(
+                &options.room,
+                &options.player_name,
+                options.token.clone(),
+            );
             let bytes = join
                 .encode()
                 .map_err(|e| ClientError::Connect(e.to_string()))?;

@@ -27,6 +27,15 @@ pub enum JoinError {
     /// The match started; joining now would need a world snapshot.
     #[error("match already in progress")]
     MatchInProgress,
+    /// The token's seat is held by another player.
+    #[error("seat {0} is taken")]
+    SeatTaken(u8),
+    /// The token's seat does not exist in this room.
+    #[error("the join token's seat {0} is not in this room")]
+    NoSuchSeat(u8),
+    /// The same token already seats another connection.
+    #[error("this join token already seats slot {0}")]
+    TokenInUse(u8),
 }
 
 impl JoinError {
@@ -37,6 +46,8 @@ impl JoinError {
             Self::WrongRoom(_) => CloseReason::WrongRoom,
             Self::RoomFull(_) => CloseReason::RoomFull,
             Self::MatchInProgress => CloseReason::MatchInProgress,
+            Self::SeatTaken(_) | Self::TokenInUse(_) => CloseReason::SeatTaken,
+            Self::NoSuchSeat(_) => CloseReason::BadToken,
         };
         close(reason, self.to_string())
     }

@@ -47,6 +47,8 @@ pub(crate) struct Player {
     /// Ticks in a row, among those it reported, where its hash was outside
     /// the majority.
     pub(crate) wrong_streak: u32,
+    /// The key of the join token that seated this player, if any.
+    pub(crate) ticket: Option<u64>,
 }
 
 impl Player {
@@ -63,6 +65,7 @@ impl Player {
             stats: PlayerStats::default(),
             missing_streak: 0,
             wrong_streak: 0,
+            ticket: None,
         }
     }
 

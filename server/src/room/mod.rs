@@ -35,6 +35,8 @@ pub(crate) enum RoomCmd {
     /// Seat a player; the room answers and sends the welcome or the refusal.
     Join {
         join: Join,
+        /// The join's verified token, if any.
+        ticket: Option<lockstep_proto::token::Ticket>,
         peer: Peer,
         reply: oneshot::Sender<Result<PlayerId, Close>>,
     },
@@ -587,14 +589,21 @@ impl RoomTask {
     fn on_cmd(&mut self, cmd: RoomCmd) {
         let now = self.now();
         match cmd {
-            RoomCmd::Join { join, peer, reply } => {
+            RoomCmd::Join {
+                join,
+                ticket,
+                peer,
+                reply,
+            } => {
                 let result = if self.shutting_down {
                     Err(close_of(
                         CloseReason::RoomClosed,
                         "the server is shutting down",
                     ))
                 } else {
-                    self.room.join(now, &join).map_err(|e| e.to_close())
+                    self.room
+                        .join_with_ticket(now, &join, ticket.as_ref())
+                        .map_err(|e| e.to_close())
                 };
                 match result {
                     Ok(id) => {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::Parser;
+use clap::{Parser, Subcommand};
 use demo::{DemoOptions, run_demo};
 use lockstep_client::game::{Demo, DemoGame, RulesFactory};
 use lockstep_server::{ServerConfig, TlsSource, run};
@@ -18,6 +18,8 @@ use lockstep_server::{ServerConfig, TlsSource, run};
 #[derive(Parser, Debug)]
 #[command(name = "lockstep-server", version)]
 struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
     /// Run the demo: the server on loopback with 4 in-process bots, a status
     /// line per second, a summary at the end.
     #[arg(long)]
@@ -89,6 +91,41 @@ struct Cli {
     /// dropped (counted and logged) and stream frames wait.
     #[arg(long, default_value_t = 1000)]
     max_messages_per_second: u32,
+    /// File holding the secret join tokens are signed with (at least 16
+    /// bytes). With it, a join that carries a token is seated only if the
+    /// token verifies, and in its seat.
+    #[arg(long, value_name = "FILE")]
+    token_secret_file: Option<PathBuf>,
+    /// Refuse every join without a valid token (needs --token-secret-file).
+    #[arg(long, requires = "token_secret_file")]
+    require_tokens: bool,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Print a join token for a seat of a room (what a matchmaker hands a
+    /// player), signed with the server's secret.
+    Token {
+        /// File holding the server's secret.
+        #[arg(long, value_name = "FILE")]
+        secret_file: PathBuf,
+        /// The room.
+        #[arg(long)]
+        room: String,
+        /// The seat (slot); without it, any free seat.
+        #[arg(long)]
+        seat: Option<u8>,
+        /// Who it is for (in the server's logs).
+        #[arg(long)]
+        player: String,
+        /// Seconds it stays valid.
+        #[arg(long, default_value_t = 3600)]
+        ttl_seconds: u64,
+    },
+}
+
+fn read_secret(path: &std::path::Path) -> Result<Vec<u8>, String> {
+    std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 async fn terminate() {
@@ -116,6 +153,36 @@ async fn terminate() {
 #[tokio::main]
 async fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(Command::Token {
+        secret_file,
+        room,
+        seat,
+        player,
+        ttl_seconds,
+    }) = &cli.command
+    {
+        let token = read_secret(secret_file).and_then(|secret| {
+            lockstep_server::issue_token(
+                &secret,
+                room,
+                *seat,
+                player,
+                Duration::from_secs(*ttl_seconds),
+                std::time::SystemTime::now(),
+            )
+            .map_err(|e| e.to_string())
+        });
+        return match token {
+            Ok(t) => {
+                println!("{t}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("lockstep-server token: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
     let listen = if cli.demo {
         SocketAddr::from(([127, 0, 0, 1], 0))
     } else {
@@ -152,6 +219,16 @@ async fn main() -> ExitCode {
     config.max_rooms = cli.max_rooms.max(1);
     config.max_connections = cli.max_connections.max(1);
     config.room.max_messages_per_second = cli.max_messages_per_second.max(1);
+    if let Some(path) = &cli.token_secret_file {
+        match read_secret(path) {
+            Ok(s) => config.token_secret = Some(s),
+            Err(e) => {
+                eprintln!("lockstep-server: {e}");
+                return ExitCode::from(2);
+            }
+        }
+    }
+    config.require_tokens = cli.require_tokens;
     if cli.demo {
         let mut options = DemoOptions::new();
         options.server = config;
