@@ -30,6 +30,7 @@ mod ring;
 pub mod room;
 pub mod session;
 pub mod token;
+pub mod verify;
 
 pub use codec::{DecodeError, EncodeError, FRAME_HEADER_BYTES, encode_frame, frame_length};
 pub use forensics::{

@@ -304,6 +304,15 @@ pub enum Verdict {
     /// No hash is held by more than half of the reporters (e.g. two players
     /// that disagree): the room cannot tell who is wrong and says so.
     Undecided,
+    /// The server re-simulated the tick itself (`--verify`): its `hash` is
+    /// the truth, and the players in `wrong` (ascending) reported another,
+    /// however many they are.
+    Verified {
+        /// The server's own hash of the tick.
+        hash: u64,
+        /// The players whose hash differs from it.
+        wrong: Vec<Slot>,
+    },
 }
 
 /// Announces that players' world hashes differ at `tick`: sent to every
@@ -457,7 +466,9 @@ impl ServerMessage {
                     n.hashes.iter().map(|h| h.slot),
                     Violation::SlotsNotAscending,
                 )?;
-                if let Verdict::Majority { wrong, .. } = &n.verdict {
+                if let Verdict::Majority { wrong, .. } | Verdict::Verified { wrong, .. } =
+                    &n.verdict
+                {
                     check_len(wrong.len(), MAX_PLAYERS, |count, max| {
                         Violation::TooManyEntries { count, max }
                     })?;

@@ -613,6 +613,15 @@ impl ReplayRecorder {
         self.on_hash_with_bodies(slot, tick, hash, None);
     }
 
+    /// Records the server's own hash of `tick` (a verifying server): it is
+    /// the agreed hash, whatever the players reported, and the players'
+    /// reports for that tick are no longer needed.
+    pub fn on_verified(&mut self, tick: u64, hash: u64) {
+        self.pending.retain(|p| p.tick != tick);
+        self.hashed += 1;
+        self.push(&ReplayRecord::Hash { tick, hash });
+    }
+
     /// Records a hash report the room accepted, with the per-body hashes
     /// the player sent, if any: the agreed hash's body hashes are written
     /// after it.

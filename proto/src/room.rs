@@ -104,11 +104,15 @@ impl Room {
     pub fn new(config: RoomConfig) -> Result<Self, ConfigError> {
         config.validate()?;
         let seats = usize::from(config.max_players);
+        let mut arbiter = Arbiter::new(config.hash_window_ticks as usize, config.hash_timeout);
+        if config.verify {
+            arbiter.set_verifying();
+        }
         Ok(Self {
             locator: Locator::new(config.locate_timeout),
             last_agreed: None,
             history: History::new(config.history_ticks as usize),
-            arbiter: Arbiter::new(config.hash_window_ticks as usize, config.hash_timeout),
+            arbiter,
             players: (0..seats).map(|_| None).collect(),
             generations: vec![0; seats],
             config,
@@ -119,6 +123,15 @@ impl Room {
             ping_nonce: 0,
             stats: RoomStats::default(),
         })
+    }
+
+    /// The caller's own hash of closed tick `tick` (rooms configured with
+    /// [`RoomConfig::verify`]): reports are judged against it. Give it as
+    /// soon as the tick closes ([`RoomEvent::TickClosed`]); a tick still
+    /// without it when its hash timeout passes is judged by majority.
+    pub fn verify_tick(&mut self, now: Duration, tick: u64, hash: u64) {
+        self.arbiter.verify(tick, hash);
+        self.run_arbiter(now);
     }
 
     /// Seats a player in the lowest free slot and queues their

@@ -125,6 +125,12 @@ pub struct ServerConfig {
     pub token_secret: Option<Vec<u8>>,
     /// Refuse joins without a valid token (needs `token_secret`).
     pub require_tokens: bool,
+    /// Re-simulate every room's match with this plugin and judge every
+    /// hash report against the server's own hash (`--verify`): a majority
+    /// of liars cannot outvote honest players, and the replay records only
+    /// verified hashes. `lockstep_client::game::RulesVerifier` makes one
+    /// for any game's rules.
+    pub verifier: Option<Arc<dyn lockstep_proto::verify::VerifierFactory>>,
     /// Where the server reports what happens (listening address, matches,
     /// a status per room per second, desyncs), for the demo and tests.
     pub events: Option<mpsc::UnboundedSender<ServerEvent>>,
@@ -156,6 +162,7 @@ impl ServerConfig {
             max_connections: 256,
             token_secret: None,
             require_tokens: false,
+            verifier: None,
             events: None,
         }
     }
@@ -318,6 +325,9 @@ pub struct RoomReport {
     pub forensics_bytes_down: u64,
     /// Bytes of probe replies the room received.
     pub forensics_bytes_up: u64,
+    /// Ticks the server re-simulated (`--verify`), and the CPU time they
+    /// took (wall time of the re-simulation on the room's task).
+    pub verified: Option<(u64, Duration)>,
     /// Every player who was seated, by join order.
     pub players: Vec<PlayerReport>,
     /// The replay file, if recorded.

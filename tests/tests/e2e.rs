@@ -250,7 +250,7 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
             assert_eq!(wrong, &vec![Slot(2)]);
             assert_eq!(*majority_hash, good[0].hashes[300]);
         }
-        Verdict::Undecided => panic!("expected a majority verdict"),
+        other => panic!("expected a majority verdict, got {other:?}"),
     }
     assert_eq!(ended.mismatched_ticks, 120, "ticks 300..420 all mismatch");
     // Every player was told, with their own hash alongside.
@@ -752,7 +752,7 @@ async fn a_liar_alternating_with_silence_and_a_player_that_never_reports_are_dro
     assert_eq!(ended.desyncs.len(), 1, "{:?}", ended.desyncs);
     match &ended.desyncs[0].verdict {
         Verdict::Majority { wrong, .. } => assert_eq!(wrong.len(), 1),
-        Verdict::Undecided => panic!("expected a majority verdict"),
+        other => panic!("expected a majority verdict, got {other:?}"),
     }
     assert_same_hashes(&bots, 540);
     for b in &bots {
@@ -1055,4 +1055,72 @@ async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connecti
         .filter(|r| format!("{r:?}").contains("token"))
         .count();
     assert!(refusals >= 5, "{:?}", report.refused);
+}
+
+/// Sybil voters against a verifying server: four raw connections report the
+/// same fake hash on every tick beside three honest bots. By majority they
+/// would win; with `verify` the server re-simulates every tick, so the four
+/// are the ones judged wrong and dropped as diverged, the bots are never
+/// judged wrong, and the replay holds only the server's verified hashes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sybil_voters_cannot_outvote_a_verifying_server() {
+    let mut server = TestServer::start("sybil", |c| {
+        c.room.start_players = 7;
+        c.room.match_ticks = Some(300);
+        c.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
+            game: std::sync::Arc::new(Demo),
+        }));
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let mut sybils = Vec::new();
+    for name in ["sybil-0", "sybil-1", "sybil-2", "sybil-3"] {
+        sybils.push(tokio::spawn(raw_reporter(
+            addr,
+            cert.clone(),
+            "sybil",
+            name,
+            |_| Some(0xbad),
+        )));
+        // Join in order, so the sybils hold slots 0-3.
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let options = BotOptions::new(addr, &cert, "sybil", 3);
+    let bots = bots_ok(run_bots(&options, std::future::pending()).await);
+    let ended = server
+        .wait_for(Duration::from_secs(15), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    for s in sybils {
+        let (reason, detail) = s.await.unwrap().expect("a sybil is closed");
+        assert_eq!(reason, CloseReason::Diverged, "{detail}");
+    }
+    assert_same_hashes(&bots, 300);
+    assert_eq!(ended.desyncs.len(), 1, "{:?}", ended.desyncs);
+    match &ended.desyncs[0].verdict {
+        Verdict::Verified { hash, wrong } => {
+            assert_eq!(*hash, bots[0].hashes[ended.desyncs[0].tick as usize]);
+            assert_eq!(wrong, &vec![Slot(0), Slot(1), Slot(2), Slot(3)]);
+        }
+        other => panic!("expected a verified verdict, got {other:?}"),
+    }
+    for b in &bots {
+        assert!(b.slot.0 >= 4);
+        let close = b.close.as_ref().expect("closed by the server");
+        assert_eq!(close.reason, CloseReason::RoomClosed);
+    }
+    let path = ended.replay.as_ref().expect("replay");
+    let check = verify_replay_file(path, &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked), (300, 300));
+    let (ticks, spent) = ended.verified.expect("verified");
+    assert_eq!(ticks, 300);
+    println!(
+        "verify: {ticks} ticks re-simulated in {:.1} ms, {:.1} us per tick ({:.3}% of a 60 Hz room's time)",
+        spent.as_secs_f64() * 1e3,
+        spent.as_secs_f64() * 1e6 / ticks as f64,
+        spent.as_secs_f64() / ticks as f64 * 60.0 * 100.0
+    );
 }

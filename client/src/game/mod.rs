@@ -204,3 +204,58 @@ pub enum GameError {
         problem: String,
     },
 }
+
+/// A server-side re-simulation of a match with a game's rules (what
+/// `lockstep-server --verify` runs, and what a game's own server gives
+/// `ServerConfig::verifier`): builds the world from the room's scene, then
+/// applies every closed bundle through the rules and steps, exactly as each
+/// client does.
+#[derive(Clone)]
+pub struct RulesVerifier {
+    /// The game.
+    pub game: std::sync::Arc<dyn RulesFactory>,
+}
+
+impl std::fmt::Debug for RulesVerifier {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RulesVerifier")
+            .field("rules", &self.game.rules_id())
+            .finish()
+    }
+}
+
+struct VerifiedWorld {
+    world: lockstep_core::World,
+    rules: Box<dyn GameRules>,
+}
+
+impl lockstep_proto::verify::TickVerifier for VerifiedWorld {
+    fn apply(&mut self, bundle: &lockstep_proto::TickBundle) -> u64 {
+        crate::offline::apply_bundle(&mut self.world, &mut *self.rules, bundle);
+        self.world.state_hash()
+    }
+
+    fn snapshot(&self) -> Option<Vec<u8>> {
+        Some(self.world.snapshot())
+    }
+}
+
+impl lockstep_proto::verify::VerifierFactory for RulesVerifier {
+    fn new_verifier(
+        &self,
+        scene: &[u8],
+        scene_hash: u64,
+    ) -> Result<Box<dyn lockstep_proto::verify::TickVerifier>, String> {
+        let text = std::str::from_utf8(scene).map_err(|e| format!("scene is not UTF-8: {e}"))?;
+        let world =
+            lockstep_core::scene::load_world(text, "room scene").map_err(|e| e.to_string())?;
+        let got = world.state_hash();
+        if got != scene_hash {
+            return Err(format!(
+                "scene hashes to {got:016x}, the room announces {scene_hash:016x}"
+            ));
+        }
+        let rules = self.game.new_rules(&world).map_err(|e| e.to_string())?;
+        Ok(Box::new(VerifiedWorld { world, rules }))
+    }
+}

@@ -29,6 +29,8 @@ struct Entry {
     reported: SlotMask,
     hashes: [u64; MAX_PLAYERS],
     done: bool,
+    /// The arbiter's own hash of the tick (a server that re-simulates).
+    verified: Option<u64>,
 }
 
 /// What comparing one tick's hashes produced.
@@ -76,6 +78,9 @@ pub(crate) struct Arbiter {
     timeout: Duration,
     /// Groups (slot masks) of the last reported divergence.
     last_groups: Option<Vec<SlotMask>>,
+    /// Whether every tick waits for a verified hash, which is then the
+    /// verdict (see [`Arbiter::verify`]).
+    verifying: bool,
 }
 
 impl Arbiter {
@@ -86,6 +91,24 @@ impl Arbiter {
             end: 0,
             timeout,
             last_groups: None,
+            verifying: false,
+        }
+    }
+
+    /// From now on every tick is judged against the hash given to
+    /// [`Arbiter::verify`], not by majority: an entry is compared once it
+    /// has that hash (and its reports, or the timeout).
+    pub(crate) fn set_verifying(&mut self) {
+        self.verifying = true;
+    }
+
+    /// The arbiter's own hash of `tick`. Ignored for a tick already
+    /// compared or out of the ring.
+    pub(crate) fn verify(&mut self, tick: u64, hash: u64) {
+        if let Some(e) = self.ring.get_mut(tick)
+            && !e.done
+        {
+            e.verified = Some(hash);
         }
     }
 
@@ -103,6 +126,7 @@ impl Arbiter {
             reported: 0,
             hashes: [0; MAX_PLAYERS],
             done: expected == 0,
+            verified: None,
         };
         self.end = tick + 1;
         let evicted = self.ring.insert(tick, entry);
@@ -152,16 +176,17 @@ impl Arbiter {
             let Some(e) = self.ring.get(tick) else {
                 continue;
             };
-            let (expected, reported, hashes) = (e.expected, e.reported, e.hashes);
-            let ready = e.done
-                || expected & connected & !reported == 0
-                || now >= e.closed_at.saturating_add(self.timeout);
+            let (expected, reported, hashes, verified) =
+                (e.expected, e.reported, e.hashes, e.verified);
+            let waiting =
+                expected & connected & !reported != 0 || self.verifying && verified.is_none();
+            let ready = e.done || !waiting || now >= e.closed_at.saturating_add(self.timeout);
             if !ready {
                 all_done_so_far = false;
                 continue;
             }
             if !e.done {
-                let c = self.compare_parts(tick, expected, reported, &hashes);
+                let c = self.compare_parts(tick, expected, reported, &hashes, verified);
                 if let Some(e) = self.ring.get_mut(tick) {
                     e.done = true;
                 }
@@ -186,7 +211,7 @@ impl Arbiter {
     }
 
     fn compare(&mut self, tick: u64, e: &Entry) -> Comparison {
-        self.compare_parts(tick, e.expected, e.reported, &e.hashes)
+        self.compare_parts(tick, e.expected, e.reported, &e.hashes, e.verified)
     }
 
     fn compare_parts(
@@ -195,6 +220,7 @@ impl Arbiter {
         expected: SlotMask,
         reported: SlotMask,
         hashes: &[u64; MAX_PLAYERS],
+        verified: Option<u64>,
     ) -> Comparison {
         let missing = expected & !reported;
         // Determinism: groups are built in ascending slot order, so the same
@@ -209,7 +235,14 @@ impl Arbiter {
                 None => groups.push((h, 1 << s)),
             }
         }
-        if groups.len() <= 1 {
+        // A verifying arbiter judges against its own hash: everyone who
+        // reported another one is wrong, however many they are.
+        let verified_right = verified.map(|v| groups.iter().find(|g| g.0 == v).map_or(0, |g| g.1));
+        let all_agree = match verified_right {
+            Some(right) => reported & !right == 0,
+            None => groups.len() <= 1,
+        };
+        if all_agree {
             // The divergence is over only when everyone in it reported and
             // agreed: a player that diverges on some ticks and stays silent
             // on the others must not raise a new notice each time it
@@ -227,12 +260,15 @@ impl Arbiter {
                 mismatch: false,
                 wrong: 0,
                 notice: None,
-                agreed: groups.first().map(|g| g.0),
+                agreed: verified.or(groups.first().map(|g| g.0)),
             };
         }
         let reporters = reported.count_ones();
         let majority = groups.iter().find(|(_, m)| m.count_ones() * 2 > reporters);
-        let wrong = majority.map_or(0, |&(_, m)| reported & !m);
+        let wrong = match verified_right {
+            Some(right) => reported & !right,
+            None => majority.map_or(0, |&(_, m)| reported & !m),
+        };
         let masks: Vec<SlotMask> = groups.iter().map(|g| g.1).collect();
         let same_divergence = self
             .last_groups
@@ -246,15 +282,19 @@ impl Arbiter {
                 mismatch: true,
                 wrong,
                 notice: None,
-                agreed: majority.map(|g| g.0),
+                agreed: verified.or(majority.map(|g| g.0)),
             };
         }
-        let verdict = match majority {
-            Some(&(majority_hash, m)) => Verdict::Majority {
+        let verdict = match (verified, majority) {
+            (Some(hash), _) => Verdict::Verified {
+                hash,
+                wrong: slots(wrong),
+            },
+            (None, Some(&(majority_hash, m))) => Verdict::Majority {
                 majority_hash,
                 wrong: slots(reported & !m),
             },
-            None => Verdict::Undecided,
+            (None, None) => Verdict::Undecided,
         };
         let notice = DesyncNotice {
             tick,
@@ -273,7 +313,7 @@ impl Arbiter {
             mismatch: true,
             wrong,
             notice: Some(notice),
-            agreed: majority.map(|g| g.0),
+            agreed: verified.or(majority.map(|g| g.0)),
         }
     }
 }

@@ -61,6 +61,11 @@ pub struct RoomConfig {
     /// before reporting what it has. Zero: no search, notices only.
     /// Default 10 s.
     pub locate_timeout: Duration,
+    /// The caller re-simulates every tick and gives the room its own hash
+    /// ([`Room::verify_tick`](crate::Room::verify_tick)): the room then
+    /// judges every report against that hash, not by majority, so a
+    /// majority of liars cannot outvote honest players. Default false.
+    pub verify: bool,
     /// Scene sent to each player in the welcome, opaque to the room.
     pub scene: Vec<u8>,
     /// Hash of `scene`, sent alongside it.
@@ -85,6 +90,7 @@ impl RoomConfig {
             max_wrong_ticks: 180,
             ping_interval: Duration::from_secs(1),
             locate_timeout: Duration::from_secs(10),
+            verify: false,
             scene,
             scene_hash,
         }

@@ -147,9 +147,11 @@ impl Locator {
             .filter_map(|p| p.hash.map(|h| (p.slot, h)))
             .collect();
         let reference = match &notice.verdict {
-            Verdict::Majority { majority_hash, .. } => {
-                reported.iter().find(|(_, h)| h == majority_hash).copied()
-            }
+            Verdict::Majority { majority_hash, .. }
+            | Verdict::Verified {
+                hash: majority_hash,
+                ..
+            } => reported.iter().find(|(_, h)| h == majority_hash).copied(),
             Verdict::Undecided => reported.first().copied(),
         };
         let Some((reference, reference_hash)) = reference else {
@@ -193,7 +195,7 @@ impl Locator {
         self.search = Some(Search {
             tick: notice.tick,
             deadline: now.saturating_add(self.timeout),
-            majority: matches!(notice.verdict, Verdict::Majority { .. }),
+            majority: !matches!(notice.verdict, Verdict::Undecided),
             peers,
             bodies: Vec::new(),
             snapshot,

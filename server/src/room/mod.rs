@@ -70,6 +70,7 @@ fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig
     c.input_delay = s.input_delay;
     c.max_players = s.max_players;
     c.silence_timeout = s.silence_timeout;
+    c.verify = config.verifier.is_some();
     c.input_window = c.input_window.max(s.input_delay.saturating_add(16));
     let needed = c.ticks_in(c.hash_timeout).saturating_add(2);
     c.hash_window_ticks = c
@@ -225,6 +226,10 @@ struct RoomTask {
     desync_snapshot: Option<bundle::CheckedSnapshot>,
     /// Bytes of probes and reports sent, and of probe replies received.
     forensics_bytes: (u64, u64),
+    /// The server's own re-simulation (`--verify`), ticks applied and the
+    /// time spent.
+    verifier: Option<Box<dyn lockstep_proto::verify::TickVerifier>>,
+    verified: (u64, Duration),
     replay: Option<Replay>,
     /// When the first player joined (the lobby timeout counts from it).
     first_join: Option<Duration>,
@@ -276,7 +281,24 @@ impl RoomTask {
                 started: false,
             })
         });
-        crate::log!("room {name}: opened");
+        let verifier = shared.config.verifier.as_ref().and_then(|f| {
+            let c = room.config();
+            match f.new_verifier(&c.scene, c.scene_hash) {
+                Ok(v) => Some(v),
+                Err(e) => {
+                    crate::log!("room {name}: cannot verify: {e}; hashes are judged by majority");
+                    None
+                }
+            }
+        });
+        crate::log!(
+            "room {name}: opened{}",
+            if verifier.is_some() {
+                " (verifying: the server re-simulates every tick)"
+            } else {
+                ""
+            }
+        );
         let seats = (0..room.config().max_players).map(|_| None).collect();
         Self {
             shared,
@@ -295,6 +317,8 @@ impl RoomTask {
             notice_at: None,
             desync_snapshot: None,
             forensics_bytes: (0, 0),
+            verifier,
+            verified: (0, Duration::ZERO),
             replay,
             first_join: None,
         }
@@ -847,7 +871,20 @@ impl RoomTask {
                     }
                 }
             }
-            RoomEvent::TickClosed(_) | RoomEvent::LateInput { .. } => {}
+            RoomEvent::TickClosed(bundle) => {
+                if let Some(v) = self.verifier.as_mut() {
+                    let started = Instant::now();
+                    let hash = v.apply(&bundle);
+                    self.verified.0 += 1;
+                    self.verified.1 += started.elapsed();
+                    let now = self.now();
+                    self.room.verify_tick(now, bundle.tick, hash);
+                    if let Some(r) = self.replay.as_mut() {
+                        r.recorder.on_verified(bundle.tick, hash);
+                    }
+                }
+            }
+            RoomEvent::LateInput { .. } => {}
             RoomEvent::Desync(notice) => {
                 let hashes: Vec<String> = notice
                     .hashes
@@ -866,6 +903,10 @@ impl RoomTask {
                         wrong.iter().map(|s| s.0).collect::<Vec<_>>()
                     ),
                     Verdict::Undecided => "undecided (no strict majority)".into(),
+                    Verdict::Verified { hash, wrong } => format!(
+                        "verified by the server {hash:016x}, wrong: {:?}",
+                        wrong.iter().map(|s| s.0).collect::<Vec<_>>()
+                    ),
                 };
                 crate::log!(
                     "room {}: DESYNC at tick {}: {}; verdict: {verdict}",

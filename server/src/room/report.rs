@@ -133,6 +133,7 @@ impl RoomTask {
             located: self.located.clone(),
             forensics_bytes_down: self.forensics_bytes.0,
             forensics_bytes_up: self.forensics_bytes.1,
+            verified: self.verifier.as_ref().map(|_| self.verified),
             bundles: self.bundles.clone(),
             players: self.players.clone(),
             replay: self

@@ -99,6 +99,12 @@ struct Cli {
     /// Refuse every join without a valid token (needs --token-secret-file).
     #[arg(long, requires = "token_secret_file")]
     require_tokens: bool,
+    /// Re-simulate every match on the server with the demo's rules and
+    /// judge every hash report against the server's own hash, so a
+    /// majority of liars cannot outvote honest players (costs one
+    /// simulation per room).
+    #[arg(long)]
+    verify: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -229,6 +235,11 @@ async fn main() -> ExitCode {
         }
     }
     config.require_tokens = cli.require_tokens;
+    if cli.verify {
+        config.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
+            game: std::sync::Arc::new(Demo),
+        }));
+    }
     if cli.demo {
         let mut options = DemoOptions::new();
         options.server = config;
