@@ -409,6 +409,7 @@ mod tests {
             start_tick: 0,
             scene_hash: 1,
             scene: vec![],
+            resume: None,
         });
         assert!(matches!(
             ServerMessage::decode(&raw(&w)),

@@ -205,8 +205,25 @@ pub struct Welcome {
     pub start_tick: u64,
     /// Hash of `scene`, so the client can verify what it loaded.
     pub scene_hash: u64,
-    /// The scene, opaque to the protocol.
+    /// The scene, opaque to the protocol (empty when `resume` is given).
     pub scene: Vec<u8>,
+    /// For a player joining a running match (a late join or a rejoin): the
+    /// state to start from instead of the scene.
+    pub resume: Option<Resume>,
+}
+
+/// Where a player joining a running match starts: the world after `tick`
+/// as the players agreed on it. The client restores the snapshot, applies
+/// the bundles from `tick + 1` (sent to it like any other) as fast as it
+/// can, and plays from the welcome's `start_tick` on.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Resume {
+    /// The tick the snapshot is the state after.
+    pub tick: u64,
+    /// The agreed hash of that tick; the snapshot hashes to it.
+    pub hash: u64,
+    /// The engine's snapshot bytes.
+    pub snapshot: Vec<u8>,
 }
 
 impl Welcome {
@@ -230,9 +247,14 @@ impl Welcome {
             MAX_INPUT_BYTES,
             |len, max| Violation::InputTooLarge { len, max },
         )?;
-        check_len(self.scene.len(), MAX_SCENE_BYTES, |len, max| {
+        let resume = self.resume.as_ref().map_or(0, |r| r.snapshot.len());
+        check_len(self.scene.len() + resume, MAX_SCENE_BYTES, |len, max| {
             Violation::SceneTooLarge { len, max }
-        })
+        })?;
+        match &self.resume {
+            Some(r) if r.tick >= self.start_tick => Err(Violation::TickOverflow),
+            _ => Ok(()),
+        }
     }
 }
 

@@ -604,7 +604,9 @@ impl ReplayRecorder {
             RoomEvent::DesyncLocated(report) => {
                 self.push(&ReplayRecord::Located(report.clone()));
             }
-            RoomEvent::LateInput { .. } | RoomEvent::DesyncSnapshot { .. } => {}
+            RoomEvent::LateInput { .. }
+            | RoomEvent::DesyncSnapshot { .. }
+            | RoomEvent::JoinSnapshot { .. } => {}
         }
     }
 

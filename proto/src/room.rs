@@ -93,6 +93,23 @@ pub struct Room {
     locator: Locator,
     /// The last compared tick whose hashes agreed, with that hash.
     last_agreed: Option<(u64, u64)>,
+    /// Per seat: the token key and deadline of a dropped player's
+    /// reservation for a rejoin.
+    reserved: Vec<Option<(u64, Duration)>>,
+    /// The player joining the running match, while its snapshot comes.
+    joining: Option<JoinFetch>,
+}
+
+/// The snapshot a player joining a running match waits for.
+#[derive(Debug)]
+struct JoinFetch {
+    id: PlayerId,
+    tick: u64,
+    hash: u64,
+    source: Slot,
+    total: Option<u32>,
+    bytes: Vec<u8>,
+    deadline: Duration,
 }
 
 impl Room {
@@ -111,6 +128,8 @@ impl Room {
         Ok(Self {
             locator: Locator::new(config.locate_timeout),
             last_agreed: None,
+            reserved: vec![None; seats],
+            joining: None,
             history: History::new(config.history_ticks as usize),
             arbiter,
             players: (0..seats).map(|_| None).collect(),
@@ -135,8 +154,10 @@ impl Room {
     }
 
     /// Seats a player in the lowest free slot and queues their
-    /// [`Welcome`]. Joining is only possible before the match starts: a late
-    /// joiner would need a world snapshot, which the server does not have.
+    /// [`Welcome`]. Once the match runs, a join is refused unless the room
+    /// allows late joins ([`RoomConfig::late_join`]) or it is a rejoin (see
+    /// [`Room::join_with_ticket`]); such a player waits for the agreed
+    /// snapshot ([`RoomEvent::JoinSnapshot`], then [`Room::admit`]).
     ///
     /// # Errors
     /// [`JoinError`]; the caller sends its [`JoinError::to_close`].
@@ -167,9 +188,35 @@ impl Room {
         if join.room != self.config.name {
             return Err(JoinError::WrongRoom(join.room.clone()));
         }
-        if self.epoch.is_some() {
-            return Err(JoinError::MatchInProgress);
-        }
+        let seat_wanted = ticket.and_then(|t| t.claims.seat);
+        let running = self.epoch.is_some();
+        let source = if running {
+            let rejoin = seat_wanted.is_some_and(|s| {
+                self.reserved
+                    .get(s.index())
+                    .copied()
+                    .flatten()
+                    .is_some_and(|(_, until)| now <= until)
+            });
+            if !(self.config.late_join || rejoin) {
+                return Err(JoinError::MatchInProgress);
+            }
+            if self.joining.is_some() {
+                return Err(JoinError::JoinBusy);
+            }
+            let (tick, hash) = self.last_agreed.ok_or(JoinError::NoAgreedState)?;
+            // A player in agreement lately: reported, and not wrong.
+            let source = (0..self.players.len())
+                .find(|&i| {
+                    self.players[i]
+                        .as_ref()
+                        .is_some_and(|p| p.admitted && p.missing_streak == 0 && p.wrong_streak == 0)
+                })
+                .ok_or(JoinError::NoAgreedState)?;
+            Some((tick, hash, Slot(source as u8)))
+        } else {
+            None
+        };
         if let Some(t) = ticket
             && let Some(i) = self
                 .players
@@ -185,12 +232,18 @@ impl Room {
                 Some(None) => seat.index(),
             },
             None => {
-                let Some(index) = self.players.iter().position(Option::is_none) else {
+                // Seats reserved for a rejoin are not given to others.
+                let free = |i: usize| {
+                    self.players[i].is_none()
+                        && self.reserved[i].is_none_or(|(_, until)| now > until)
+                };
+                let Some(index) = (0..self.players.len()).find(|&i| free(i)) else {
                     return Err(JoinError::RoomFull(self.config.max_players));
                 };
                 index
             }
         };
+        self.reserved[index] = None;
         // The index is below max_players, a u8.
         let slot = Slot(index as u8);
         let id = PlayerId {
@@ -200,6 +253,25 @@ impl Room {
         let window = usize::from(self.config.input_window);
         let mut player = Player::new(join.player_name.clone(), self.next_tick, window, now);
         player.ticket = ticket.map(|t| t.key);
+        if let Some((tick, hash, source)) = source {
+            // Joining the running match: seated, but in no bundle until the
+            // agreed snapshot came and was checked (`admit`).
+            player.admitted = false;
+            self.players[index] = Some(player);
+            let deadline =
+                now.saturating_add(self.config.locate_timeout.max(Duration::from_secs(2)));
+            self.joining = Some(JoinFetch {
+                id,
+                tick,
+                hash,
+                source,
+                total: None,
+                bytes: Vec::new(),
+                deadline,
+            });
+            self.probe_join_snapshot(0);
+            return Ok(id);
+        }
         self.players[index] = Some(player);
         self.transmits.push_back(Transmit {
             to: id,
@@ -213,6 +285,7 @@ impl Room {
                 start_tick: self.next_tick,
                 scene_hash: self.config.scene_hash,
                 scene: self.config.scene.clone(),
+                resume: None,
             }),
         });
         self.events.push_back(RoomEvent::PlayerJoined {
@@ -289,6 +362,10 @@ impl Room {
                 self.remove(now, from, LeaveReason::Left, None);
                 Ok(())
             }
+            ClientMessage::ProbeReply(r) if self.is_join_reply(from.slot, &r) => {
+                self.on_join_reply(now, r);
+                Ok(())
+            }
             ClientMessage::ProbeReply(r) => {
                 let mut out = Vec::new();
                 self.locator.on_reply(from.slot, r, &mut out);
@@ -338,6 +415,12 @@ impl Room {
             }
         }
         self.run_arbiter(now);
+        if let Some(j) = &self.joining
+            && now >= j.deadline
+        {
+            let id = j.id;
+            self.fail_join(now, id, "the agreed snapshot did not come in time");
+        }
         let mut out = Vec::new();
         self.locator.on_timeout(now, &mut out);
         self.apply_search(out);
@@ -375,6 +458,7 @@ impl Room {
             .chain(players)
             .chain(self.arbiter.next_deadline())
             .chain(self.locator.deadline())
+            .chain(self.joining.as_ref().map(|j| j.deadline))
             .min()
     }
 
@@ -467,6 +551,17 @@ impl Room {
             return;
         }
         let index = id.slot.index();
+        if let Some(p) = &self.players[index]
+            && let Some(key) = p.ticket
+            && self.epoch.is_some()
+            && p.admitted
+            && !matches!(
+                reason,
+                LeaveReason::Kicked | LeaveReason::Diverged | LeaveReason::NoHashReports
+            )
+        {
+            self.reserved[index] = Some((key, now.saturating_add(self.config.rejoin_grace)));
+        }
         self.players[index] = None;
         self.generations[index] = self.generations[index].wrapping_add(1);
         if let Some(c) = close {
@@ -480,6 +575,14 @@ impl Room {
             reason,
             from_tick: self.next_tick,
         });
+        if let Some(j) = &self.joining {
+            if j.id == id {
+                self.joining = None;
+            } else if j.source == id.slot {
+                let joiner = j.id;
+                self.fail_join(now, joiner, "the player giving the snapshot left");
+            }
+        }
         let mut out = Vec::new();
         self.locator.player_left(id.slot, &mut out);
         self.apply_search(out);
@@ -590,7 +693,7 @@ impl Room {
         // Determinism: inputs are listed in ascending slot order.
         for (index, p) in self.players.iter_mut().enumerate() {
             let Some(p) = p else { continue };
-            if p.start_tick > tick {
+            if p.start_tick > tick || !p.admitted {
                 continue;
             }
             let slot = Slot(index as u8);
@@ -634,12 +737,12 @@ impl Room {
 
     fn send_bundles(&mut self, now: Duration) {
         for index in 0..self.players.len() {
-            let Some(p) = &self.players[index] else {
+            let Some(p) = self.players[index].as_ref().filter(|p| p.admitted) else {
                 continue;
             };
             let from = p
                 .bundle_ack
-                .map_or(p.start_tick, |a| (a + 1).max(p.start_tick));
+                .map_or(p.first_bundle, |a| (a + 1).max(p.first_bundle));
             let ack_input = self.input_ack(p);
             let empty = ServerMessage::Bundles(BundleDatagram {
                 ack_input,
@@ -744,6 +847,134 @@ impl Room {
                 _ => LeaveReason::Diverged,
             };
             self.remove(now, id, leave, Some(close(reason, detail)));
+        }
+    }
+
+    /// Asks the join's source for the snapshot from byte `offset`.
+    fn probe_join_snapshot(&mut self, offset: u32) {
+        let Some(j) = &self.joining else { return };
+        let (tick, source) = (j.tick, j.source);
+        if self.players[source.index()].is_some() {
+            let to = self.id_of(source.index());
+            self.transmits.push_back(Transmit {
+                to,
+                message: ServerMessage::Probe(crate::forensics::Probe {
+                    tick,
+                    ask: crate::forensics::ProbeAsk::Snapshot { offset },
+                }),
+            });
+        }
+    }
+
+    fn is_join_reply(&self, from: Slot, r: &crate::forensics::ProbeReply) -> bool {
+        use crate::forensics::ProbeAnswer;
+        self.joining.as_ref().is_some_and(|j| {
+            j.source == from
+                && j.tick == r.tick
+                && matches!(
+                    r.answer,
+                    ProbeAnswer::Snapshot { .. } | ProbeAnswer::Unavailable
+                )
+        })
+    }
+
+    /// A piece of the joiner's snapshot: the next piece is asked for, the
+    /// whole is handed to the caller ([`RoomEvent::JoinSnapshot`]).
+    fn on_join_reply(&mut self, now: Duration, r: crate::forensics::ProbeReply) {
+        use crate::forensics::ProbeAnswer;
+        let Some(j) = &mut self.joining else { return };
+        let id = j.id;
+        match r.answer {
+            ProbeAnswer::Snapshot {
+                total,
+                offset,
+                bytes,
+            } if j.total.is_none_or(|t| t == total)
+                && offset as usize == j.bytes.len()
+                && (!bytes.is_empty() || total == 0)
+                && j.bytes.len() + bytes.len() <= total as usize
+                && total as usize <= crate::limits::MAX_SCENE_BYTES =>
+            {
+                j.total = Some(total);
+                j.bytes.extend_from_slice(&bytes);
+                if j.bytes.len() < total as usize {
+                    let next = j.bytes.len() as u32;
+                    self.probe_join_snapshot(next);
+                } else {
+                    self.events.push_back(RoomEvent::JoinSnapshot {
+                        id,
+                        tick: j.tick,
+                        agreed_hash: j.hash,
+                        bytes: std::mem::take(&mut j.bytes),
+                    });
+                }
+            }
+            ProbeAnswer::Unavailable => {
+                self.fail_join(now, id, "the agreed tick left the players' history");
+            }
+            _ => self.fail_join(now, id, "the snapshot came in pieces that do not fit"),
+        }
+    }
+
+    /// Ends a join to the running match that cannot complete.
+    fn fail_join(&mut self, now: Duration, id: PlayerId, why: &str) {
+        self.joining = None;
+        let detail = format!("no agreed state to join the running match from: {why}; try again");
+        let c = close(CloseReason::MatchInProgress, detail);
+        self.remove(now, id, LeaveReason::Kicked, Some(c));
+    }
+
+    /// Admits the player joining the running match once the caller checked
+    /// its snapshot (from [`RoomEvent::JoinSnapshot`]): the snapshot must
+    /// restore and hash to the agreed hash. The welcome carries the
+    /// snapshot; the player catches up from the bundle after it and is in
+    /// every bundle from the next open tick on.
+    pub fn admit(&mut self, now: Duration, id: PlayerId, snapshot: Vec<u8>) {
+        let Some(j) = self.joining.take_if(|j| j.id == id) else {
+            return;
+        };
+        let oldest = self
+            .next_tick
+            .saturating_sub(self.config.history_ticks as u64);
+        if j.tick + 1 < oldest || self.player(id).is_none() {
+            self.fail_join(now, id, "the snapshot is older than the bundles kept");
+            return;
+        }
+        let start_tick = self.next_tick;
+        let Some(Some(p)) = self.players.get_mut(id.slot.index()) else {
+            return;
+        };
+        p.admitted = true;
+        p.start_tick = start_tick;
+        p.first_bundle = j.tick + 1;
+        p.last_heard = now;
+        let name = p.name.clone();
+        self.transmits.push_back(Transmit {
+            to: id,
+            message: ServerMessage::Welcome(Welcome {
+                slot: id.slot,
+                tick_rate: self.config.tick_rate,
+                input_delay: self.config.input_delay,
+                input_window: self.config.input_window,
+                max_input_bytes: self.config.max_input_bytes as u8,
+                start_tick,
+                scene_hash: self.config.scene_hash,
+                scene: Vec::new(),
+                resume: Some(crate::message::Resume {
+                    tick: j.tick,
+                    hash: j.hash,
+                    snapshot,
+                }),
+            }),
+        });
+        self.events.push_back(RoomEvent::PlayerJoined { id, name });
+    }
+
+    /// Refuses the player joining the running match: its snapshot did not
+    /// check out (`why` says how).
+    pub fn refuse_join(&mut self, now: Duration, id: PlayerId, why: &str) {
+        if self.joining.as_ref().is_some_and(|j| j.id == id) {
+            self.fail_join(now, id, why);
         }
     }
 

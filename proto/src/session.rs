@@ -129,6 +129,9 @@ pub struct Session {
     input_window: u16,
     max_input_bytes: usize,
     start_tick: u64,
+    /// The first bundle to apply (before `start_tick` for a player joining
+    /// a running match).
+    first_bundle: u64,
     scene_hash: u64,
     next_input_tick: u64,
     inputs: TickRing<Vec<u8>>,
@@ -180,6 +183,10 @@ impl Session {
     /// [`SessionError::InvalidWelcome`] if the welcome breaks a bound.
     pub fn new(welcome: &Welcome) -> Result<Self, SessionError> {
         welcome.validate().map_err(SessionError::InvalidWelcome)?;
+        let first_bundle = welcome
+            .resume
+            .as_ref()
+            .map_or(welcome.start_tick, |r| r.tick + 1);
         Ok(Self {
             slot: welcome.slot,
             tick_rate: welcome.tick_rate,
@@ -187,6 +194,7 @@ impl Session {
             input_window: welcome.input_window,
             max_input_bytes: usize::from(welcome.max_input_bytes),
             start_tick: welcome.start_tick,
+            first_bundle,
             scene_hash: welcome.scene_hash,
             next_input_tick: welcome.start_tick,
             inputs: TickRing::new(usize::from(welcome.input_window)),
@@ -195,8 +203,8 @@ impl Session {
             clock_anchor: None,
             sent_since_timer: false,
             next_resend_at: None,
-            next_deliver: welcome.start_tick,
-            received_through: welcome.start_tick.checked_sub(1),
+            next_deliver: first_bundle,
+            received_through: first_bundle.checked_sub(1),
             reorder: TickRing::new(REORDER_TICKS),
             local_hashes: TickRing::new(LOCAL_HASH_TICKS),
             last_reported: None,
@@ -338,7 +346,7 @@ impl Session {
             self.stats.bundles_beyond_window += 1;
             return;
         }
-        let expected = self.received_through.map_or(self.start_tick, |t| t + 1);
+        let expected = self.received_through.map_or(self.first_bundle, |t| t + 1);
         if tick > expected {
             self.stats.out_of_order_bundles += 1;
         }
@@ -523,6 +531,13 @@ impl Session {
         self.start_tick
     }
 
+    /// The first bundle this session applies: `start_tick`, or for a player
+    /// joining a running match the tick after its snapshot (bundles before
+    /// `start_tick` are applied to catch up, and not reported).
+    pub fn first_bundle(&self) -> u64 {
+        self.first_bundle
+    }
+
     /// Hash of the scene announced in the welcome.
     pub fn scene_hash(&self) -> u64 {
         self.scene_hash
@@ -579,6 +594,7 @@ mod tests {
             start_tick: 0,
             scene_hash: 77,
             scene: vec![1, 2, 3],
+            resume: None,
         }
     }
 

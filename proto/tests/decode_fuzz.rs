@@ -71,6 +71,7 @@ fn server_samples() -> Vec<ServerMessage> {
             start_tick: 0,
             scene_hash: 99,
             scene: (0..=255).collect(),
+            resume: None,
         }),
         ServerMessage::Bundles(BundleDatagram {
             ack_input: Some(36_004),

@@ -78,6 +78,13 @@ pub struct RoomSettings {
     /// second, [`PlayerReport::datagrams_dropped`]) and stream frames wait.
     /// A player at 60 Hz sends about 2 datagrams and 1 frame a tick.
     pub max_messages_per_second: u32,
+    /// Let players join a running match (`--late-join`): they start from
+    /// the snapshot of the last agreed tick, fetched from a player in
+    /// agreement and checked against the agreed hash. Default false.
+    pub late_join: bool,
+    /// How long a dropped player's seat stays reserved for a rejoin with
+    /// its seat token. Default 30 s.
+    pub rejoin_grace: Duration,
 }
 
 impl Default for RoomSettings {
@@ -92,6 +99,8 @@ impl Default for RoomSettings {
             final_reports_timeout: Duration::from_secs(2),
             lobby_timeout: Some(Duration::from_secs(30)),
             max_messages_per_second: 1000,
+            late_join: false,
+            rejoin_grace: Duration::from_secs(30),
         }
     }
 }

@@ -1124,3 +1124,166 @@ async fn sybil_voters_cannot_outvote_a_verifying_server() {
         spent.as_secs_f64() / ticks as f64 * 60.0 * 100.0
     );
 }
+
+/// Late join: two bots play; 1.5 s in, a third joins the running match. It
+/// starts from the snapshot of the last agreed tick (fetched from a bot and
+/// checked against the agreed hash), catches up, and from its first
+/// reported tick its hashes match; no desync, and the replay re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_late_joiner_starts_from_the_agreed_snapshot_and_matches() {
+    use lockstep_client::bot::run_bot;
+    let mut server = TestServer::start("late", |c| {
+        c.room.start_players = 2;
+        c.room.match_ticks = Some(480);
+        c.room.late_join = true;
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let options = BotOptions::new(addr, &cert, "late", 2);
+    let early = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let late_options = BotOptions::new(addr, &cert, "late", 3).client_options(2);
+    let late = run_bot(
+        late_options,
+        std::sync::Arc::new(Demo),
+        1,
+        false,
+        std::future::pending(),
+    )
+    .await
+    .expect("the late joiner plays");
+    let early = bots_ok(early.await.unwrap());
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    assert_same_hashes(&early, 480);
+    println!(
+        "late join: snapshot after tick {}, first report at tick {}",
+        late.first_applied - 1,
+        late.start_tick
+    );
+    assert!(late.first_applied > 60 && late.first_applied <= late.start_tick);
+    assert!(late.start_tick < 200, "joined at tick {}", late.start_tick);
+    assert_eq!(late.hashes.len() as u64, 480 - late.first_applied);
+    for (i, h) in late.hashes.iter().enumerate() {
+        let t = late.first_applied as usize + i;
+        assert_eq!(*h, early[0].hashes[t], "tick {t}");
+    }
+    assert_eq!(late.desyncs().count(), 0);
+    assert!(ended.desyncs.is_empty(), "{:?}", ended.desyncs);
+    assert_eq!(ended.mismatched_ticks, 0);
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked, check.players), (480, 480, 3));
+}
+
+/// Rejoin: three bots hold seat tokens; one is killed mid-match (its
+/// connection drops without a leave) and started again with the same
+/// token. It takes back its seat from the agreed snapshot and matches the
+/// others from its first reported tick; late joins are off, and the match
+/// has no desync.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_bot_rejoins_its_seat_with_its_token_and_matches() {
+    use lockstep_client::bot::run_bot;
+    use lockstep_server::issue_token;
+    let secret = b"rejoin test secret, 16+ bytes".to_vec();
+    let key = secret.clone();
+    let mut server = TestServer::start("rejoin", move |c| {
+        c.room.start_players = 3;
+        c.room.match_ticks = Some(600);
+        c.token_secret = Some(key);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let now = std::time::SystemTime::now();
+    let mut options = BotOptions::new(addr, &cert, "rejoin", 3);
+    options.tokens = (0..3u8)
+        .map(|s| {
+            issue_token(
+                &secret,
+                "rejoin",
+                Some(s),
+                &format!("bot-{s}"),
+                Duration::from_secs(600),
+                now,
+            )
+            .unwrap()
+        })
+        .collect();
+    let mut tasks = Vec::new();
+    for i in 0..3 {
+        let o = options.client_options(i);
+        tasks.push(tokio::spawn(run_bot(
+            o,
+            std::sync::Arc::new(Demo),
+            1,
+            false,
+            std::future::pending(),
+        )));
+        tokio::time::sleep(Duration::from_millis(30)).await;
+    }
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(2000)).await;
+    // Kill bot 1: its task is dropped mid-match, its connection closes.
+    tasks[1].abort();
+    let _ = (&mut tasks[1]).await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let again = run_bot(
+        options.client_options(1),
+        std::sync::Arc::new(Demo),
+        1,
+        false,
+        std::future::pending(),
+    )
+    .await
+    .expect("the killed bot rejoins");
+    let mut others = Vec::new();
+    for (i, t) in tasks.into_iter().enumerate() {
+        if i != 1 {
+            others.push(t.await.unwrap().expect("bot plays"));
+        }
+    }
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    assert_same_hashes(&others, 600);
+    assert_eq!(again.slot, Slot(1));
+    println!(
+        "rejoin: snapshot after tick {}, first report at tick {}",
+        again.first_applied - 1,
+        again.start_tick
+    );
+    assert!(again.first_applied > 100 && again.first_applied <= again.start_tick);
+    for (i, h) in again.hashes.iter().enumerate() {
+        let t = again.first_applied as usize + i;
+        assert_eq!(*h, others[0].hashes[t], "tick {t}");
+    }
+    assert_eq!(again.hashes.len() as u64, 600 - again.first_applied);
+    assert!(ended.desyncs.is_empty(), "{:?}", ended.desyncs);
+    assert_eq!(ended.mismatched_ticks, 0);
+    let left: Vec<_> = ended
+        .players
+        .iter()
+        .filter_map(|p| p.left.as_ref().map(|l| (p.slot, l.1.clone())))
+        .collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+    assert_eq!(left[0].0, Slot(1));
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked), (600, 600));
+}

@@ -235,11 +235,16 @@ pub struct Traffic {
 pub struct ClientReport {
     /// This client's slot.
     pub slot: Slot,
-    /// The first tick it took part in.
+    /// The first tick it took part in (its first input and report).
     pub start_tick: u64,
+    /// The first tick it applied: `start_tick`, or for a player that joined
+    /// a running match the tick after its snapshot. `hashes[i]` is the hash
+    /// after tick `first_applied + i`.
+    pub first_applied: u64,
     /// Ticks applied (bundles stepped).
     pub ticks_applied: u64,
-    /// Every state hash reported, in tick order from `start_tick`.
+    /// The state hash after every applied tick, in tick order from
+    /// `first_applied` (reported from `start_tick` on).
     pub hashes: Vec<u64>,
     /// When each tick's bundle became applicable (in order, so a bundle
     /// waiting for a missing earlier one counts as late too); index is
@@ -353,17 +358,25 @@ impl Client {
             }
         };
         let session = Session::new(&welcome)?;
-        let text = std::str::from_utf8(&welcome.scene)
-            .map_err(|e| ClientError::Scene(format!("scene is not UTF-8: {e}")))?;
-        let world = lockstep_core::scene::load_world(text, "welcome scene")
-            .map_err(|e| ClientError::Scene(e.to_string()))?;
+        let (world, expected) = match &welcome.resume {
+            // Joining a running match: the agreed state of a past tick.
+            Some(r) => {
+                let world = World::restore(&r.snapshot)
+                    .map_err(|e| ClientError::Scene(format!("resume snapshot: {e}")))?;
+                (world, r.hash)
+            }
+            None => {
+                let text = std::str::from_utf8(&welcome.scene)
+                    .map_err(|e| ClientError::Scene(format!("scene is not UTF-8: {e}")))?;
+                let world = lockstep_core::scene::load_world(text, "welcome scene")
+                    .map_err(|e| ClientError::Scene(e.to_string()))?;
+                (world, welcome.scene_hash)
+            }
+        };
         let got = world.state_hash();
-        if got != welcome.scene_hash {
+        if got != expected {
             connection.close(close_code::REFUSED.into(), b"scene hash mismatch");
-            return Err(ClientError::SceneHashMismatch {
-                expected: welcome.scene_hash,
-                got,
-            });
+            return Err(ClientError::SceneHashMismatch { expected, got });
         }
         let rules = match game.new_rules(&world) {
             Ok(r) => r,
@@ -459,7 +472,7 @@ impl Client {
             }
             Ok(())
         });
-        let start_tick = self.session.start_tick();
+        let start_tick = self.session.first_bundle();
         let history = super::forensics::History::new(self.options.forensics_ticks);
         LiveClient {
             history,
@@ -504,6 +517,7 @@ impl Client {
         let mut report = ClientReport {
             slot: live.slot(),
             start_tick: live.session.start_tick(),
+            first_applied: live.session.first_bundle(),
             ticks_applied: 0,
             hashes: Vec::new(),
             delivered_at: Vec::new(),
@@ -825,7 +839,11 @@ impl LiveClient {
                     .map(|(_, h)| h)
                     .collect()
             });
-            self.session.report_hash(bundle.tick, hash, bodies)?;
+            // A player that joined a running match catches up on the ticks
+            // before its start without reporting them (it was not in them).
+            if bundle.tick >= self.session.start_tick() {
+                self.session.report_hash(bundle.tick, hash, bodies)?;
+            }
             self.ticks_applied += 1;
             self.next_tick = bundle.tick + 1;
             out.ticks.push(AppliedTick {

@@ -66,6 +66,14 @@ pub struct RoomConfig {
     /// judges every report against that hash, not by majority, so a
     /// majority of liars cannot outvote honest players. Default false.
     pub verify: bool,
+    /// Whether players may join a running match (late join). They start
+    /// from a snapshot of the last agreed tick, fetched from a player of
+    /// the majority and checked by the caller. Default false.
+    pub late_join: bool,
+    /// How long the seat of a player who joined with a seat token and then
+    /// dropped stays reserved for a rejoin with a token for that seat
+    /// (rejoins are allowed even without `late_join`). Default 30 s.
+    pub rejoin_grace: Duration,
     /// Scene sent to each player in the welcome, opaque to the room.
     pub scene: Vec<u8>,
     /// Hash of `scene`, sent alongside it.
@@ -91,6 +99,8 @@ impl RoomConfig {
             ping_interval: Duration::from_secs(1),
             locate_timeout: Duration::from_secs(10),
             verify: false,
+            late_join: false,
+            rejoin_grace: Duration::from_secs(30),
             scene,
             scene_hash,
         }

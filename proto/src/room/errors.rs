@@ -36,6 +36,12 @@ pub enum JoinError {
     /// The same token already seats another connection.
     #[error("this join token already seats slot {0}")]
     TokenInUse(u8),
+    /// Another player is joining the running match; one at a time.
+    #[error("another player is joining the running match; try again")]
+    JoinBusy,
+    /// No tick was agreed on yet, or no player can give its state.
+    #[error("no agreed state to join the running match from yet; try again")]
+    NoAgreedState,
 }
 
 impl JoinError {
@@ -45,7 +51,9 @@ impl JoinError {
             Self::VersionMismatch { .. } => CloseReason::VersionMismatch,
             Self::WrongRoom(_) => CloseReason::WrongRoom,
             Self::RoomFull(_) => CloseReason::RoomFull,
-            Self::MatchInProgress => CloseReason::MatchInProgress,
+            Self::MatchInProgress | Self::JoinBusy | Self::NoAgreedState => {
+                CloseReason::MatchInProgress
+            }
             Self::SeatTaken(_) | Self::TokenInUse(_) => CloseReason::SeatTaken,
             Self::NoSuchSeat(_) => CloseReason::BadToken,
         };

@@ -86,6 +86,20 @@ pub enum RoomEvent {
     },
     /// Players' hashes differ; the same notice was queued to every player.
     Desync(DesyncNotice),
+    /// The agreed snapshot for a player joining the running match arrived:
+    /// check it restores and hashes to `agreed_hash`, then call
+    /// [`Room::admit`](super::Room::admit) (or
+    /// [`Room::refuse_join`](super::Room::refuse_join)).
+    JoinSnapshot {
+        /// The joiner.
+        id: PlayerId,
+        /// The tick it is the state after.
+        tick: u64,
+        /// The agreed hash of that tick.
+        agreed_hash: u64,
+        /// The snapshot.
+        bytes: Vec<u8>,
+    },
     /// The search started by a desync notice is over: the bodies and
     /// fields that differ (the same report was queued to every player).
     DesyncLocated(DesyncReport),

@@ -49,6 +49,12 @@ pub(crate) struct Player {
     pub(crate) wrong_streak: u32,
     /// The key of the join token that seated this player, if any.
     pub(crate) ticket: Option<u64>,
+    /// False while a player joining a running match waits for the agreed
+    /// snapshot: it is in no bundle and gets none.
+    pub(crate) admitted: bool,
+    /// The first bundle sent to it (before `start_tick` for a player that
+    /// joined a running match and catches up from a snapshot).
+    pub(crate) first_bundle: u64,
 }
 
 impl Player {
@@ -66,6 +72,8 @@ impl Player {
             missing_streak: 0,
             wrong_streak: 0,
             ticket: None,
+            admitted: true,
+            first_bundle: start_tick,
         }
     }
 

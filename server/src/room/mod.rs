@@ -71,6 +71,8 @@ fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig
     c.max_players = s.max_players;
     c.silence_timeout = s.silence_timeout;
     c.verify = config.verifier.is_some();
+    c.late_join = s.late_join;
+    c.rejoin_grace = s.rejoin_grace;
     c.input_window = c.input_window.max(s.input_delay.saturating_add(16));
     let needed = c.ticks_in(c.hash_timeout).saturating_add(2);
     c.hash_window_ticks = c
@@ -624,6 +626,8 @@ impl RoomTask {
                         CloseReason::RoomClosed,
                         "the server is shutting down",
                     ))
+                } else if matches!(self.phase, Phase::Finishing { .. } | Phase::Done) {
+                    Err(close_of(CloseReason::RoomClosed, "the match is over"))
                 } else {
                     self.room
                         .join_with_ticket(now, &join, ticket.as_ref())
@@ -922,6 +926,33 @@ impl RoomTask {
                 self.desyncs.push(notice);
             }
             RoomEvent::DesyncLocated(report) => self.on_desync_located(report),
+            RoomEvent::JoinSnapshot {
+                id,
+                tick,
+                agreed_hash,
+                bytes,
+            } => {
+                let now = self.now();
+                match lockstep_core::World::restore(&bytes) {
+                    Ok(w) if w.state_hash() == agreed_hash => {
+                        crate::log!(
+                            "room {}: slot {} joins the running match from the agreed state of tick {tick} ({} B)",
+                            self.name,
+                            id.slot.0,
+                            bytes.len()
+                        );
+                        self.room.admit(now, id, bytes);
+                    }
+                    Ok(w) => {
+                        let why = format!(
+                            "the snapshot of tick {tick} hashes to {:016x}, not the agreed {agreed_hash:016x}",
+                            w.state_hash()
+                        );
+                        self.room.refuse_join(now, id, &why);
+                    }
+                    Err(e) => self.room.refuse_join(now, id, &e.to_string()),
+                }
+            }
             RoomEvent::DesyncSnapshot {
                 tick,
                 agreed_hash,

@@ -105,6 +105,14 @@ struct Cli {
     /// simulation per room).
     #[arg(long)]
     verify: bool,
+    /// Let players join a running match: they start from the last agreed
+    /// state, fetched from a player in agreement and checked by its hash.
+    #[arg(long)]
+    late_join: bool,
+    /// Seconds a dropped player's seat stays reserved for a rejoin with
+    /// its seat token.
+    #[arg(long, default_value_t = 30.0)]
+    rejoin_grace: f64,
 }
 
 #[derive(Subcommand, Debug)]
@@ -235,6 +243,8 @@ async fn main() -> ExitCode {
         }
     }
     config.require_tokens = cli.require_tokens;
+    config.room.late_join = cli.late_join;
+    config.room.rejoin_grace = Duration::from_secs_f64(cli.rejoin_grace.clamp(0.0, 86_400.0));
     if cli.verify {
         config.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
             game: std::sync::Arc::new(Demo),
