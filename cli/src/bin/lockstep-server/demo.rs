@@ -32,6 +32,9 @@ pub struct DemoOptions {
     pub seed: u64,
     /// How long the match lasts (it also ends on Ctrl-C).
     pub duration: Duration,
+    /// Make the last bot nudge one body by one ulp before this tick, to
+    /// show a desync being located (`--diverge-at`).
+    pub diverge_at: Option<u64>,
 }
 
 impl DemoOptions {
@@ -51,6 +54,7 @@ impl DemoOptions {
             bots: 4,
             seed: 1,
             duration: Duration::from_secs(20),
+            diverge_at: None,
         }
     }
 }
@@ -169,6 +173,15 @@ pub async fn run_demo(
     let mut bot_options =
         BotOptions::for_game(addr, cert, "demo", options.bots, options.game.clone());
     bot_options.seed = options.seed;
+    if let Some(tick) = options.diverge_at {
+        bot_options.game_of_bot = vec![(
+            options.bots.saturating_sub(1),
+            Arc::new(lockstep_client::testing::Diverge {
+                inner: options.game.clone(),
+                tick,
+            }),
+        )];
+    }
     let bots = tokio::spawn(async move { run_bots(&bot_options, std::future::pending()).await });
     tokio::pin!(interrupt);
     let mut stop_tx = Some(stop_tx);
@@ -188,6 +201,12 @@ pub async fn run_demo(
                 }
                 Some(ServerEvent::Desync { notice, .. }) => {
                     println!("demo: DESYNC at tick {}: {:?}", notice.tick, notice.verdict);
+                }
+                Some(ServerEvent::DesyncLocated { report, bundle, .. }) => {
+                    print!("demo: {report}");
+                    if let Some(b) = bundle {
+                        println!("demo: desync bundle {} (check it: lockstep replay FILE)", b.display());
+                    }
                 }
                 Some(ServerEvent::MatchEnded(r)) => {
                     report = Some(r);

@@ -33,6 +33,10 @@ struct Cli {
     /// Demo: seed of the bots' input.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Demo: the last bot nudges one body by one ulp before this tick, so
+    /// the match shows a desync being located to its body and field.
+    #[arg(long, value_name = "TICK")]
+    diverge_at: Option<u64>,
     /// UDP address to listen on (the demo picks a free loopback port).
     #[arg(long, default_value = "127.0.0.1:4433")]
     listen: SocketAddr,
@@ -255,6 +259,7 @@ async fn main() -> ExitCode {
         options.server = config;
         options.bots = cli.bots;
         options.seed = cli.seed;
+        options.diverge_at = cli.diverge_at;
         options.duration = Duration::from_secs_f64(cli.duration.clamp(0.1, 86_400.0));
         return match run_demo(options, terminate()).await {
             Ok(s) => {
