@@ -159,6 +159,14 @@ pub enum ReplayRecord {
     },
     /// The room found a desync at this tick (the notice it sent).
     Desync(DesyncNotice),
+    /// The match ended normally after `ticks` ticks.
+    End {
+        /// Ticks played.
+        ticks: u64,
+        /// Why it ended.
+        reason: String,
+    },
+    // Format version 3 (appended, so version 2 files read as before).
     /// Where a desync lies: the report the room sent to the players.
     Located(DesyncReport),
     /// A piece of the world snapshot after `tick` (a desync bundle's last
@@ -176,13 +184,6 @@ pub enum ReplayRecord {
         offset: u64,
         /// The piece.
         bytes: Vec<u8>,
-    },
-    /// The match ended normally after `ticks` ticks.
-    End {
-        /// Ticks played.
-        ticks: u64,
-        /// Why it ended.
-        reason: String,
     },
 }
 
