@@ -27,6 +27,7 @@
 
 mod conn;
 pub mod log;
+pub mod metrics;
 mod room;
 mod tls;
 
@@ -140,6 +141,15 @@ pub struct ServerConfig {
     /// verified hashes. `lockstep_client::game::RulesVerifier` makes one
     /// for any game's rules.
     pub verifier: Option<Arc<dyn lockstep_proto::verify::VerifierFactory>>,
+    /// Address of the Prometheus `/metrics`, `/healthz` and `/readyz`
+    /// listener (TCP), if any (`--metrics`).
+    pub metrics: Option<SocketAddr>,
+    /// Stop after the first match ends (one match per process, as game
+    /// server fleets run them; `--exit-after-match`).
+    pub exit_after_match: bool,
+    /// Log each running room's status line once a second (the demo prints
+    /// its own instead).
+    pub log_status: bool,
     /// Where the server reports what happens (listening address, matches,
     /// a status per room per second, desyncs), for the demo and tests.
     pub events: Option<mpsc::UnboundedSender<ServerEvent>>,
@@ -172,6 +182,9 @@ impl ServerConfig {
             token_secret: None,
             require_tokens: false,
             verifier: None,
+            metrics: None,
+            exit_after_match: false,
+            log_status: true,
             events: None,
         }
     }
@@ -225,6 +238,11 @@ pub enum ServerEvent {
     },
     /// Once per second per running room.
     Status(RoomStatus),
+    /// The metrics listener is bound.
+    MetricsListening {
+        /// Its address.
+        addr: SocketAddr,
+    },
     /// The room found a desync.
     Desync {
         /// The room.
@@ -273,6 +291,34 @@ pub struct RoomStatus {
     pub ticks_compared: u64,
     /// Compared ticks whose hashes differed.
     pub mismatched_ticks: u64,
+}
+
+impl std::fmt::Display for RoomStatus {
+    /// One readable line: tick, players, round trip, bytes per second per
+    /// player, hash agreement.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kb = |b: u64| format!("{:.1} kB/s", b as f64 / 1000.0);
+        let rtt = self.rtt.map_or_else(
+            || "-".into(),
+            |r| format!("{:.1} ms", r.as_secs_f64() * 1000.0),
+        );
+        let hashes = if self.mismatched_ticks == 0 {
+            format!("{} ticks compared, all agree", self.ticks_compared)
+        } else {
+            format!(
+                "{} ticks compared, {} MISMATCHED",
+                self.ticks_compared, self.mismatched_ticks
+            )
+        };
+        write!(
+            f,
+            "tick {:6} | players {} | rtt {rtt} | per player: down {} up {} | hashes: {hashes}",
+            self.tick,
+            self.players,
+            kb(self.down_bytes_per_sec),
+            kb(self.up_bytes_per_sec)
+        )
+    }
 }
 
 /// One player's part in a match.
@@ -349,13 +395,44 @@ pub struct RoomReport {
     pub end_reason: String,
 }
 
-/// What [`run`] returns after shutting down.
+/// How many finished matches a [`ServerReport`] keeps (the oldest go first).
+pub const RECENT_MATCHES: usize = 64;
+
+/// How many refusals a [`ServerReport`] keeps (the oldest go first).
+pub const RECENT_REFUSALS: usize = 256;
+
+/// What [`run`] returns after shutting down. Bounded, so a server that
+/// runs for days does not grow: counts of everything, and the most recent
+/// matches and refusals.
 #[derive(Clone, Debug, Default)]
 pub struct ServerReport {
-    /// Every match played, in the order they ended.
+    /// The last [`RECENT_MATCHES`] matches played, in the order they ended.
     pub matches: Vec<RoomReport>,
-    /// Connections refused or players removed for cause: peer and reason.
+    /// Matches played in all.
+    pub matches_total: u64,
+    /// The last [`RECENT_REFUSALS`] connections refused or players removed
+    /// for cause: peer and reason.
     pub refused: Vec<(SocketAddr, String)>,
+    /// Refusals in all.
+    pub refused_total: u64,
+}
+
+impl ServerReport {
+    pub(crate) fn add_match(&mut self, m: RoomReport) {
+        if self.matches.len() == RECENT_MATCHES {
+            self.matches.remove(0);
+        }
+        self.matches.push(m);
+        self.matches_total += 1;
+    }
+
+    pub(crate) fn add_refusal(&mut self, remote: SocketAddr, reason: String) {
+        if self.refused.len() == RECENT_REFUSALS {
+            self.refused.remove(0);
+        }
+        self.refused.push((remote, reason));
+        self.refused_total += 1;
+    }
 }
 
 /// State shared by the accept loop, the connection tasks and the rooms.
@@ -367,6 +444,9 @@ pub(crate) struct Shared {
     pub(crate) report: Mutex<ServerReport>,
     pub(crate) room_tasks: Mutex<JoinSet<()>>,
     pub(crate) room_seq: std::sync::atomic::AtomicU64,
+    pub(crate) metrics: metrics::Metrics,
+    /// Notified when a match ends (for `exit_after_match`).
+    pub(crate) match_ended: tokio::sync::Notify,
 }
 
 impl Shared {
@@ -378,8 +458,9 @@ impl Shared {
 
     pub(crate) fn refused(&self, remote: SocketAddr, reason: String) {
         crate::log!("refused {remote}: {reason}");
+        self.metrics.refused(&reason);
         if let Ok(mut r) = self.report.lock() {
-            r.refused.push((remote, reason.clone()));
+            r.add_refusal(remote, reason.clone());
         }
         self.emit(ServerEvent::Refused { remote, reason });
     }
@@ -482,13 +563,36 @@ pub async fn run(
         report: Mutex::new(ServerReport::default()),
         room_tasks: Mutex::new(JoinSet::new()),
         room_seq: std::sync::atomic::AtomicU64::new(0),
+        metrics: metrics::Metrics::default(),
+        match_ended: tokio::sync::Notify::new(),
     });
+    let metrics_task = match shared.config.metrics {
+        Some(a) => {
+            let listener = metrics::bind(a)
+                .await
+                .map_err(|e| ServerError::Bind(a, e))?;
+            let local = listener.local_addr().map_err(|e| ServerError::Bind(a, e))?;
+            crate::log!("metrics on http://{local}/metrics (and /healthz, /readyz)");
+            shared.emit(ServerEvent::MetricsListening { addr: local });
+            Some(tokio::spawn(metrics::serve(shared.clone(), listener)))
+        }
+        None => None,
+    };
+    shared
+        .metrics
+        .ready
+        .store(true, std::sync::atomic::Ordering::Relaxed);
     shared.emit(ServerEvent::Listening { addr, cert });
+    let exit_after_match = shared.config.exit_after_match;
     let mut connections = JoinSet::new();
     tokio::pin!(shutdown);
     loop {
         tokio::select! {
             () = &mut shutdown => break,
+            () = shared.match_ended.notified(), if exit_after_match => {
+                crate::log!("the match ended; exiting (--exit-after-match)");
+                break;
+            }
             incoming = endpoint.accept() => {
                 let Some(incoming) = incoming else { break };
                 let remote = incoming.remote_address();
@@ -533,6 +637,9 @@ pub async fn run(
         b"server shutting down",
     );
     let _ = tokio::time::timeout(Duration::from_secs(2), endpoint.wait_idle()).await;
+    if let Some(t) = metrics_task {
+        let _ = t.await;
+    }
     crate::log!("server stopped");
     let report = shared.report.lock().map(|r| r.clone()).unwrap_or_default();
     Ok(report)

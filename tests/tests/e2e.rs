@@ -27,6 +27,8 @@ use tokio::task::JoinHandle;
 /// A server running in the test's runtime.
 struct TestServer {
     addr: SocketAddr,
+    /// The metrics listener, if configured.
+    metrics: Option<SocketAddr>,
     cert: PathBuf,
     events: mpsc::UnboundedReceiver<ServerEvent>,
     stop: Option<oneshot::Sender<()>>,
@@ -52,14 +54,17 @@ impl TestServer {
         let task = tokio::spawn(run(config, async {
             let _ = stop_rx.await;
         }));
+        let mut metrics = None;
         let (addr, cert) = loop {
             match events.recv().await.expect("server stopped at start-up") {
                 ServerEvent::Listening { addr, cert } => break (addr, cert.expect("dev cert")),
+                ServerEvent::MetricsListening { addr } => metrics = Some(addr),
                 _ => continue,
             }
         };
         TestServer {
             addr,
+            metrics,
             cert,
             events,
             stop: Some(stop),
@@ -1286,4 +1291,87 @@ async fn a_killed_bot_rejoins_its_seat_with_its_token_and_matches() {
     assert_eq!(left[0].0, Slot(1));
     let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
     assert_eq!((check.ticks, check.checked), (600, 600));
+}
+
+/// One HTTP GET on the metrics listener: status line and body.
+async fn http_get(addr: SocketAddr, path: &str) -> (String, String) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut s = tokio::net::TcpStream::connect(addr).await.expect("connect");
+    let req = format!("GET {path} HTTP/1.1\r\nHost: x\r\n\r\n");
+    s.write_all(req.as_bytes()).await.unwrap();
+    let mut out = String::new();
+    s.read_to_string(&mut out).await.unwrap();
+    let (head, body) = out.split_once("\r\n\r\n").unwrap_or((&out, ""));
+    (
+        head.lines().next().unwrap_or("").to_owned(),
+        body.to_owned(),
+    )
+}
+
+/// The metrics listener during a match: the tick-lateness histogram and
+/// the player count on `/metrics`, `/healthz` and `/readyz` answer; with
+/// `exit_after_match` the server stops by itself after the match, with its
+/// replay flushed.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn metrics_and_health_are_served_and_the_server_exits_after_its_match() {
+    let mut server = TestServer::start("metrics", |c| {
+        c.room.start_players = 2;
+        c.room.match_ticks = Some(240);
+        c.metrics = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
+        c.exit_after_match = true;
+    })
+    .await;
+    let metrics = server.metrics.expect("the metrics listener");
+    let options = BotOptions::new(server.addr, &server.cert, "metrics", 2);
+    let bots = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let (status, body) = http_get(metrics, "/metrics").await;
+    assert_eq!(status, "HTTP/1.1 200 OK");
+    assert!(body.contains("lockstep_players 2"), "{body}");
+    assert!(body.contains("lockstep_rooms 1"), "{body}");
+    assert!(body.contains("lockstep_matches_running 1"), "{body}");
+    assert!(body.contains("# TYPE lockstep_tick_lateness_seconds histogram"));
+    let count: u64 = body
+        .lines()
+        .find_map(|l| l.strip_prefix("lockstep_tick_lateness_seconds_count "))
+        .and_then(|v| v.parse().ok())
+        .expect("a lateness count");
+    assert!(count >= 60, "{count} ticks measured");
+    assert!(body.contains("lockstep_tick_lateness_seconds_bucket{le=\"0.002\"}"));
+    let (status, body) = http_get(metrics, "/healthz").await;
+    assert_eq!(
+        (status.as_str(), body.as_str()),
+        ("HTTP/1.1 200 OK", "ok\n")
+    );
+    let (status, _) = http_get(metrics, "/readyz").await;
+    assert_eq!(status, "HTTP/1.1 200 OK");
+    let (status, _) = http_get(metrics, "/nothing").await;
+    assert_eq!(status, "HTTP/1.1 404 Not Found");
+    bots_ok(bots.await.unwrap());
+    // The server stops by itself once the match is over.
+    let task = server.task;
+    let report = tokio::time::timeout(Duration::from_secs(10), task)
+        .await
+        .expect("the server exits after its match")
+        .expect("server task")
+        .expect("server run");
+    assert_eq!(report.matches_total, 1);
+    let m = &report.matches[0];
+    assert_eq!(m.ticks, 240);
+    let check = verify_replay_file(m.replay.as_ref().unwrap(), &Demo).expect("replay flushed");
+    assert_eq!(check.ticks, 240);
+    println!("metrics sample:\n{}", body_sample(&metrics).await);
+}
+
+async fn body_sample(addr: &SocketAddr) -> String {
+    // The listener is gone with the server: say so rather than hang.
+    match tokio::time::timeout(Duration::from_secs(1), tokio::net::TcpStream::connect(addr)).await {
+        Ok(Ok(_)) => "the listener still accepts".into(),
+        _ => "the listener closed with the server".into(),
+    }
 }

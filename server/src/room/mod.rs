@@ -232,6 +232,9 @@ struct RoomTask {
     /// time spent.
     verifier: Option<Box<dyn lockstep_proto::verify::TickVerifier>>,
     verified: (u64, Duration),
+    /// What this room last added to the server's metrics: players seated,
+    /// mismatched ticks, and whether its match counts as running.
+    counted: (i64, u64, bool),
     replay: Option<Replay>,
     /// When the first player joined (the lobby timeout counts from it).
     first_join: Option<Duration>,
@@ -321,6 +324,7 @@ impl RoomTask {
             forensics_bytes: (0, 0),
             verifier,
             verified: (0, Duration::ZERO),
+            counted: (0, 0, false),
             replay,
             first_join: None,
         }
@@ -433,7 +437,14 @@ impl RoomTask {
                 let limit = end.map_or(now, |end| {
                     epoch + self.room.config().deadline_offset(end.saturating_sub(1))
                 });
+                let first = self.room.next_tick();
                 self.room.handle_timeout(now.min(limit));
+                // Each tick closed now was due at its deadline: the
+                // difference is the lateness of the room's clock.
+                for t in first..self.room.next_tick() {
+                    let due = epoch + self.room.config().deadline_offset(t);
+                    self.shared.metrics.tick_closed(now.saturating_sub(due));
+                }
             }
             Phase::Finishing { until, resend_at } => {
                 if now >= resend_at {
@@ -496,6 +507,11 @@ impl RoomTask {
                     }
                     let end = self.settings().match_ticks;
                     self.phase = Phase::Running { epoch: now, end };
+                    self.counted.2 = true;
+                    self.shared
+                        .metrics
+                        .matches_running
+                        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     let players = self.room.player_count();
                     crate::log!(
                         "room {}: match started with {players} players at {} Hz, input delay {}",
@@ -692,6 +708,10 @@ impl RoomTask {
                     self.forensics_bytes.1 += len as u64;
                 }
                 if channel == Channel::Datagram {
+                    self.shared
+                        .metrics
+                        .datagrams_in
+                        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     let p = &mut self.players[report];
                     p.datagrams_up += 1;
                     p.max_datagram_up = p.max_datagram_up.max(len);
@@ -803,6 +823,10 @@ impl RoomTask {
                     .is_ok()
                 {
                     let report = seat.report;
+                    self.shared
+                        .metrics
+                        .datagrams_out
+                        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     let p = &mut self.players[report];
                     p.datagrams_down += 1;
                     p.max_datagram_down = p.max_datagram_down.max(len);
@@ -876,6 +900,11 @@ impl RoomTask {
                 }
             }
             RoomEvent::TickClosed(bundle) => {
+                let substituted = bundle.inputs.iter().filter(|p| p.substituted).count();
+                self.shared
+                    .metrics
+                    .inputs_substituted
+                    .fetch_add(substituted as u64, std::sync::atomic::Ordering::Relaxed);
                 if let Some(v) = self.verifier.as_mut() {
                     let started = Instant::now();
                     let hash = v.apply(&bundle);
@@ -923,6 +952,10 @@ impl RoomTask {
                     notice: notice.clone(),
                 });
                 self.notice_at = Some(Instant::now());
+                self.shared
+                    .metrics
+                    .desyncs
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 self.desyncs.push(notice);
             }
             RoomEvent::DesyncLocated(report) => self.on_desync_located(report),

@@ -30,9 +30,31 @@ impl RoomTask {
         }
     }
 
+    /// Brings this room's part of the server's metrics up to date.
+    pub(super) fn update_metrics(&mut self, ended: bool) {
+        use std::sync::atomic::Ordering::Relaxed;
+        let m = &self.shared.metrics;
+        let players = if ended {
+            0
+        } else {
+            self.room.player_count() as i64
+        };
+        m.players.fetch_add(players - self.counted.0, Relaxed);
+        self.counted.0 = players;
+        let mismatched = self.room.stats().mismatched_ticks;
+        m.hash_mismatches
+            .fetch_add(mismatched.saturating_sub(self.counted.1), Relaxed);
+        self.counted.1 = mismatched;
+        if ended && self.counted.2 {
+            self.counted.2 = false;
+            m.matches_running.fetch_sub(1, Relaxed);
+        }
+    }
+
     pub(super) fn on_status(&mut self) {
         self.flush_replay(false);
         self.snapshot_stats();
+        self.update_metrics(false);
         if !matches!(self.phase, Phase::Running { .. }) {
             return;
         }
@@ -53,9 +75,14 @@ impl RoomTask {
                 n += 1;
             }
         }
+        {
+            use std::sync::atomic::Ordering::Relaxed;
+            self.shared.metrics.udp_bytes_out.fetch_add(down, Relaxed);
+            self.shared.metrics.udp_bytes_in.fetch_add(up, Relaxed);
+        }
         let stats = self.room.stats();
         let rtt = (!rtts.is_empty()).then(|| rtts.iter().sum::<Duration>() / rtts.len() as u32);
-        self.shared.emit(ServerEvent::Status(RoomStatus {
+        let status = RoomStatus {
             room: self.name.clone(),
             tick: self.room.next_tick(),
             players: self.room.player_count(),
@@ -64,7 +91,11 @@ impl RoomTask {
             up_bytes_per_sec: up / n.max(1),
             ticks_compared: stats.ticks_compared,
             mismatched_ticks: stats.mismatched_ticks,
-        }));
+        };
+        if self.shared.config.log_status {
+            crate::log!("room {}: {status}", self.name);
+        }
+        self.shared.emit(ServerEvent::Status(status));
     }
 
     /// Appends the recorder's new records to the file; `sync` also asks the
@@ -116,6 +147,11 @@ impl RoomTask {
             r.recorder.finish(&reason);
         }
         self.flush_replay(true);
+        self.update_metrics(true);
+        self.shared
+            .metrics
+            .matches_total
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let stats = *self.room.stats();
         let duration = match self.phase {
             Phase::Running { epoch, .. } => self.now().saturating_sub(epoch),
@@ -168,9 +204,10 @@ impl RoomTask {
             }
         }
         if let Ok(mut r) = self.shared.report.lock() {
-            r.matches.push(report.clone());
+            r.add_match(report.clone());
         }
         self.shared.emit(ServerEvent::MatchEnded(report));
+        self.shared.match_ended.notify_one();
     }
 }
 

@@ -95,27 +95,9 @@ fn kb(bytes_per_sec: u64) -> String {
 }
 
 /// One status line: tick, players, round trip, bytes per second per player,
-/// hash agreement.
+/// hash agreement (the server's own format).
 pub fn status_line(s: &RoomStatus) -> String {
-    let rtt = s.rtt.map_or_else(
-        || "-".into(),
-        |r| format!("{:.1} ms", r.as_secs_f64() * 1000.0),
-    );
-    let hashes = if s.mismatched_ticks == 0 {
-        format!("{} ticks compared, all agree", s.ticks_compared)
-    } else {
-        format!(
-            "{} ticks compared, {} MISMATCHED",
-            s.ticks_compared, s.mismatched_ticks
-        )
-    };
-    format!(
-        "tick {:6} | players {} | rtt {rtt} | per player: down {} up {} | hashes: {hashes}",
-        s.tick,
-        s.players,
-        kb(s.down_bytes_per_sec),
-        kb(s.up_bytes_per_sec)
-    )
+    s.to_string()
 }
 
 /// Runs the demo until its duration passes or `interrupt` completes,
@@ -141,6 +123,8 @@ pub async fn run_demo(
     options.server.room.match_ticks = Some(ticks);
     let (stop_tx, stop_rx) = oneshot::channel::<()>();
     let mut server_config = options.server.clone();
+    // The demo prints the status lines itself.
+    server_config.log_status = false;
     // The server holds the only sender: the channel closes when it stops.
     server_config.events = Some(events_tx);
     let server = tokio::spawn(run(server_config, async {

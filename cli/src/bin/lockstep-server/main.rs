@@ -117,6 +117,14 @@ struct Cli {
     /// its seat token.
     #[arg(long, default_value_t = 30.0)]
     rejoin_grace: f64,
+    /// Serve Prometheus metrics, /healthz and /readyz over HTTP on this TCP
+    /// address (e.g. 0.0.0.0:9100 in a container).
+    #[arg(long, value_name = "ADDR")]
+    metrics: Option<SocketAddr>,
+    /// Exit (status 0) once the first match has ended and its replay is
+    /// flushed: one match per process.
+    #[arg(long)]
+    exit_after_match: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -248,6 +256,8 @@ async fn main() -> ExitCode {
     }
     config.require_tokens = cli.require_tokens;
     config.room.late_join = cli.late_join;
+    config.metrics = cli.metrics;
+    config.exit_after_match = cli.exit_after_match;
     config.room.rejoin_grace = Duration::from_secs_f64(cli.rejoin_grace.clamp(0.0, 86_400.0));
     if cli.verify {
         config.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
