@@ -162,3 +162,31 @@ fn the_token_subcommand_prints_a_token_that_verifies() {
         "{out:?}"
     );
 }
+
+/// `RUST_LOG=debug` shows each room's events inside its span, and the
+/// connection's with its peer and slot. Flags also come from the
+/// environment (`LOCKSTEP_<FLAG>`).
+#[test]
+fn debug_logging_shows_per_room_and_per_connection_spans() {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("spans");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
+        .args(["--demo"])
+        .env("LOCKSTEP_DURATION", "1")
+        .env("LOCKSTEP_BOTS", "2")
+        .env("RUST_LOG", "debug")
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        log.contains("room{room=demo}: room demo: match started"),
+        "{log}"
+    );
+    assert!(log.contains("slot=1}: seated"), "{log}");
+    assert!(!log.contains('\u{1b}'), "no colour codes off a terminal");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("2 bots, 60 ticks at 60 Hz"), "{text}");
+}

@@ -140,18 +140,22 @@ pub async fn run_bot(
             move |event| {
                 if verbose {
                     match event {
-                        ClientEvent::Desync { notice, local_hash } => eprintln!(
+                        ClientEvent::Desync { notice, local_hash } => tracing::warn!(
+                            player = %name,
+                            slot,
                             "{name} (slot {slot}): desync at tick {}: {:?}, mine {:?}",
-                            notice.tick, notice.verdict, local_hash
+                            notice.tick,
+                            notice.verdict,
+                            local_hash
                         ),
                         ClientEvent::Closed(c) => {
-                            eprintln!("{name} (slot {slot}): closed: {:?}: {}", c.reason, c.detail)
+                            tracing::info!(player = %name, slot, "{name} (slot {slot}): closed: {:?}: {}", c.reason, c.detail)
                         }
                         ClientEvent::Fault { tick, faults } => {
-                            eprintln!("{name} (slot {slot}): fault at tick {tick}: {faults}")
+                            tracing::warn!(player = %name, slot, "{name} (slot {slot}): fault at tick {tick}: {faults}")
                         }
                         ClientEvent::DesyncLocated(r) => {
-                            eprintln!("{name} (slot {slot}): {r}")
+                            tracing::warn!(player = %name, slot, "{name} (slot {slot}): {r}")
                         }
                     }
                 }
@@ -189,7 +193,7 @@ pub async fn run_bots(
                     move |tick| game.bot_input(seed, slot, tick),
                     move |event| {
                         if verbose {
-                            eprintln!("{name} (slot {slot}): {event:?}");
+                            tracing::info!(player = %name, slot, "{name} (slot {slot}): {event:?}");
                         }
                     },
                     stop,

@@ -95,6 +95,8 @@ pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
             return;
         }
     };
+    tracing::Span::current().record("slot", id.slot.0);
+    tracing::debug!(slot = id.slot.0, "seated");
     let rate = shared.config.room.max_messages_per_second;
     read_loop(&connection, recv, id, &room_tx, rate).await;
     let _ = writer.await;

@@ -599,10 +599,18 @@ pub async fn run(
                 match limit.clone().try_acquire_owned() {
                     Ok(permit) => {
                         let shared = shared.clone();
-                        connections.spawn(async move {
-                            conn::serve(shared, incoming).await;
-                            drop(permit);
-                        });
+                        let span = tracing::info_span!(
+                            "conn",
+                            remote = %remote,
+                            slot = tracing::field::Empty
+                        );
+                        connections.spawn(tracing::Instrument::instrument(
+                            async move {
+                                conn::serve(shared, incoming).await;
+                                drop(permit);
+                            },
+                            span,
+                        ));
                     }
                     Err(_) => {
                         shared.refused(remote, "too many connections".into());

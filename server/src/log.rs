@@ -1,20 +1,23 @@
-//! A minimal logger: one line per event on stderr, prefixed with the seconds
-//! since the process started, so a match's log reads as a timeline.
+//! Logging through `tracing`: the server emits events (level info, unless
+//! said otherwise) inside a span per room (`room`) and per connection
+//! (`conn`, with the peer's address and, once seated, its slot). The
+//! binaries install a subscriber (`RUST_LOG` filters it); a program that
+//! installs none hears nothing.
 
 use std::sync::OnceLock;
 use std::time::Instant;
 
 static START: OnceLock<Instant> = OnceLock::new();
 
-/// Seconds since the first log line (or the first call), for prefixes.
+/// Seconds since the first call, for readable timelines.
 pub fn uptime() -> f64 {
     START.get_or_init(Instant::now).elapsed().as_secs_f64()
 }
 
-/// Logs one line to stderr: `[  12.345] message`.
+/// Logs one event at info level, formatted like `format!`.
 #[macro_export]
 macro_rules! log {
     ($($arg:tt)*) => {
-        eprintln!("[{:9.3}] {}", $crate::log::uptime(), format_args!($($arg)*))
+        ::tracing::info!("{}", format_args!($($arg)*))
     };
 }

@@ -13,36 +13,55 @@ use lockstep_client::bot::{BotOptions, run_bots};
 #[command(name = "lockstep-bot", version)]
 struct Cli {
     /// The server's UDP address.
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_BOT_SERVER")]
     server: SocketAddr,
     /// PEM certificate to trust (the server's dev certificate file).
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_BOT_CERT")]
     cert: PathBuf,
     /// Number of bots.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, env = "LOCKSTEP_BOT_COUNT")]
     count: usize,
     /// Seed of the scripted input.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, env = "LOCKSTEP_BOT_SEED")]
     seed: u64,
     /// Leave after this many ticks (default: play until the match ends).
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_BOT_TICKS")]
     ticks: Option<u64>,
     /// Room to join.
-    #[arg(long, default_value = "demo")]
+    #[arg(long, default_value = "demo", env = "LOCKSTEP_BOT_ROOM")]
     room: String,
     /// Send every body's hash with every K-th tick's report (0: never), so
     /// the server's replay can name diverging bodies.
-    #[arg(long, default_value_t = 0, value_name = "K")]
+    #[arg(
+        long,
+        default_value_t = 0,
+        value_name = "K",
+        env = "LOCKSTEP_BOT_BODY_HASHES_EVERY"
+    )]
     body_hashes_every: u64,
     /// A join token (`lockstep-server token`); repeat it once per bot, bot
     /// i presenting the i-th.
-    #[arg(long = "token", value_name = "TOKEN")]
+    #[arg(long = "token", value_name = "TOKEN", env = "LOCKSTEP_BOT_TOKENS")]
     tokens: Vec<String>,
+}
+
+/// Logs to stderr through `tracing`: `RUST_LOG` filters (default `info`),
+/// spans (a room, a connection) prefix their events.
+fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
 }
 
 #[tokio::main]
 async fn main() -> ExitCode {
     let cli = Cli::parse();
+    init_logging();
     let mut options = BotOptions::new(cli.server, cli.cert, cli.room, cli.count);
     options.seed = cli.seed;
     options.ticks = cli.ticks;

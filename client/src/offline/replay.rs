@@ -12,6 +12,7 @@
 //! no hash could match, and the check says which of the two differs instead
 //! of reporting a mismatch.
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use lockstep_core::World;
@@ -430,7 +431,7 @@ pub fn check_replay_command(path: &Path, game: &dyn RulesFactory) -> u8 {
             exit_status::MISMATCH
         }
         Err(e) => {
-            eprintln!("lockstep replay: error: {e}");
+            let _ = writeln!(std::io::stderr(), "lockstep replay: error: {e}");
             e.exit_status()
         }
     }
@@ -468,7 +469,7 @@ fn check_bundle_command(path: &Path, game: &dyn RulesFactory) -> Option<u8> {
             }
         }
         Err(e) => {
-            eprintln!("lockstep replay: error: {e}");
+            let _ = writeln!(std::io::stderr(), "lockstep replay: error: {e}");
             e.exit_status()
         }
     })

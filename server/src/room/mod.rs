@@ -135,7 +135,10 @@ pub(crate) fn find_or_open(
         .room_tasks
         .lock()
         .unwrap_or_else(|e| e.into_inner())
-        .spawn(task.run(rx));
+        .spawn(tracing::Instrument::instrument(
+            task.run(rx),
+            tracing::info_span!(parent: None, "room", room = %name),
+        ));
     rooms.insert(
         name.to_owned(),
         RoomHandle {
@@ -863,7 +866,9 @@ impl RoomTask {
         match event {
             RoomEvent::PlayerJoined { id, name } => {
                 let remote = self.seat(id).map(|s| s.peer.remote);
-                crate::log!(
+                tracing::info!(
+                    slot = id.slot.0,
+                    player = %name,
                     "room {}: {name:?} joined in slot {} from {}",
                     self.name,
                     id.slot.0,
@@ -875,7 +880,9 @@ impl RoomTask {
                 reason,
                 from_tick,
             } => {
-                crate::log!(
+                tracing::info!(
+                    slot = id.slot.0,
+                    reason = ?reason,
                     "room {}: slot {} left ({reason:?}) from tick {from_tick}",
                     self.name,
                     id.slot.0

@@ -22,108 +22,108 @@ struct Cli {
     command: Option<Command>,
     /// Run the demo: the server on loopback with 4 in-process bots, a status
     /// line per second, a summary at the end.
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_DEMO")]
     demo: bool,
     /// Demo: how many seconds the match lasts.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, env = "LOCKSTEP_DURATION")]
     duration: f64,
     /// Demo: number of bots.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, env = "LOCKSTEP_BOTS")]
     bots: usize,
     /// Demo: seed of the bots' input.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, env = "LOCKSTEP_SEED")]
     seed: u64,
     /// Demo: the last bot nudges one body by one ulp before this tick, so
     /// the match shows a desync being located to its body and field.
-    #[arg(long, value_name = "TICK")]
+    #[arg(long, value_name = "TICK", env = "LOCKSTEP_DIVERGE_AT")]
     diverge_at: Option<u64>,
     /// UDP address to listen on (the demo picks a free loopback port).
-    #[arg(long, default_value = "127.0.0.1:4433")]
+    #[arg(long, default_value = "127.0.0.1:4433", env = "LOCKSTEP_LISTEN")]
     listen: SocketAddr,
     /// Certificate chain (PEM) of a real certificate; needs --key.
-    #[arg(long, requires = "key")]
+    #[arg(long, requires = "key", env = "LOCKSTEP_CERT")]
     cert: Option<PathBuf>,
     /// Private key (PEM) of --cert.
-    #[arg(long, requires = "cert")]
+    #[arg(long, requires = "cert", env = "LOCKSTEP_KEY")]
     key: Option<PathBuf>,
     /// Where the generated dev certificate is written (without --cert).
-    #[arg(long, default_value = "out/dev-cert.pem")]
+    #[arg(long, default_value = "out/dev-cert.pem", env = "LOCKSTEP_CERT_OUT")]
     cert_out: PathBuf,
     /// Scene file sent to the players (default: the embedded demo scene).
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_SCENE")]
     scene: Option<PathBuf>,
     /// Id of the game rules the players run, recorded in every replay
     /// (default: the demo's; give it with --scene for another game).
-    #[arg(long, requires = "rules_version")]
+    #[arg(long, requires = "rules_version", env = "LOCKSTEP_RULES_ID")]
     rules_id: Option<String>,
     /// Version of those rules.
-    #[arg(long, requires = "rules_id")]
+    #[arg(long, requires = "rules_id", env = "LOCKSTEP_RULES_VERSION")]
     rules_version: Option<u32>,
     /// Directory for replay files.
-    #[arg(long, default_value = "out/replays")]
+    #[arg(long, default_value = "out/replays", env = "LOCKSTEP_REPLAY_DIR")]
     replay_dir: PathBuf,
     /// Do not record replays.
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_NO_REPLAY")]
     no_replay: bool,
     /// Seats per room.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, env = "LOCKSTEP_MAX_PLAYERS")]
     max_players: u8,
     /// Players needed to start a match.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, env = "LOCKSTEP_START_PLAYERS")]
     start_players: u8,
     /// Ticks per second.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = 60, env = "LOCKSTEP_TICK_RATE")]
     tick_rate: u16,
     /// Input delay in ticks.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, env = "LOCKSTEP_INPUT_DELAY")]
     input_delay: u16,
     /// End each match after this many ticks.
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_MATCH_TICKS")]
     match_ticks: Option<u64>,
     /// Seconds a lobby waits after its first join; then players without
     /// their first input are dropped and the ready ones start (0: wait for
     /// ever).
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, env = "LOCKSTEP_LOBBY_TIMEOUT")]
     lobby_timeout: f64,
     /// Most rooms open at once; a join for a new room beyond it is refused.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, env = "LOCKSTEP_MAX_ROOMS")]
     max_rooms: usize,
     /// Most connections at once; beyond it a connection is refused at once.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256, env = "LOCKSTEP_MAX_CONNECTIONS")]
     max_connections: usize,
     /// Messages a second each connection may send; past it datagrams are
     /// dropped (counted and logged) and stream frames wait.
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = 1000, env = "LOCKSTEP_MAX_MESSAGES_PER_SECOND")]
     max_messages_per_second: u32,
     /// File holding the secret join tokens are signed with (at least 16
     /// bytes). With it, a join that carries a token is seated only if the
     /// token verifies, and in its seat.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", env = "LOCKSTEP_TOKEN_SECRET_FILE")]
     token_secret_file: Option<PathBuf>,
     /// Refuse every join without a valid token (needs --token-secret-file).
-    #[arg(long, requires = "token_secret_file")]
+    #[arg(long, requires = "token_secret_file", env = "LOCKSTEP_REQUIRE_TOKENS")]
     require_tokens: bool,
     /// Re-simulate every match on the server with the demo's rules and
     /// judge every hash report against the server's own hash, so a
     /// majority of liars cannot outvote honest players (costs one
     /// simulation per room).
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_VERIFY")]
     verify: bool,
     /// Let players join a running match: they start from the last agreed
     /// state, fetched from a player in agreement and checked by its hash.
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_LATE_JOIN")]
     late_join: bool,
     /// Seconds a dropped player's seat stays reserved for a rejoin with
     /// its seat token.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, env = "LOCKSTEP_REJOIN_GRACE")]
     rejoin_grace: f64,
     /// Serve Prometheus metrics, /healthz and /readyz over HTTP on this TCP
     /// address (e.g. 0.0.0.0:9100 in a container).
-    #[arg(long, value_name = "ADDR")]
+    #[arg(long, value_name = "ADDR", env = "LOCKSTEP_METRICS")]
     metrics: Option<SocketAddr>,
     /// Exit (status 0) once the first match has ended and its replay is
     /// flushed: one match per process.
-    #[arg(long)]
+    #[arg(long, env = "LOCKSTEP_EXIT_AFTER_MATCH")]
     exit_after_match: bool,
 }
 
@@ -176,9 +176,23 @@ async fn terminate() {
     }
 }
 
+/// Logs to stderr through `tracing`: `RUST_LOG` filters (default `info`),
+/// spans (a room, a connection) prefix their events.
+fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+}
+
 #[tokio::main]
 async fn main() -> ExitCode {
     let cli = Cli::parse();
+    init_logging();
     if let Some(Command::Token {
         secret_file,
         room,
