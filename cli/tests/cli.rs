@@ -190,3 +190,90 @@ fn debug_logging_shows_per_room_and_per_connection_spans() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("2 bots, 60 ticks at 60 Hz"), "{text}");
 }
+
+/// The container files name only real flags: every `LOCKSTEP_*` variable
+/// in the Dockerfile and the Kubernetes manifest is one `lockstep-server
+/// --help` lists; the image runs as a non-root user and exposes QUIC on UDP.
+#[test]
+fn the_container_files_use_real_flags_and_a_non_root_user() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let help = std::process::Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
+        .arg("--help")
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&help.stdout).into_owned();
+    let docker = std::fs::read_to_string(root.join("Dockerfile")).unwrap();
+    let k8s = std::fs::read_to_string(root.join("deploy/kubernetes.yaml")).unwrap();
+    let mut named = 0;
+    for text in [&docker, &k8s] {
+        for word in text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')) {
+            if let Some(flag) = word.strip_prefix("LOCKSTEP_") {
+                assert!(
+                    help.contains(&format!("env: LOCKSTEP_{flag}")),
+                    "LOCKSTEP_{flag} is no flag's variable"
+                );
+                named += 1;
+            }
+        }
+        // Flags on the lines that run something (not in comments).
+        let code: String = text
+            .lines()
+            .filter(|l| !l.trim_start().starts_with('#'))
+            .collect::<Vec<_>>()
+            .join("\n");
+        for arg in code
+            .split_whitespace()
+            .filter(|w| w.trim_matches(['"', '[', ',', ']']).starts_with("--"))
+        {
+            let flag = arg.trim_matches(['"', '[', ',', ']']);
+            if flag == "---"
+                || flag.starts_with("--bin")
+                || flag.starts_with("--release")
+                || flag.starts_with("--locked")
+                || ["--system", "--uid", "--no-create-home", "--shell", "--from"]
+                    .iter()
+                    .any(|d| flag.starts_with(d))
+            {
+                continue;
+            }
+            assert!(
+                help.contains(&format!("{flag} ")) || help.contains(&format!("{flag}\n")),
+                "{flag} is not a flag"
+            );
+        }
+    }
+    assert!(named >= 8, "{named}");
+    let runtime = docker.rsplit("FROM ").next().unwrap();
+    assert!(runtime.contains("USER 10001"));
+    assert!(runtime.contains("EXPOSE 4433/udp"));
+    for bin in ["lockstep-server", "lockstep-bot", "lockstep"] {
+        assert!(docker.contains(&format!("--bin {bin}")), "{bin} is built");
+    }
+}
+
+/// With the replay directory and the certificate pointed at a volume, the
+/// server writes nothing in its working directory (a read-only root file
+/// system works).
+#[test]
+fn the_server_writes_only_where_it_is_told() {
+    let base = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("readonly");
+    let _ = std::fs::remove_dir_all(&base);
+    let (cwd, data) = (base.join("cwd"), base.join("data"));
+    std::fs::create_dir_all(&cwd).unwrap();
+    std::fs::create_dir_all(&data).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
+        .args(["--demo", "--duration", "0.5", "--bots", "2"])
+        .env("LOCKSTEP_REPLAY_DIR", data.join("replays"))
+        .env("LOCKSTEP_CERT_OUT", data.join("dev-cert.pem"))
+        .current_dir(&cwd)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    assert_eq!(
+        std::fs::read_dir(&cwd).unwrap().count(),
+        0,
+        "nothing in the working directory"
+    );
+    assert!(data.join("dev-cert.pem").exists());
+    assert_eq!(std::fs::read_dir(data.join("replays")).unwrap().count(), 1);
+}
