@@ -8,6 +8,7 @@
 //! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N]
 //! cargo run --release -p lockstep-bench -- accuracy [--quick] [--csv FILE] [--scenes a,b] [--runs N]
 //! cargo run --release -p lockstep-bench -- stress [--quick] [--csv FILE] [--scenes a,b]
+//! cargo run --release -p lockstep-bench -- net [--quick] [--csv FILE]
 //! ```
 //!
 //! Each suite is a module with a `run(&Options) -> SuiteOutput` function and
@@ -21,6 +22,7 @@ mod callgrind;
 mod engines;
 mod harness;
 mod math;
+mod net;
 mod profile;
 mod scenes;
 mod sleep;
@@ -131,6 +133,12 @@ const SUITES: &[Suite] = &[
         about: "work-precision: error vs CPU time on closed-form cases, ours vs Rapier f32 and f64",
         run: accuracy::run,
         scenes: accuracy::case_names,
+    },
+    Suite {
+        name: "net",
+        about: "players one server holds: relays in rooms of 4 and 16 at 60 Hz, tick lateness, bandwidth, CPU",
+        run: net::run,
+        scenes: Vec::new,
     },
     Suite {
         name: "stress",

@@ -10,6 +10,7 @@
 
 pub mod bot;
 pub mod game;
+pub mod load;
 pub mod net;
 pub mod offline;
 #[cfg(feature = "test-hooks")]

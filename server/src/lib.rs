@@ -217,6 +217,9 @@ pub enum ServerError {
 
 /// What the server reports while it runs.
 #[derive(Clone, Debug)]
+// A match's report is the large variant; events come a few a second at
+// most, so boxing it would buy nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum ServerEvent {
     /// Listening on `addr`; clients should trust `cert` (if generated).
     Listening {
@@ -321,6 +324,35 @@ impl std::fmt::Display for RoomStatus {
     }
 }
 
+/// Percentiles of a room's tick lateness (the time a tick closed minus
+/// its deadline).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Lateness {
+    /// Ticks measured.
+    pub ticks: u64,
+    /// Median.
+    pub p50: Duration,
+    /// 99th percentile.
+    pub p99: Duration,
+    /// Worst.
+    pub max: Duration,
+}
+
+impl Lateness {
+    /// The percentiles of `samples` (microseconds), if any.
+    pub fn of(samples: &[u32]) -> Option<Lateness> {
+        let mut s = samples.to_vec();
+        s.sort_unstable();
+        let at = |q: usize| Duration::from_micros(u64::from(s[(s.len() - 1) * q / 100]));
+        (!s.is_empty()).then(|| Lateness {
+            ticks: s.len() as u64,
+            p50: at(50),
+            p99: at(99),
+            max: at(100),
+        })
+    }
+}
+
 /// One player's part in a match.
 #[derive(Clone, Debug)]
 pub struct PlayerReport {
@@ -383,6 +415,9 @@ pub struct RoomReport {
     /// Ticks the server re-simulated (`--verify`), and the CPU time they
     /// took (wall time of the re-simulation on the room's task).
     pub verified: Option<(u64, Duration)>,
+    /// How late the room's ticks closed after their deadlines: median,
+    /// 99th percentile and worst (over the first 131,072 ticks).
+    pub lateness: Option<Lateness>,
     /// Every player who was seated, by join order.
     pub players: Vec<PlayerReport>,
     /// The replay file, if recorded.

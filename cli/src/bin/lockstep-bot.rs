@@ -43,6 +43,74 @@ struct Cli {
     /// i presenting the i-th.
     #[arg(long = "token", value_name = "TOKEN", env = "LOCKSTEP_BOT_TOKENS")]
     tokens: Vec<String>,
+    /// Light relays instead of bots: they play the protocol without
+    /// simulating (their hash is a chain over the bundles), so one process
+    /// drives hundreds of players for a load test.
+    #[arg(long, env = "LOCKSTEP_BOT_RELAY")]
+    relay: bool,
+    /// With --relay: players per room (rooms ROOM-0, ROOM-1, ... fill in
+    /// order).
+    #[arg(long, default_value_t = 4, env = "LOCKSTEP_BOT_ROOM_SIZE")]
+    room_size: usize,
+}
+
+/// `--relay`: `count` relays in rooms of `room_size`; prints one line per
+/// room and a total.
+async fn run_relays(cli: &Cli) -> ExitCode {
+    use lockstep_client::load::{relay_endpoint, run_relay};
+    let cert = lockstep_client::net::TrustedCert::File(cli.cert.clone());
+    let size = cli.room_size.max(1);
+    let mut tasks = Vec::with_capacity(cli.count);
+    let mut endpoint = None;
+    for i in 0..cli.count {
+        if i % 32 == 0 {
+            endpoint = match relay_endpoint(&cert) {
+                Ok(e) => Some(e),
+                Err(e) => {
+                    eprintln!("lockstep-bot: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+        }
+        let Some(ep) = endpoint.clone() else {
+            return ExitCode::from(2);
+        };
+        let (server, room) = (cli.server, format!("{}-{}", cli.room, i / size));
+        tasks.push(tokio::spawn(async move {
+            run_relay(&ep, server, &room, &format!("relay-{i}")).await
+        }));
+        if i % 16 == 15 {
+            tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+        }
+    }
+    let (mut ok, mut failed, mut desyncs, mut down, mut ticks) = (0, 0, 0, 0.0, 0);
+    for t in tasks {
+        match t.await {
+            Ok(Ok(r)) => {
+                ok += 1;
+                desyncs += r.desyncs;
+                ticks += r.ticks;
+                down += r.bytes_down as f64 / r.played_for.as_secs_f64().max(1e-9);
+            }
+            Ok(Err(e)) => {
+                failed += 1;
+                println!("relay: error: {e}");
+            }
+            Err(e) => {
+                failed += 1;
+                println!("relay: {e}");
+            }
+        }
+    }
+    println!(
+        "{ok} relays played {ticks} ticks in all, {failed} failed, {desyncs} desync notices, {:.0} B/s down per relay (protocol bytes)",
+        down / f64::from(ok.max(1))
+    );
+    if failed == 0 && desyncs == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
 }
 
 /// Logs to stderr through `tracing`: `RUST_LOG` filters (default `info`),
@@ -62,6 +130,9 @@ fn init_logging() {
 async fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging();
+    if cli.relay {
+        return run_relays(&cli).await;
+    }
     let mut options = BotOptions::new(cli.server, cli.cert, cli.room, cli.count);
     options.seed = cli.seed;
     options.ticks = cli.ticks;

@@ -238,6 +238,8 @@ struct RoomTask {
     /// What this room last added to the server's metrics: players seated,
     /// mismatched ticks, and whether its match counts as running.
     counted: (i64, u64, bool),
+    /// Tick lateness samples in microseconds (the first 131,072 ticks).
+    lateness_us: Vec<u32>,
     replay: Option<Replay>,
     /// When the first player joined (the lobby timeout counts from it).
     first_join: Option<Duration>,
@@ -328,6 +330,7 @@ impl RoomTask {
             verifier,
             verified: (0, Duration::ZERO),
             counted: (0, 0, false),
+            lateness_us: Vec::new(),
             replay,
             first_join: None,
         }
@@ -446,7 +449,12 @@ impl RoomTask {
                 // difference is the lateness of the room's clock.
                 for t in first..self.room.next_tick() {
                     let due = epoch + self.room.config().deadline_offset(t);
-                    self.shared.metrics.tick_closed(now.saturating_sub(due));
+                    let late = now.saturating_sub(due);
+                    self.shared.metrics.tick_closed(late);
+                    if self.lateness_us.len() < 1 << 17 {
+                        let us = u32::try_from(late.as_micros()).unwrap_or(u32::MAX);
+                        self.lateness_us.push(us);
+                    }
                 }
             }
             Phase::Finishing { until, resend_at } => {

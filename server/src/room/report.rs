@@ -170,6 +170,7 @@ impl RoomTask {
             forensics_bytes_down: self.forensics_bytes.0,
             forensics_bytes_up: self.forensics_bytes.1,
             verified: self.verifier.as_ref().map(|_| self.verified),
+            lateness: crate::Lateness::of(&self.lateness_us),
             bundles: self.bundles.clone(),
             players: self.players.clone(),
             replay: self
