@@ -25,6 +25,7 @@
 
 #![warn(missing_docs)]
 
+mod clock;
 mod conn;
 pub mod log;
 pub mod metrics;
@@ -482,6 +483,8 @@ pub(crate) struct Shared {
     pub(crate) metrics: metrics::Metrics,
     /// Notified when a match ends (for `exit_after_match`).
     pub(crate) match_ended: tokio::sync::Notify,
+    /// Precise wake-ups for the rooms' tick clocks.
+    pub(crate) clock: clock::Clock,
 }
 
 impl Shared {
@@ -600,6 +603,7 @@ pub async fn run(
         room_seq: std::sync::atomic::AtomicU64::new(0),
         metrics: metrics::Metrics::default(),
         match_ended: tokio::sync::Notify::new(),
+        clock: clock::Clock::start(),
     });
     let metrics_task = match shared.config.metrics {
         Some(a) => {

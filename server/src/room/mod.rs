@@ -348,8 +348,17 @@ impl RoomTask {
         let mut shutdown = self.shared.shutdown.clone();
         let mut status = tokio::time::interval(Duration::from_secs(1));
         status.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+        // The tick clock wakes through the precise clock thread; tokio's
+        // timer (1 ms, rounded up) stays as a backstop a millisecond later.
+        let alarm = std::sync::Arc::new(tokio::sync::Notify::new());
+        let mut registered: Option<Instant> = None;
         while self.phase != Phase::Done {
-            let wake = tokio::time::Instant::from_std(self.base + self.next_wake());
+            let wake_at = self.base + self.next_wake();
+            if registered != Some(wake_at) {
+                self.shared.clock.wake_at(wake_at, &alarm);
+                registered = Some(wake_at);
+            }
+            let wake = tokio::time::Instant::from_std(wake_at + Duration::from_millis(1));
             tokio::select! {
                 biased;
                 _ = shutdown.wait_for(|s| *s), if !self.shutting_down => self.begin_shutdown(),
@@ -357,7 +366,18 @@ impl RoomTask {
                     Some(cmd) => self.on_cmd(cmd),
                     None => break,
                 },
-                () = tokio::time::sleep_until(wake) => self.on_timer(),
+                () = alarm.notified() => {
+                    // A stale alarm (for an earlier wake-up) is harmless:
+                    // the timer work below finds nothing due.
+                    if Instant::now() >= wake_at {
+                        registered = None;
+                    }
+                    self.on_timer();
+                }
+                () = tokio::time::sleep_until(wake) => {
+                    registered = None;
+                    self.on_timer();
+                }
                 _ = status.tick() => self.on_status(),
             }
             self.pump();
