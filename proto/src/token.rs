@@ -11,7 +11,9 @@
 //! Pure: the caller passes the time, and the checks are constant-time in
 //! the signature.
 
-use ring::hmac;
+use hmac::Mac;
+
+type HmacSha256 = hmac::Hmac<sha2::Sha256>;
 use thiserror::Error;
 
 use crate::limits::{MAX_NAME_BYTES, MAX_PLAYERS};
@@ -104,9 +106,12 @@ pub fn issue(secret: &[u8], claims: &JoinClaims) -> Result<String, TokenError> {
         body.push(name.len() as u8);
         body.extend_from_slice(name.as_bytes());
     }
-    let key = hmac::Key::new(hmac::HMAC_SHA256, secret);
-    let tag = hmac::sign(&key, &body);
-    body.extend_from_slice(tag.as_ref());
+    // HMAC takes a key of any length.
+    let Ok(mut mac) = HmacSha256::new_from_slice(secret) else {
+        return Err(TokenError::Unissuable("the secret is unusable"));
+    };
+    mac.update(&body);
+    body.extend_from_slice(&mac.finalize().into_bytes());
     Ok(hex(&body))
 }
 
@@ -124,8 +129,11 @@ pub fn verify(secret: &[u8], token: &str, room: &str, now: u64) -> Result<Ticket
         return Err(TokenError::Malformed("too short"));
     };
     let (body, tag) = bytes.split_at(split);
-    let key = hmac::Key::new(hmac::HMAC_SHA256, secret);
-    hmac::verify(&key, body, tag).map_err(|_| TokenError::BadSignature)?;
+    let mut mac = HmacSha256::new_from_slice(secret).map_err(|_| TokenError::BadSignature)?;
+    mac.update(body);
+    // A constant-time comparison.
+    mac.verify_slice(tag)
+        .map_err(|_| TokenError::BadSignature)?;
     let claims = parse(body).ok_or(TokenError::Malformed("bad layout"))?;
     if now > claims.expires {
         return Err(TokenError::Expired {
@@ -201,6 +209,17 @@ mod tests {
     use super::*;
 
     const SECRET: &[u8] = b"0123456789abcdef-secret";
+
+    #[test]
+    fn the_mac_is_hmac_sha256_as_rfc_4231_gives_it() {
+        // RFC 4231, test case 2.
+        let mut mac = HmacSha256::new_from_slice(b"Jefe").unwrap();
+        mac.update(b"what do ya want for nothing?");
+        assert_eq!(
+            hex(&mac.finalize().into_bytes()),
+            "5bdcc146bf60754e6a042426089575c75a003f089d2739839dec58b964ec3843"
+        );
+    }
 
     fn claims() -> JoinClaims {
         JoinClaims {
