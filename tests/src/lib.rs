@@ -8,6 +8,7 @@
 
 #![warn(missing_docs)]
 
+pub mod harness;
 pub mod link;
 
 use std::path::{Path, PathBuf};

@@ -12,133 +12,26 @@ use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 use lockstep_client::bot::{BotOptions, run_bots};
-use lockstep_client::game::{Demo, DemoGame, RulesFactory};
-use lockstep_client::net::{ClientReport, client_config, load_certs, read_frame, write_frame};
+use lockstep_client::game::{Demo, DemoGame};
+use lockstep_client::net::{client_config, load_certs, read_frame, write_frame};
 use lockstep_client::offline::verify_replay_file;
 use lockstep_client::testing::Diverge;
 use lockstep_proto::{
     ClientMessage, CloseReason, InputDatagram, Replay, ServerMessage, Session, Slot, Verdict,
 };
-use lockstep_server::{ServerConfig, ServerError, ServerEvent, ServerReport, TlsSource, run};
+use lockstep_server::ServerEvent;
+use lockstep_tests::harness::{TestServer, assert_same_hashes, bots_ok};
 use lockstep_tests::link::{LinkConditioner, LinkConfig};
-use tokio::sync::{mpsc, oneshot};
-use tokio::task::JoinHandle;
 
-/// A server running in the test's runtime.
-struct TestServer {
-    addr: SocketAddr,
-    /// The metrics listener, if configured.
-    metrics: Option<SocketAddr>,
-    cert: PathBuf,
-    events: mpsc::UnboundedReceiver<ServerEvent>,
-    stop: Option<oneshot::Sender<()>>,
-    task: JoinHandle<Result<ServerReport, ServerError>>,
-}
-
-impl TestServer {
-    async fn start(name: &str, tweak: impl FnOnce(&mut ServerConfig)) -> TestServer {
-        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("e2e-{name}"));
-        let _ = std::fs::remove_dir_all(&dir);
-        let mut config = ServerConfig::for_game(
-            SocketAddr::from(([127, 0, 0, 1], 0)),
-            DemoGame::SCENE,
-            "demo",
-            Demo.rules_id(),
-        );
-        config.tls = TlsSource::dev(dir.join("cert.pem"));
-        config.replay_dir = Some(dir.join("replays"));
-        let (tx, mut events) = mpsc::unbounded_channel();
-        config.events = Some(tx);
-        tweak(&mut config);
-        let (stop, stop_rx) = oneshot::channel::<()>();
-        let task = tokio::spawn(run(config, async {
-            let _ = stop_rx.await;
-        }));
-        let mut metrics = None;
-        let (addr, cert) = loop {
-            match events.recv().await.expect("server stopped at start-up") {
-                ServerEvent::Listening { addr, cert } => break (addr, cert.expect("dev cert")),
-                ServerEvent::MetricsListening { addr } => metrics = Some(addr),
-                _ => continue,
-            }
-        };
-        TestServer {
-            addr,
-            metrics,
-            cert,
-            events,
-            stop: Some(stop),
-            task,
-        }
-    }
-
-    /// Waits for an event matching `pick`, up to `timeout`.
-    async fn wait_for<T>(
-        &mut self,
-        timeout: Duration,
-        mut pick: impl FnMut(&ServerEvent) -> Option<T>,
-    ) -> T {
-        tokio::time::timeout(timeout, async {
-            loop {
-                let e = self.events.recv().await.expect("server events ended");
-                if let Some(t) = pick(&e) {
-                    return t;
-                }
-            }
-        })
-        .await
-        .expect("timed out waiting for a server event")
-    }
-
-    async fn shutdown(mut self) -> ServerReport {
-        if let Some(s) = self.stop.take() {
-            let _ = s.send(());
-        }
-        tokio::time::timeout(Duration::from_secs(15), self.task)
-            .await
-            .expect("server did not shut down in 15 s")
-            .expect("server task")
-            .expect("server run")
-    }
-}
-
-fn bots_ok(
-    results: Vec<Result<ClientReport, lockstep_client::net::ClientError>>,
-) -> Vec<ClientReport> {
-    results
-        .into_iter()
-        .enumerate()
-        .map(|(i, r)| r.unwrap_or_else(|e| panic!("bot {i}: {e}")))
-        .collect()
-}
-
-/// Every bot reported the same hash for every tick it applied.
-fn assert_same_hashes(bots: &[ClientReport], ticks: usize) {
-    for b in bots {
-        assert_eq!(
-            b.hashes.len(),
-            ticks,
-            "slot {} applied {} ticks",
-            b.slot.0,
-            b.hashes.len()
-        );
-    }
-    for t in 0..ticks {
-        let h = bots[0].hashes[t];
-        for b in &bots[1..] {
-            assert_eq!(
-                b.hashes[t], h,
-                "tick {t}: slot {} differs from slot 0",
-                b.slot.0
-            );
-        }
-    }
+/// The directory of a test's server (certificate, replays).
+fn tmp(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("e2e-{name}"))
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn four_bots_agree_on_every_tick_of_1200_and_the_replay_reverifies() {
     let started = Instant::now();
-    let mut server = TestServer::start("agree", |c| {
+    let mut server = TestServer::start(tmp("agree"), |c| {
         c.room.start_players = 4;
         c.room.match_ticks = Some(1200);
     })
@@ -204,7 +97,7 @@ async fn four_bots_agree_on_every_tick_of_1200_and_the_replay_reverifies() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300() {
-    let mut server = TestServer::start("diverge", |c| {
+    let mut server = TestServer::start(tmp("diverge"), |c| {
         c.room.start_players = 4;
         c.room.match_ticks = Some(420);
     })
@@ -337,7 +230,7 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
 async fn a_lossy_jittery_link_keeps_1200_ticks_in_sync_and_none_over_150_ms_late() {
     /// Ticks in the match; every one's lateness is asserted, the last included.
     const TICKS: usize = 1200;
-    let mut server = TestServer::start("link", |c| {
+    let mut server = TestServer::start(tmp("link"), |c| {
         c.room.start_players = 4;
         c.room.match_ticks = Some(TICKS as u64);
         // 50 ± 10 ms each way: a 100–120 ms round trip needs 7–8 ticks.
@@ -518,7 +411,7 @@ async fn close_reason_within(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn garbage_oversized_frames_foreign_or_far_inputs_and_silence_are_refused_and_the_match_completes()
  {
-    let mut server = TestServer::start("evil", |c| {
+    let mut server = TestServer::start(tmp("evil"), |c| {
         c.room.start_players = 7;
         c.room.match_ticks = Some(300);
         c.room.silence_timeout = Duration::from_secs(2);
@@ -626,7 +519,7 @@ async fn garbage_oversized_frames_foreign_or_far_inputs_and_silence_are_refused_
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn graceful_shutdown_mid_match_finishes_the_tick_and_flushes_a_replay_that_verifies() {
-    let mut server = TestServer::start("shutdown", |c| {
+    let mut server = TestServer::start(tmp("shutdown"), |c| {
         c.room.start_players = 3;
     })
     .await;
@@ -730,7 +623,7 @@ async fn raw_reporter(
 /// re-verifies.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_liar_alternating_with_silence_and_a_player_that_never_reports_are_dropped() {
-    let mut server = TestServer::start("vote", |c| {
+    let mut server = TestServer::start(tmp("vote"), |c| {
         c.room.start_players = 5;
         c.room.match_ticks = Some(540);
     })
@@ -779,7 +672,7 @@ async fn a_liar_alternating_with_silence_and_a_player_that_never_reports_are_dro
 /// dropped with code 0 and no reason).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_connection_that_never_joins_is_refused_with_its_reason() {
-    let server = TestServer::start("nojoin", |_| {}).await;
+    let server = TestServer::start(tmp("nojoin"), |_| {}).await;
     let (_endpoint, connection, _send, _recv) = raw_connect(server.addr, &server.cert).await;
     let started = Instant::now();
     let closed = tokio::time::timeout(Duration::from_secs(10), connection.closed())
@@ -813,7 +706,7 @@ async fn a_connection_that_never_joins_is_refused_with_its_reason() {
 /// closed as timed out and the two bots play their match.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_lobby_squatter_is_dropped_at_the_lobby_timeout_and_the_match_starts() {
-    let mut server = TestServer::start("squat", |c| {
+    let mut server = TestServer::start(tmp("squat"), |c| {
         c.room.start_players = 3;
         c.room.match_ticks = Some(120);
         c.room.lobby_timeout = Some(Duration::from_secs(2));
@@ -847,7 +740,7 @@ async fn a_lobby_squatter_is_dropped_at_the_lobby_timeout_and_the_match_starts()
 /// next name always finds room, and no lobby leaves a replay file.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn empty_lobbies_close_and_leave_no_replay_files() {
-    let mut server = TestServer::start("rooms", |c| {
+    let mut server = TestServer::start(tmp("rooms"), |c| {
         c.max_rooms = 4;
         c.room.start_players = 2;
     })
@@ -887,7 +780,7 @@ async fn empty_lobbies_close_and_leave_no_replay_files() {
 /// flooder stays, and the bots' match completes in sync.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_flood_of_valid_datagrams_is_throttled_and_counted() {
-    let mut server = TestServer::start("flood", |c| {
+    let mut server = TestServer::start(tmp("flood"), |c| {
         c.room.start_players = 3;
         c.room.match_ticks = Some(180);
         c.room.max_messages_per_second = 400;
@@ -949,7 +842,7 @@ async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connecti
     use std::time::SystemTime;
     let secret = b"an e2e secret longer than 16 bytes".to_vec();
     let key = secret.clone();
-    let server = TestServer::start("tokens", move |c| {
+    let server = TestServer::start(tmp("tokens"), move |c| {
         c.room.start_players = 2;
         c.room.match_ticks = Some(120);
         c.token_secret = Some(key);
@@ -1069,7 +962,7 @@ async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connecti
 /// judged wrong, and the replay holds only the server's verified hashes.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sybil_voters_cannot_outvote_a_verifying_server() {
-    let mut server = TestServer::start("sybil", |c| {
+    let mut server = TestServer::start(tmp("sybil"), |c| {
         c.room.start_players = 7;
         c.room.match_ticks = Some(300);
         c.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
@@ -1137,7 +1030,7 @@ async fn sybil_voters_cannot_outvote_a_verifying_server() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_late_joiner_starts_from_the_agreed_snapshot_and_matches() {
     use lockstep_client::bot::run_bot;
-    let mut server = TestServer::start("late", |c| {
+    let mut server = TestServer::start(tmp("late"), |c| {
         c.room.start_players = 2;
         c.room.match_ticks = Some(480);
         c.room.late_join = true;
@@ -1201,7 +1094,7 @@ async fn a_killed_bot_rejoins_its_seat_with_its_token_and_matches() {
     use lockstep_server::issue_token;
     let secret = b"rejoin test secret, 16+ bytes".to_vec();
     let key = secret.clone();
-    let mut server = TestServer::start("rejoin", move |c| {
+    let mut server = TestServer::start(tmp("rejoin"), move |c| {
         c.room.start_players = 3;
         c.room.match_ticks = Some(600);
         c.token_secret = Some(key);
@@ -1314,7 +1207,7 @@ async fn http_get(addr: SocketAddr, path: &str) -> (String, String) {
 /// replay flushed.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn metrics_and_health_are_served_and_the_server_exits_after_its_match() {
-    let mut server = TestServer::start("metrics", |c| {
+    let mut server = TestServer::start(tmp("metrics"), |c| {
         c.room.start_players = 2;
         c.room.match_ticks = Some(240);
         c.metrics = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
