@@ -192,7 +192,7 @@ fn debug_logging_shows_per_room_and_per_connection_spans() {
 }
 
 /// The container files name only real flags: every `LOCKSTEP_*` variable
-/// in the Dockerfile and the Kubernetes manifest is one `lockstep-server
+/// in the Dockerfile and the Kubernetes and Agones manifests is one `lockstep-server
 /// --help` lists; the image runs as a non-root user and exposes QUIC on UDP.
 #[test]
 fn the_container_files_use_real_flags_and_a_non_root_user() {
@@ -204,8 +204,10 @@ fn the_container_files_use_real_flags_and_a_non_root_user() {
     let help = String::from_utf8_lossy(&help.stdout).into_owned();
     let docker = std::fs::read_to_string(root.join("Dockerfile")).unwrap();
     let k8s = std::fs::read_to_string(root.join("deploy/kubernetes.yaml")).unwrap();
+    let agones = std::fs::read_to_string(root.join("deploy/agones.yaml")).unwrap();
+    assert!(agones.contains("kind: Fleet") && agones.contains("kind: GameServerAllocation"));
     let mut named = 0;
-    for text in [&docker, &k8s] {
+    for text in [&docker, &k8s, &agones] {
         for word in text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')) {
             if let Some(flag) = word.strip_prefix("LOCKSTEP_") {
                 assert!(

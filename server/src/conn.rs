@@ -140,6 +140,14 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
         writer: writer_tx.clone(),
         remote: connection.remote_address(),
     };
+    if let Err(close) = check_allocation(shared, &join.room) {
+        send_close(&writer_tx, &close);
+        let why = format!(
+            "join of {:?} to room {:?} refused: {}",
+            join.player_name, join.room, close.detail
+        );
+        return Err((why, Some(connection), Some(writer)));
+    }
     let ticket = match check_token(shared, &join) {
         Ok(t) => t,
         Err(e) => {
@@ -413,19 +421,46 @@ pub(crate) fn close_of(reason: CloseReason, detail: impl Into<String>) -> Close 
     Close { reason, detail }
 }
 
+/// In Agones mode, joins wait for the allocation and name its room.
+fn check_allocation(shared: &Shared, room: &str) -> Result<(), Close> {
+    use crate::agones::AllocationState;
+    let state = shared.allocation.read().unwrap_or_else(|e| e.into_inner());
+    match &*state {
+        AllocationState::Off => Ok(()),
+        AllocationState::Waiting => Err(close_of(
+            CloseReason::WrongRoom,
+            "this game server is not allocated yet",
+        )),
+        AllocationState::Allocated(a) => match &a.room {
+            Some(r) if r != room => Err(close_of(
+                CloseReason::WrongRoom,
+                format!("this game server hosts room {r:?} only"),
+            )),
+            _ => Ok(()),
+        },
+        AllocationState::Unusable(why) => Err(close_of(CloseReason::WrongRoom, why.clone())),
+    }
+}
+
 /// The join's token, verified when the server has a secret: `None` when it
 /// carries none (allowed unless tokens are required) or the server has no
-/// secret (development: tokens are not checked).
+/// secret (development: tokens are not checked). An Agones allocation's
+/// secret replaces the configured one and makes tokens required.
 fn check_token(
     shared: &Shared,
     join: &lockstep_proto::Join,
 ) -> Result<Option<lockstep_proto::token::Ticket>, lockstep_proto::token::TokenError> {
     use lockstep_proto::token::{TokenError, verify};
-    let Some(secret) = &shared.config.token_secret else {
+    let allocated = match &*shared.allocation.read().unwrap_or_else(|e| e.into_inner()) {
+        crate::agones::AllocationState::Allocated(a) => a.token_secret.clone(),
+        _ => None,
+    };
+    let required = shared.config.require_tokens || allocated.is_some();
+    let Some(secret) = allocated.as_ref().or(shared.config.token_secret.as_ref()) else {
         return Ok(None);
     };
     match &join.token {
-        None if shared.config.require_tokens => Err(TokenError::Missing),
+        None if required => Err(TokenError::Missing),
         None => Ok(None),
         Some(t) => {
             let now = std::time::SystemTime::now()

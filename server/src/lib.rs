@@ -25,6 +25,7 @@
 
 #![warn(missing_docs)]
 
+pub mod agones;
 mod clock;
 mod conn;
 pub mod log;
@@ -148,6 +149,11 @@ pub struct ServerConfig {
     /// Stop after the first match ends (one match per process, as game
     /// server fleets run them; `--exit-after-match`).
     pub exit_after_match: bool,
+    /// Run as an Agones game server (`--agones`): `Ready` once listening,
+    /// health pings while the tick clocks keep time, joins only once
+    /// allocated (for the allocation's room, with its token secret), and
+    /// `Shutdown` and exit after the match. See [`agones`].
+    pub agones: Option<agones::AgonesSettings>,
     /// Log each running room's status line once a second (the demo prints
     /// its own instead).
     pub log_status: bool,
@@ -185,6 +191,7 @@ impl ServerConfig {
             verifier: None,
             metrics: None,
             exit_after_match: false,
+            agones: None,
             log_status: true,
             events: None,
         }
@@ -211,6 +218,9 @@ pub enum ServerError {
     /// A file or directory could not be written.
     #[error("{0}: {1}")]
     Io(PathBuf, #[source] std::io::Error),
+    /// The Agones SDK could not be reached or refused a call.
+    #[error("agones: {0}")]
+    Agones(#[from] agones::AgonesError),
     /// The UDP socket could not be bound.
     #[error("bind {0}: {1}")]
     Bind(SocketAddr, #[source] std::io::Error),
@@ -485,6 +495,8 @@ pub(crate) struct Shared {
     pub(crate) match_ended: tokio::sync::Notify,
     /// Precise wake-ups for the rooms' tick clocks.
     pub(crate) clock: clock::Clock,
+    /// Agones mode: whether and how the server is allocated.
+    pub(crate) allocation: std::sync::RwLock<agones::AllocationState>,
 }
 
 impl Shared {
@@ -593,6 +605,7 @@ pub async fn run(
     );
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
     let limit = Arc::new(Semaphore::new(config.max_connections));
+    let config_agones = config.agones.is_some();
     let shared = Arc::new(Shared {
         config,
         scene_hash,
@@ -604,6 +617,11 @@ pub async fn run(
         metrics: metrics::Metrics::default(),
         match_ended: tokio::sync::Notify::new(),
         clock: clock::Clock::start(),
+        allocation: std::sync::RwLock::new(if config_agones {
+            agones::AllocationState::Waiting
+        } else {
+            agones::AllocationState::Off
+        }),
     });
     let metrics_task = match shared.config.metrics {
         Some(a) => {
@@ -617,12 +635,17 @@ pub async fn run(
         }
         None => None,
     };
+    let mut sdk = match &shared.config.agones {
+        Some(a) => Some(agones::start(&shared, a).await?),
+        None => None,
+    };
     shared
         .metrics
         .ready
         .store(true, std::sync::atomic::Ordering::Relaxed);
     shared.emit(ServerEvent::Listening { addr, cert });
-    let exit_after_match = shared.config.exit_after_match;
+    // An Agones game server hosts one match.
+    let exit_after_match = shared.config.exit_after_match || sdk.is_some();
     let mut connections = JoinSet::new();
     tokio::pin!(shutdown);
     loop {
@@ -686,6 +709,13 @@ pub async fn run(
     let _ = tokio::time::timeout(Duration::from_secs(2), endpoint.wait_idle()).await;
     if let Some(t) = metrics_task {
         let _ = t.await;
+    }
+    // The replays are flushed: Agones may delete the pod now.
+    if let Some(sdk) = &mut sdk {
+        match sdk.shutdown().await {
+            Ok(()) => crate::log!("agones: shutdown requested"),
+            Err(e) => crate::log!("agones: {e}"),
+        }
     }
     crate::log!("server stopped");
     let report = shared.report.lock().map(|r| r.clone()).unwrap_or_default();

@@ -48,6 +48,9 @@ pub(crate) struct Metrics {
     lateness_count: AtomicU64,
     lateness_sum_ns: AtomicU64,
     pub(crate) ready: AtomicBool,
+    /// The latest a tick closed since the Agones health check last looked
+    /// (nanoseconds; the check resets it).
+    pub(crate) worst_late_ns: AtomicU64,
 }
 
 impl Metrics {
@@ -62,6 +65,7 @@ impl Metrics {
         self.lateness_count.fetch_add(1, Ordering::Relaxed);
         let ns = u64::try_from(late.as_nanos()).unwrap_or(u64::MAX);
         self.lateness_sum_ns.fetch_add(ns, Ordering::Relaxed);
+        self.worst_late_ns.fetch_max(ns, Ordering::Relaxed);
         self.ticks_closed.fetch_add(1, Ordering::Relaxed);
     }
 

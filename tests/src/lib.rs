@@ -8,6 +8,7 @@
 
 #![warn(missing_docs)]
 
+pub mod agones;
 pub mod harness;
 pub mod link;
 

@@ -125,6 +125,18 @@ struct Cli {
     /// flushed: one match per process.
     #[arg(long, env = "LOCKSTEP_EXIT_AFTER_MATCH")]
     exit_after_match: bool,
+    /// Run as an Agones game server: Ready once listening, health pings
+    /// while the tick clocks keep time, joins only after allocation (for
+    /// the room and with the token secret its lockstep.dev/room and
+    /// lockstep.dev/token-secret annotations give), Shutdown and exit after
+    /// the match. The SDK address comes from AGONES_SDK_GRPC_HOST and
+    /// AGONES_SDK_GRPC_PORT (default localhost:9357).
+    #[arg(long, env = "LOCKSTEP_AGONES", conflicts_with = "demo")]
+    agones: bool,
+    /// Seconds between two Agones health pings (keep it under the
+    /// fleet's health.periodSeconds).
+    #[arg(long, default_value_t = 2.0, env = "LOCKSTEP_AGONES_HEALTH_PERIOD")]
+    agones_health_period: f64,
 }
 
 #[derive(Subcommand, Debug)]
@@ -272,6 +284,11 @@ async fn main() -> ExitCode {
     config.room.late_join = cli.late_join;
     config.metrics = cli.metrics;
     config.exit_after_match = cli.exit_after_match;
+    if cli.agones {
+        let mut a = lockstep_server::agones::AgonesSettings::from_env();
+        a.health_period = Duration::from_secs_f64(cli.agones_health_period.clamp(0.1, 3600.0));
+        config.agones = Some(a);
+    }
     config.room.rejoin_grace = Duration::from_secs_f64(cli.rejoin_grace.clamp(0.0, 86_400.0));
     if cli.verify {
         config.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
