@@ -31,6 +31,23 @@ async fn refusal(server: &TestServer, room: &str) -> (CloseReason, String) {
     }
 }
 
+/// The refusal a join to `room` gets once the server has seen its
+/// allocation (the watch delivers it a moment after the stand-in allocates).
+async fn refusal_once_allocated(server: &TestServer, room: &str) -> (CloseReason, String) {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
+    loop {
+        let r = refusal(server, room).await;
+        if r.1 != "this game server is not allocated yet" {
+            return r;
+        }
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "allocation not seen"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_agones_game_server_is_ready_waits_for_its_allocation_plays_one_match_and_shuts_down() {
     let (sdk, sdk_addr) = StandIn::start().await;
@@ -62,18 +79,7 @@ async fn an_agones_game_server_is_ready_waits_for_its_allocation_plays_one_match
     // The allocator names the room and the token secret.
     let secret = "a per-match secret of 32 bytes..";
     sdk.allocate(&[(ROOM_KEY, "match-7"), (TOKEN_SECRET_KEY, secret)]);
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
-    let other = loop {
-        let r = refusal(&server, "other").await;
-        if r.1 != "this game server is not allocated yet" {
-            break r;
-        }
-        assert!(
-            tokio::time::Instant::now() < deadline,
-            "allocation not seen"
-        );
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    };
+    let other = refusal_once_allocated(&server, "other").await;
     assert_eq!(
         other,
         (
@@ -138,18 +144,7 @@ async fn an_allocation_with_a_short_token_secret_refuses_every_join_with_the_rea
     })
     .await;
     sdk.allocate(&[(TOKEN_SECRET_KEY, "too short")]);
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
-    let r = loop {
-        let r = refusal(&server, "any").await;
-        if r.1 != "this game server is not allocated yet" {
-            break r;
-        }
-        assert!(
-            tokio::time::Instant::now() < deadline,
-            "allocation not seen"
-        );
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    };
+    let r = refusal_once_allocated(&server, "any").await;
     assert_eq!(
         r,
         (
