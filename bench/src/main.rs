@@ -8,7 +8,7 @@
 //! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N]
 //! cargo run --release -p lockstep-bench -- accuracy [--quick] [--csv FILE] [--scenes a,b] [--runs N]
 //! cargo run --release -p lockstep-bench -- stress [--quick] [--csv FILE] [--scenes a,b]
-//! cargo run --release -p lockstep-bench -- net [--quick] [--csv FILE]
+//! cargo run --release -p lockstep-bench -- net [--quick] [--csv FILE] [--scenes 256x4,512x4]
 //! ```
 //!
 //! Each suite is a module with a `run(&Options) -> SuiteOutput` function and
@@ -138,7 +138,7 @@ const SUITES: &[Suite] = &[
         name: "net",
         about: "players one server holds: relays in rooms of 4 and 16 at 60 Hz, tick lateness, bandwidth, CPU",
         run: net::run,
-        scenes: Vec::new,
+        scenes: net::config_names,
     },
     Suite {
         name: "stress",

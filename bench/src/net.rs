@@ -33,6 +33,8 @@ struct Row {
     down_proto: f64,
     down_udp: f64,
     up_udp: f64,
+    down_playing: f64,
+    up_playing: f64,
     server_cpu: f64,
     rss_mb: f64,
 }
@@ -183,7 +185,15 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
         .map(|r| r.bytes_down as f64 / r.played_for.as_secs_f64().max(1e-9))
         .sum::<f64>()
         / ok.len().max(1) as f64;
+    let per_relay = |f: fn(&RelayReport) -> u64| {
+        ok.iter()
+            .map(|r| f(r) as f64 / r.playing_for.as_secs_f64().max(1e-9))
+            .sum::<f64>()
+            / ok.len().max(1) as f64
+    };
     Row {
+        down_playing: per_relay(|r| r.udp_down_playing),
+        up_playing: per_relay(|r| r.udp_up_playing),
         players,
         room_size,
         rooms,
@@ -202,36 +212,53 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
     }
 }
 
-/// Runs every configuration: 4, 64, 256 and 1,000 players in rooms of 4
-/// and of 16, 600 ticks each (`--quick`: 4 players, 60 ticks).
+/// The configurations of a full run, as `PLAYERSxROOM_SIZE` (what
+/// `--scenes` picks from): 4 to 1,000 players in rooms of 4 and of 16, and
+/// the counts between 256 and 1,000 in rooms of 4, to find the largest the
+/// machine holds.
+const CONFIGS: [&str; 11] = [
+    "4x4", "4x16", "64x4", "64x16", "256x4", "256x16", "384x4", "512x4", "768x4", "1000x4",
+    "1000x16",
+];
+
+/// The names `--scenes` may give.
+pub fn config_names() -> Vec<&'static str> {
+    CONFIGS.to_vec()
+}
+
+fn parse_config(name: &str) -> (usize, usize) {
+    let (p, r) = name.split_once('x').expect("PLAYERSxROOM");
+    (p.parse().expect("players"), r.parse().expect("room size"))
+}
+
+/// Runs every configuration ([`CONFIGS`], or those `--scenes` names), 600
+/// ticks each (`--quick`: 4 players, 60 ticks).
 pub fn run(o: &Options) -> SuiteOutput {
     let ticks = if o.quick { 60 } else { 600 };
-    let configs: Vec<(usize, usize)> = if o.quick {
-        vec![(4, 4)]
-    } else {
-        [4, 64, 256, 1000]
-            .iter()
-            .flat_map(|&p| [(p, 4), (p, 16)])
-            .collect()
+    let configs: Vec<(usize, usize)> = match (&o.scenes, o.quick) {
+        (Some(names), _) => names.iter().map(|n| parse_config(n)).collect(),
+        (None, true) => vec![(4, 4)],
+        (None, false) => CONFIGS.iter().map(|n| parse_config(n)).collect(),
     };
     let started = Instant::now();
     let mut text = String::from(
-        "players room rooms  ticks  late p50 ms  p99 ms  max ms  desyncs mismatched failed  down B/s (proto)  down B/s (UDP)  up B/s (UDP)  server CPU s  CPU %  RSS MB\n",
+        "players room rooms  ticks  late p50 ms  p99 ms  max ms  desyncs mismatched failed  down B/s (proto)  down B/s (UDP, all)  up B/s (UDP, all)  down B/s (UDP, playing)  up B/s (UDP, playing)  server CPU s  CPU %  RSS MB\n",
     );
     let mut csv = String::from(
-        "players,room_size,rooms,ticks,p50_ms,p99_ms,max_ms,desyncs,mismatched,failed,down_proto_bps,down_udp_bps,up_udp_bps,server_cpu_s,server_cpu_pct,rss_mb\n",
+        "players,room_size,rooms,ticks,p50_ms,p99_ms,max_ms,desyncs,mismatched,failed,down_proto_bps,down_udp_bps,up_udp_bps,down_udp_playing_bps,up_udp_playing_bps,server_cpu_s,server_cpu_pct,rss_mb\n",
     );
     for (players, room) in configs {
         let r = play(players, room, ticks);
         let wall = ticks as f64 / 60.0;
         let pct = r.server_cpu / wall * 100.0;
         text.push_str(&format!(
-            "{:7} {:4} {:5} {:6} {:11.3} {:7.3} {:7.3} {:8} {:10} {:6} {:17.0} {:15.0} {:13.0} {:13.2} {:6.1} {:7.1}\n",
+            "{:7} {:4} {:5} {:6} {:11.3} {:7.3} {:7.3} {:8} {:10} {:6} {:17.0} {:20.0} {:18.0} {:24.0} {:22.0} {:13.2} {:6.1} {:7.1}\n",
             r.players, r.room_size, r.rooms, r.ticks, r.p50_ms, r.p99_ms, r.max_ms, r.desyncs,
-            r.mismatched, r.failed, r.down_proto, r.down_udp, r.up_udp, r.server_cpu, pct, r.rss_mb
+            r.mismatched, r.failed, r.down_proto, r.down_udp, r.up_udp, r.down_playing,
+            r.up_playing, r.server_cpu, pct, r.rss_mb
         ));
         csv.push_str(&format!(
-            "{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{:.0},{:.0},{:.0},{:.3},{:.1},{:.1}\n",
+            "{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{:.0},{:.0},{:.0},{:.0},{:.0},{:.3},{:.1},{:.1}\n",
             r.players,
             r.room_size,
             r.rooms,
@@ -245,13 +272,15 @@ pub fn run(o: &Options) -> SuiteOutput {
             r.down_proto,
             r.down_udp,
             r.up_udp,
+            r.down_playing,
+            r.up_playing,
             r.server_cpu,
             pct,
             r.rss_mb
         ));
     }
     text.push_str(&format!(
-        "\nlateness: each room measures every tick it closes (time closed minus deadline); p50 is the median of the rooms' medians, p99 and max the worst room's. CPU: the server runtime's two threads and its clock thread over the match ({} ticks at 60 Hz = {:.0} s; 100% = one core). RSS: the whole process (server and relays), high-water mark. Relays run in this process on their own two threads. Wall time {:.0} s.\n",
+        "\nlateness: each room measures every tick it closes (time closed minus deadline); p50 is the median of the rooms' medians, p99 and max the worst room's. CPU: the server runtime's two threads and its clock thread over the match ({} ticks at 60 Hz = {:.0} s; 100% = one core). Bandwidth per player: UDP (QUIC included) \"all\" as the server counts it over the connection's life (handshake, welcome and lobby included) divided by the match's duration; \"playing\" as each relay counts it from its first bundle to the end. RSS: the whole process (server and relays), high-water mark so far in the run. Relays run in this process on their own two threads. Wall time {:.0} s.\n",
         ticks,
         ticks as f64 / 60.0,
         started.elapsed().as_secs_f64()

@@ -35,6 +35,14 @@ pub struct RelayReport {
     pub bytes_up: u64,
     /// From the welcome to the end.
     pub played_for: Duration,
+    /// UDP bytes received (QUIC included) from the first bundle to the
+    /// end: the steady state, without the handshake, the welcome and the
+    /// lobby.
+    pub udp_down_playing: u64,
+    /// UDP bytes sent over the same time.
+    pub udp_up_playing: u64,
+    /// From the first bundle to the end.
+    pub playing_for: Duration,
 }
 
 /// The relays' state: a hash chain over every applied bundle's bytes.
@@ -117,6 +125,7 @@ pub async fn run_relay(
     let base = Instant::now();
     let mut state = 0u64;
     let mut stream_open = true;
+    let mut playing_from: Option<(Instant, quinn::ConnectionStats)> = None;
     let result = loop {
         let now = base.elapsed();
         if session.poll_timeout().is_some_and(|t| t <= now) {
@@ -128,6 +137,9 @@ pub async fn run_relay(
             }
         }
         while let Some(b) = session.poll_bundle() {
+            if playing_from.is_none() {
+                playing_from = Some((Instant::now(), connection.stats()));
+            }
             report.substituted +=
                 u64::from(b.inputs.iter().any(|p| p.slot == slot && p.substituted));
             state = chain(state, &b);
@@ -207,6 +219,12 @@ pub async fn run_relay(
     };
     reader.abort();
     report.played_for = base.elapsed();
+    if let Some((at, from)) = playing_from {
+        let to = connection.stats();
+        report.udp_down_playing = to.udp_rx.bytes - from.udp_rx.bytes;
+        report.udp_up_playing = to.udp_tx.bytes - from.udp_tx.bytes;
+        report.playing_for = at.elapsed();
+    }
     connection.close(0u32.into(), b"relay done");
     match result {
         Err(_) if report.close.is_some() => Ok(report),
