@@ -140,18 +140,12 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
         writer: writer_tx.clone(),
         remote: connection.remote_address(),
     };
-    if let Err(close) = check_allocation(shared, &join.room) {
-        send_close(&writer_tx, &close);
-        let why = format!(
-            "join of {:?} to room {:?} refused: {}",
-            join.player_name, join.room, close.detail
-        );
-        return Err((why, Some(connection), Some(writer)));
-    }
-    let ticket = match check_token(shared, &join) {
+    let checked = check_allocation(shared, &join.room).and_then(|()| {
+        check_token(shared, &join).map_err(|e| close_of(CloseReason::BadToken, e.to_string()))
+    });
+    let ticket = match checked {
         Ok(t) => t,
-        Err(e) => {
-            let close = close_of(CloseReason::BadToken, e.to_string());
+        Err(close) => {
             send_close(&writer_tx, &close);
             let why = format!(
                 "join of {:?} to room {:?} refused: {}",
