@@ -154,6 +154,12 @@ pub struct ServerConfig {
     /// allocated (for the allocation's room, with its token secret), and
     /// `Shutdown` and exit after the match. See [`agones`].
     pub agones: Option<agones::AgonesSettings>,
+    /// Run the tick clock and the rooms at real-time priority
+    /// (`SCHED_FIFO`, Linux; `--realtime-clock`), so a tick that is due is
+    /// not queued behind the connection threads on a busy box. Needs
+    /// `CAP_SYS_NICE`; without it the server logs a warning and runs at
+    /// normal priority.
+    pub realtime_clock: bool,
     /// Log each running room's status line once a second (the demo prints
     /// its own instead).
     pub log_status: bool,
@@ -191,6 +197,7 @@ impl ServerConfig {
             verifier: None,
             metrics: None,
             exit_after_match: false,
+            realtime_clock: false,
             agones: None,
             log_status: true,
             events: None,
@@ -224,6 +231,9 @@ pub enum ServerError {
     /// The UDP socket could not be bound.
     #[error("bind {0}: {1}")]
     Bind(SocketAddr, #[source] std::io::Error),
+    /// The clock's or the rooms' threads could not be started.
+    #[error("start the tick clock's threads: {0}")]
+    Thread(#[source] std::io::Error),
 }
 
 /// What the server reports while it runs.
@@ -495,6 +505,8 @@ pub(crate) struct Shared {
     pub(crate) match_ended: tokio::sync::Notify,
     /// Precise wake-ups for the rooms' tick clocks.
     pub(crate) clock: clock::Clock,
+    /// The threads every room task runs on.
+    pub(crate) room_threads: clock::RoomThreads,
     /// Agones mode: whether and how the server is allocated.
     pub(crate) allocation: std::sync::RwLock<agones::AllocationState>,
 }
@@ -606,6 +618,20 @@ pub async fn run(
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
     let limit = Arc::new(Semaphore::new(config.max_connections));
     let config_agones = config.agones.is_some();
+    let priority = clock::Priority {
+        realtime: config.realtime_clock,
+    };
+    // Relaying rooms cost microseconds a tick: one thread holds hundreds,
+    // and a second one only adds wake-ups. Verifying rooms re-simulate, so
+    // they get one thread per core.
+    let room_threads = if config.verifier.is_some() {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        1
+    };
+    let room_threads =
+        clock::RoomThreads::start(room_threads, priority).map_err(ServerError::Thread)?;
+    let clock = clock::Clock::start(priority).map_err(ServerError::Thread)?;
     let shared = Arc::new(Shared {
         config,
         scene_hash,
@@ -616,7 +642,8 @@ pub async fn run(
         room_seq: std::sync::atomic::AtomicU64::new(0),
         metrics: metrics::Metrics::default(),
         match_ended: tokio::sync::Notify::new(),
-        clock: clock::Clock::start(),
+        clock,
+        room_threads,
         allocation: std::sync::RwLock::new(if config_agones {
             agones::AllocationState::Waiting
         } else {

@@ -1204,7 +1204,9 @@ async fn http_get(addr: SocketAddr, path: &str) -> (String, String) {
 /// The metrics listener during a match: the tick-lateness histogram and
 /// the player count on `/metrics`, `/healthz` and `/readyz` answer; with
 /// `exit_after_match` the server stops by itself after the match, with its
-/// replay flushed.
+/// replay flushed. The clock asks for real-time priority, so the match also
+/// shows that a granted (root) or refused (no CAP_SYS_NICE) request plays
+/// the same.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn metrics_and_health_are_served_and_the_server_exits_after_its_match() {
     let mut server = TestServer::start(tmp("metrics"), |c| {
@@ -1212,6 +1214,7 @@ async fn metrics_and_health_are_served_and_the_server_exits_after_its_match() {
         c.room.match_ticks = Some(240);
         c.metrics = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
         c.exit_after_match = true;
+        c.realtime_clock = true;
     })
     .await;
     let metrics = server.metrics.expect("the metrics listener");

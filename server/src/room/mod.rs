@@ -135,10 +135,13 @@ pub(crate) fn find_or_open(
         .room_tasks
         .lock()
         .unwrap_or_else(|e| e.into_inner())
-        .spawn(tracing::Instrument::instrument(
-            task.run(rx),
-            tracing::info_span!(parent: None, "room", room = %name),
-        ));
+        .spawn_on(
+            tracing::Instrument::instrument(
+                task.run(rx),
+                tracing::info_span!(parent: None, "room", room = %name),
+            ),
+            shared.room_threads.handle(),
+        );
     rooms.insert(
         name.to_owned(),
         RoomHandle {

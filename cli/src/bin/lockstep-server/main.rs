@@ -125,6 +125,13 @@ struct Cli {
     /// flushed: one match per process.
     #[arg(long, env = "LOCKSTEP_EXIT_AFTER_MATCH")]
     exit_after_match: bool,
+    /// Run the tick clock and the rooms at real-time priority (SCHED_FIFO,
+    /// Linux), so a tick that is due is not queued behind the connection
+    /// threads on a busy machine. Needs CAP_SYS_NICE (root, or the pod's
+    /// securityContext adding SYS_NICE); without it the server warns and
+    /// runs at normal priority.
+    #[arg(long, env = "LOCKSTEP_REALTIME_CLOCK")]
+    realtime_clock: bool,
     /// Run as an Agones game server: Ready once listening, health pings
     /// while the tick clocks keep time, joins only after allocation (for
     /// the room and with the token secret its lockstep.dev/room and
@@ -284,6 +291,7 @@ async fn main() -> ExitCode {
     config.room.late_join = cli.late_join;
     config.metrics = cli.metrics;
     config.exit_after_match = cli.exit_after_match;
+    config.realtime_clock = cli.realtime_clock;
     if cli.agones {
         let mut a = lockstep_server::agones::AgonesSettings::from_env();
         a.health_period = Duration::from_secs_f64(cli.agones_health_period.clamp(0.1, 3600.0));
