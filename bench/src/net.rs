@@ -1,5 +1,6 @@
 //! `net`: how many players one server holds. The server runs in this
 //! process on its own 2-thread tokio runtime (threads named `lockstep-srv`,
+//! beside the server's own `lockstep-clock` and `lockstep-rooms` threads,
 //! so their CPU time is read apart from the relays'); relays
 //! (`lockstep_client::load`), light players that follow the protocol without
 //! simulating, fill rooms of 4 or 16 on another runtime. Each configuration
@@ -36,6 +37,13 @@ struct Row {
     down_playing: f64,
     up_playing: f64,
     server_cpu: f64,
+    /// Seconds from the first connection to the last relay's end (what
+    /// `server_cpu` is measured over).
+    wall_s: f64,
+    /// The clock thread's scheduling policy while the match ran.
+    policy: String,
+    /// Why relays failed: each distinct error and how many had it.
+    failures: Vec<(String, usize)>,
     rss_mb: f64,
 }
 
@@ -66,6 +74,34 @@ fn threads_cpu(prefix: &str) -> f64 {
     ticks as f64 / 100.0
 }
 
+/// The scheduling policy of this process's thread named `name`, from
+/// `/proc` (field 41 of its stat): "fifo", "normal" or "other N"; "gone" if
+/// no such thread runs.
+fn thread_policy(name: &str) -> String {
+    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
+        return "unknown".into();
+    };
+    for t in dir.flatten() {
+        let Ok(stat) = std::fs::read_to_string(t.path().join("stat")) else {
+            continue;
+        };
+        let Some((head, rest)) = stat.rsplit_once(") ") else {
+            continue;
+        };
+        if head.split_once('(').is_none_or(|(_, comm)| comm != name) {
+            continue;
+        }
+        // Fields from 3 (state) on: policy is field 41.
+        return match rest.split_whitespace().nth(38) {
+            Some("0") => "normal".into(),
+            Some("1") => "fifo".into(),
+            Some(p) => format!("other {p}"),
+            None => "unknown".into(),
+        };
+    }
+    "gone".into()
+}
+
 fn rss_mb() -> f64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
@@ -77,7 +113,7 @@ fn rss_mb() -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
-fn play(players: usize, room_size: usize, ticks: u64) -> Row {
+fn play(players: usize, room_size: usize, realtime: bool, ticks: u64) -> Row {
     let rooms = players.div_ceil(room_size);
     let dir = std::env::temp_dir().join(format!("lockstep-net-{}", std::process::id()));
     let mut config = ServerConfig::for_game(
@@ -95,6 +131,7 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
     config.room.match_ticks = Some(ticks);
     config.room.lobby_timeout = Some(Duration::from_secs(120));
     config.log_status = false;
+    config.realtime_clock = realtime;
     let (events_tx, mut events) = tokio::sync::mpsc::unbounded_channel();
     config.events = Some(events_tx);
     let server_rt = tokio::runtime::Builder::new_multi_thread()
@@ -113,8 +150,12 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
         .enable_all()
         .build()
         .expect("relay runtime");
-    let server_cpu = || threads_cpu("lockstep-srv") + threads_cpu("lockstep-clock");
+    let server_cpu = || {
+        threads_cpu("lockstep-srv") + threads_cpu("lockstep-clock") + threads_cpu("lockstep-rooms")
+    };
     let cpu_before = server_cpu();
+    let started = Instant::now();
+    let mut policy = String::new();
     let relays: Vec<Result<RelayReport, String>> = relay_rt.block_on(async {
         let (addr, cert): (SocketAddr, PathBuf) = loop {
             match events.recv().await {
@@ -144,6 +185,7 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
                 tokio::time::sleep(Duration::from_millis(5)).await;
             }
         }
+        policy = thread_policy("lockstep-clock");
         let mut out = Vec::with_capacity(players);
         for t in tasks {
             out.push(t.await.unwrap_or_else(|e| Err(e.to_string())));
@@ -151,6 +193,7 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
         drop(events);
         out
     });
+    let wall_s = started.elapsed().as_secs_f64();
     let _ = stop_tx.send(());
     let report: ServerReport = server_rt
         .block_on(server)
@@ -160,6 +203,13 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
     let _ = std::fs::remove_dir_all(&dir);
     let ok: Vec<&RelayReport> = relays.iter().filter_map(|r| r.as_ref().ok()).collect();
     let failed = relays.len() - ok.len();
+    let mut failures: Vec<(String, usize)> = Vec::new();
+    for e in relays.iter().filter_map(|r| r.as_ref().err()) {
+        match failures.iter_mut().find(|(m, _)| m == e) {
+            Some((_, n)) => *n += 1,
+            None => failures.push((e.clone(), 1)),
+        }
+    }
     let mut p50s = Vec::new();
     let (mut p99, mut max, mut mismatched, mut measured) = (0f64, 0f64, 0u64, 0u64);
     let (mut udp_down, mut udp_up, mut seconds) = (0f64, 0f64, 0f64);
@@ -208,6 +258,9 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
         down_udp: udp_down / n,
         up_udp: udp_up / n,
         server_cpu,
+        wall_s,
+        policy,
+        failures,
         rss_mb: rss_mb(),
     }
 }
@@ -215,9 +268,23 @@ fn play(players: usize, room_size: usize, ticks: u64) -> Row {
 /// The configurations of a full run, as `PLAYERSxROOM_SIZE` (what
 /// `--scenes` picks from): 4 to 1,000 players in rooms of 4 and of 16, and
 /// the counts between 256 and 1,000 in rooms of 4, to find the largest the
-/// machine holds.
-const CONFIGS: [&str; 11] = [
-    "4x4", "4x16", "64x4", "64x16", "256x4", "256x16", "384x4", "512x4", "768x4", "1000x4",
+/// machine holds. The server asks for real-time scheduling of its clock
+/// and rooms (`realtime_clock`, as docs/deploy.md advises); a name ending
+/// in `-normal` runs it at normal priority instead, to show what that
+/// costs in the same run.
+const CONFIGS: [&str; 13] = [
+    "4x4",
+    "4x16",
+    "64x4",
+    "64x16",
+    "256x4",
+    "256x4-normal",
+    "256x16",
+    "384x4",
+    "384x4-normal",
+    "512x4",
+    "768x4",
+    "1000x4",
     "1000x16",
 ];
 
@@ -226,39 +293,56 @@ pub fn config_names() -> Vec<&'static str> {
     CONFIGS.to_vec()
 }
 
-fn parse_config(name: &str) -> (usize, usize) {
-    let (p, r) = name.split_once('x').expect("PLAYERSxROOM");
-    (p.parse().expect("players"), r.parse().expect("room size"))
+/// Players, room size, and whether the clock asks for real-time priority.
+fn parse_config(name: &str) -> (usize, usize, bool) {
+    let (size, realtime) = match name.strip_suffix("-normal") {
+        Some(s) => (s, false),
+        None => (name, true),
+    };
+    let (p, r) = size.split_once('x').expect("PLAYERSxROOM");
+    (
+        p.parse().expect("players"),
+        r.parse().expect("room size"),
+        realtime,
+    )
 }
 
 /// Runs every configuration ([`CONFIGS`], or those `--scenes` names), 600
 /// ticks each (`--quick`: 4 players, 60 ticks).
 pub fn run(o: &Options) -> SuiteOutput {
     let ticks = if o.quick { 60 } else { 600 };
-    let configs: Vec<(usize, usize)> = match (&o.scenes, o.quick) {
+    let configs: Vec<(usize, usize, bool)> = match (&o.scenes, o.quick) {
         (Some(names), _) => names.iter().map(|n| parse_config(n)).collect(),
-        (None, true) => vec![(4, 4)],
+        (None, true) => vec![(4, 4, true)],
         (None, false) => CONFIGS.iter().map(|n| parse_config(n)).collect(),
     };
     let started = Instant::now();
     let mut text = String::from(
-        "players room rooms  ticks  late p50 ms  p99 ms  max ms  desyncs mismatched failed  down B/s (proto)  down B/s (UDP, all)  up B/s (UDP, all)  down B/s (UDP, playing)  up B/s (UDP, playing)  server CPU s  CPU %  RSS MB\n",
+        "players room rooms  ticks  late p50 ms  p99 ms  max ms  desyncs mismatched failed  down B/s (proto)  down B/s (UDP, all)  up B/s (UDP, all)  down B/s (UDP, playing)  up B/s (UDP, playing)  server CPU s  CPU %  clock   RSS MB\n",
     );
     let mut csv = String::from(
-        "players,room_size,rooms,ticks,p50_ms,p99_ms,max_ms,desyncs,mismatched,failed,down_proto_bps,down_udp_bps,up_udp_bps,down_udp_playing_bps,up_udp_playing_bps,server_cpu_s,server_cpu_pct,rss_mb\n",
+        "players,room_size,rooms,ticks,p50_ms,p99_ms,max_ms,desyncs,mismatched,failed,down_proto_bps,down_udp_bps,up_udp_bps,down_udp_playing_bps,up_udp_playing_bps,server_cpu_s,server_cpu_pct,clock_policy,rss_mb\n",
     );
-    for (players, room) in configs {
-        let r = play(players, room, ticks);
-        let wall = ticks as f64 / 60.0;
-        let pct = r.server_cpu / wall * 100.0;
+    let mut failures = String::new();
+    for (players, room, realtime) in configs {
+        let r = play(players, room, realtime, ticks);
+        for (e, n) in &r.failures {
+            failures.push_str(&format!(
+                "{}x{}{}: {n} relay(s) failed: {e}\n",
+                r.players,
+                r.room_size,
+                if realtime { "" } else { "-normal" }
+            ));
+        }
+        let pct = r.server_cpu / r.wall_s.max(1e-9) * 100.0;
         text.push_str(&format!(
-            "{:7} {:4} {:5} {:6} {:11.3} {:7.3} {:7.3} {:8} {:10} {:6} {:17.0} {:20.0} {:18.0} {:24.0} {:22.0} {:13.2} {:6.1} {:7.1}\n",
+            "{:7} {:4} {:5} {:6} {:11.3} {:7.3} {:7.3} {:8} {:10} {:6} {:17.0} {:20.0} {:18.0} {:24.0} {:22.0} {:13.2} {:6.1} {:7} {:7.1}\n",
             r.players, r.room_size, r.rooms, r.ticks, r.p50_ms, r.p99_ms, r.max_ms, r.desyncs,
             r.mismatched, r.failed, r.down_proto, r.down_udp, r.up_udp, r.down_playing,
-            r.up_playing, r.server_cpu, pct, r.rss_mb
+            r.up_playing, r.server_cpu, pct, r.policy, r.rss_mb
         ));
         csv.push_str(&format!(
-            "{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{:.0},{:.0},{:.0},{:.0},{:.0},{:.3},{:.1},{:.1}\n",
+            "{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{:.0},{:.0},{:.0},{:.0},{:.0},{:.3},{:.1},{},{:.1}\n",
             r.players,
             r.room_size,
             r.rooms,
@@ -276,11 +360,16 @@ pub fn run(o: &Options) -> SuiteOutput {
             r.up_playing,
             r.server_cpu,
             pct,
+            r.policy,
             r.rss_mb
         ));
     }
+    if !failures.is_empty() {
+        text.push('\n');
+        text.push_str(&failures);
+    }
     text.push_str(&format!(
-        "\nlateness: each room measures every tick it closes (time closed minus deadline); p50 is the median of the rooms' medians, p99 and max the worst room's. CPU: the server runtime's two threads and its clock thread over the match ({} ticks at 60 Hz = {:.0} s; 100% = one core). Bandwidth per player: UDP (QUIC included) \"all\" as the server counts it over the connection's life (handshake, welcome and lobby included) divided by the match's duration; \"playing\" as each relay counts it from its first bundle to the end. RSS: the whole process (server and relays), high-water mark so far in the run. Relays run in this process on their own two threads. Wall time {:.0} s.\n",
+        "\nlateness: each room measures every tick it closes (time closed minus deadline); p50 is the median of the rooms' medians, p99 and max the worst room's. CPU: the server runtime's two threads, its clock thread and its rooms' threads, from the first connection to the last relay's end (a match of {} ticks at 60 Hz = {:.0} s, plus connecting; 100% = one core). Clock: the clock thread's scheduling policy as /proc shows it (fifo: real-time, as asked; normal: asked for normal priority with -normal, or refused for want of CAP_SYS_NICE). Bandwidth per player: UDP (QUIC included) \"all\" as the server counts it over the connection's life (handshake, welcome and lobby included) divided by the match's duration; \"playing\" as each relay counts it from its first bundle to the end. RSS: the whole process (server and relays), high-water mark so far in the run. Relays run in this process on their own two threads. Wall time {:.0} s.\n",
         ticks,
         ticks as f64 / 60.0,
         started.elapsed().as_secs_f64()
