@@ -205,7 +205,15 @@ fn play(players: usize, room_size: usize, realtime: bool, ticks: u64) -> Row {
     let failed = relays.len() - ok.len();
     let mut failures: Vec<(String, usize)> = Vec::new();
     for e in relays.iter().filter_map(|r| r.as_ref().err()) {
-        match failures.iter_mut().find(|(m, _)| m == e) {
+        // Group by the message up to its first figure (tick counts and
+        // times differ between relays that failed for the same reason).
+        let e = e
+            .split(|c: char| c.is_ascii_digit())
+            .next()
+            .unwrap_or("")
+            .trim_end()
+            .to_owned();
+        match failures.iter_mut().find(|(m, _)| *m == e) {
             Some((_, n)) => *n += 1,
             None => failures.push((e.clone(), 1)),
         }
