@@ -54,7 +54,7 @@ impl Clock {
         std::thread::Builder::new()
             .name("lockstep-clock".into())
             .spawn(move || {
-                priority.apply();
+                let _ = priority.apply();
                 run(rx)
             })?;
         Ok(Clock {
@@ -125,19 +125,24 @@ pub(crate) const FIFO_PRIORITY: i32 = 10;
 static REFUSAL_LOGGED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 impl Priority {
-    /// Applies this to the calling thread.
-    fn apply(self) {
+    /// Applies this to the calling thread; whether it now runs at
+    /// real-time priority.
+    fn apply(self) -> bool {
         match self.apply_here() {
-            Err(e) if !REFUSAL_LOGGED.swap(true, std::sync::atomic::Ordering::Relaxed) => {
-                tracing::warn!(
-                    "real-time scheduling of the tick clock refused ({e}); running at normal \
-                     priority (it needs CAP_SYS_NICE)"
-                );
+            Err(e) => {
+                if !REFUSAL_LOGGED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+                    tracing::warn!(
+                        "real-time scheduling of the tick clock refused ({e}); running at \
+                         normal priority (it needs CAP_SYS_NICE)"
+                    );
+                }
+                false
             }
             Ok(()) if self.realtime => {
                 tracing::debug!("tick clock thread at SCHED_FIFO priority {FIFO_PRIORITY}");
+                true
             }
-            _ => {}
+            Ok(()) => false,
         }
     }
 
@@ -170,19 +175,24 @@ impl Priority {
     }
 }
 
-/// The threads the rooms run on: single-threaded tokio runtimes of their
-/// own, so a room whose tick is due runs as soon as the clock wakes it,
-/// instead of waiting in the connection tasks' queue behind hundreds of
-/// QUIC drivers (which is where a shared runtime's tick lateness came from
-/// under load). A room's work per tick is a few microseconds (more with
-/// `--verify`, which re-simulates in the room), so one thread carries many
-/// rooms; rooms are dealt to the threads in turn.
+/// The threads the rooms run on at real-time priority: single-threaded
+/// tokio runtimes of their own, so a room whose tick is due preempts the
+/// connection threads and runs as soon as the clock wakes it, instead of
+/// waiting in the connection tasks' queue behind hundreds of QUIC drivers.
+/// A room's work per tick is a few microseconds (more with `--verify`,
+/// which re-simulates in the room), so one thread carries many rooms;
+/// rooms are dealt to the threads in turn.
+///
+/// Only at real-time priority: at normal priority a thread of their own
+/// made lateness worse, not better (256 players in rooms of 4: worst-room
+/// p99 5–11 ms against 2.6–4.2 ms on the shared runtime), since each tick
+/// then waits for that thread to get a core; the rooms then stay on the
+/// server's runtime.
 ///
 /// Single-threaded runtimes, not one work-stealing runtime: an idle
 /// work-stealing worker spins a little while it looks for work, and at
 /// real-time priority that spinning starves the connection threads
-/// (measured: 256 players' worst-room p99 lateness went from 0.3 ms to
-/// 33 ms).
+/// (measured: 256 players' worst-room p99 lateness went to 33 ms).
 #[derive(Debug)]
 pub(crate) struct RoomThreads {
     handles: Vec<tokio::runtime::Handle>,
@@ -191,20 +201,33 @@ pub(crate) struct RoomThreads {
 }
 
 impl RoomThreads {
-    /// Starts `threads` threads (at least one) scheduled as `priority`
-    /// asks; they end, cancelling what still runs on them, when this is
+    /// Starts `threads` threads (at least one) at real-time priority, or
+    /// none (`None`) if `priority` does not ask for it or the OS refuses
+    /// it. They end, cancelling what still runs on them, when this is
     /// dropped. Each owns its runtime, so dropping this from anywhere (even
     /// from a room task) never blocks.
-    pub(crate) fn start(threads: usize, priority: Priority) -> std::io::Result<RoomThreads> {
-        let mut handles = Vec::new();
-        let mut stops = Vec::new();
+    pub(crate) fn start(
+        threads: usize,
+        priority: Priority,
+    ) -> std::io::Result<Option<RoomThreads>> {
+        if !priority.realtime {
+            return Ok(None);
+        }
+        let mut started = RoomThreads {
+            handles: Vec::new(),
+            next: std::sync::atomic::AtomicUsize::new(0),
+            stops: Vec::new(),
+        };
         for _ in 0..threads.max(1) {
             let (handle_tx, handle_rx) = channel();
             let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
             std::thread::Builder::new()
                 .name("lockstep-rooms".into())
                 .spawn(move || {
-                    priority.apply();
+                    if !priority.apply() {
+                        let _ = handle_tx.send(Ok(None));
+                        return;
+                    }
                     let rt = match tokio::runtime::Builder::new_current_thread()
                         .enable_all()
                         .build()
@@ -215,7 +238,7 @@ impl RoomThreads {
                             return;
                         }
                     };
-                    let _ = handle_tx.send(Ok(rt.handle().clone()));
+                    let _ = handle_tx.send(Ok(Some(rt.handle().clone())));
                     rt.block_on(async {
                         let _ = stopped.await;
                     });
@@ -223,14 +246,17 @@ impl RoomThreads {
             let handle = handle_rx
                 .recv()
                 .map_err(|_| std::io::Error::other("a rooms' thread ended at start-up"))??;
-            handles.push(handle);
-            stops.push(stop);
+            match handle {
+                Some(handle) => {
+                    started.handles.push(handle);
+                    started.stops.push(stop);
+                }
+                // Refused: the threads started so far stop when `started`
+                // drops.
+                None => return Ok(None),
+            }
         }
-        Ok(RoomThreads {
-            handles,
-            next: std::sync::atomic::AtomicUsize::new(0),
-            stops,
-        })
+        Ok(Some(started))
     }
 
     /// Where the next room task is spawned.
@@ -281,6 +307,38 @@ mod tests {
         })
         .join()
         .unwrap();
+    }
+
+    /// Rooms get threads of their own only at real-time priority, and
+    /// only when the OS grants it; a room task spawned there runs.
+    #[test]
+    fn room_threads_only_when_real_time_is_granted() {
+        assert!(
+            RoomThreads::start(2, Priority { realtime: false })
+                .unwrap()
+                .is_none()
+        );
+        let granted = std::thread::spawn(|| Priority { realtime: true }.apply_here().is_ok())
+            .join()
+            .unwrap();
+        let threads = RoomThreads::start(2, Priority { realtime: true }).unwrap();
+        assert_eq!(threads.is_some(), granted);
+        if let Some(threads) = threads {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            for _ in 0..2 {
+                let name = rt
+                    .block_on(
+                        threads
+                            .handle()
+                            .spawn(async { std::thread::current().name().map(str::to_owned) }),
+                    )
+                    .unwrap();
+                assert_eq!(name.as_deref(), Some("lockstep-rooms"));
+            }
+        }
     }
 
     /// The clock wakes a registration at its instant, and in order, on a

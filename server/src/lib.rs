@@ -505,8 +505,9 @@ pub(crate) struct Shared {
     pub(crate) match_ended: tokio::sync::Notify,
     /// Precise wake-ups for the rooms' tick clocks.
     pub(crate) clock: clock::Clock,
-    /// The threads every room task runs on.
-    pub(crate) room_threads: clock::RoomThreads,
+    /// The real-time threads room tasks run on (`None`: the server's
+    /// runtime).
+    pub(crate) room_threads: Option<clock::RoomThreads>,
     /// Agones mode: whether and how the server is allocated.
     pub(crate) allocation: std::sync::RwLock<agones::AllocationState>,
 }
@@ -621,9 +622,9 @@ pub async fn run(
     let priority = clock::Priority {
         realtime: config.realtime_clock,
     };
-    // Relaying rooms cost microseconds a tick: one thread holds hundreds,
-    // and a second one only adds wake-ups. Verifying rooms re-simulate, so
-    // they get one thread per core.
+    // At real-time priority: relaying rooms cost microseconds a tick, so
+    // one thread holds hundreds and a second one only adds wake-ups;
+    // verifying rooms re-simulate, so they get one thread per core.
     let room_threads = if config.verifier.is_some() {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {

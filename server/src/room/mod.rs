@@ -131,17 +131,16 @@ pub(crate) fn find_or_open(
     let (tx, rx) = mpsc::channel(4096);
     let seq = shared.room_seq.fetch_add(1, Ordering::Relaxed);
     let task = RoomTask::new(shared.clone(), name.to_owned(), room, seq);
-    shared
-        .room_tasks
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .spawn_on(
-            tracing::Instrument::instrument(
-                task.run(rx),
-                tracing::info_span!(parent: None, "room", room = %name),
-            ),
-            shared.room_threads.handle(),
-        );
+    let task = tracing::Instrument::instrument(
+        task.run(rx),
+        tracing::info_span!(parent: None, "room", room = %name),
+    );
+    let mut tasks = shared.room_tasks.lock().unwrap_or_else(|e| e.into_inner());
+    match &shared.room_threads {
+        Some(threads) => tasks.spawn_on(task, threads.handle()),
+        None => tasks.spawn(task),
+    };
+    drop(tasks);
     rooms.insert(
         name.to_owned(),
         RoomHandle {
