@@ -47,59 +47,63 @@ struct Row {
     rss_mb: f64,
 }
 
-/// CPU seconds of this process's threads whose name starts with `prefix`.
-fn threads_cpu(prefix: &str) -> f64 {
-    let mut ticks = 0u64;
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
-        return f64::NAN;
-    };
+/// Each of this process's threads as (name, stat fields from field 3, the
+/// state, on), read from `/proc/self/task`; `None` if /proc is unreadable.
+fn thread_stats() -> Option<Vec<(String, Vec<String>)>> {
+    let dir = std::fs::read_dir("/proc/self/task").ok()?;
+    let mut out = Vec::new();
     for t in dir.flatten() {
         let Ok(stat) = std::fs::read_to_string(t.path().join("stat")) else {
             continue;
         };
-        // pid (comm) state ... utime stime: fields 14 and 15.
+        // pid (comm) state ...: the name may hold spaces and parentheses.
         let Some((head, rest)) = stat.rsplit_once(") ") else {
             continue;
         };
-        if !head
-            .split_once('(')
-            .is_some_and(|(_, comm)| comm.starts_with(prefix))
-        {
+        let Some((_, comm)) = head.split_once('(') else {
             continue;
-        }
-        let f: Vec<&str> = rest.split_whitespace().collect();
-        let field = |i: usize| f.get(i).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
-        ticks += field(11) + field(12);
+        };
+        out.push((
+            comm.to_owned(),
+            rest.split_whitespace().map(str::to_owned).collect(),
+        ));
     }
+    Some(out)
+}
+
+/// CPU seconds of this process's threads whose name starts with `prefix`.
+fn threads_cpu(prefix: &str) -> f64 {
+    let Some(threads) = thread_stats() else {
+        return f64::NAN;
+    };
+    let ticks: u64 = threads
+        .iter()
+        .filter(|(comm, _)| comm.starts_with(prefix))
+        .map(|(_, f)| {
+            // utime and stime: fields 14 and 15.
+            let field = |i: usize| f.get(i).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
+            field(11) + field(12)
+        })
+        .sum();
     ticks as f64 / 100.0
 }
 
-/// The scheduling policy of this process's thread named `name`, from
-/// `/proc` (field 41 of its stat): "fifo", "normal" or "other N"; "gone" if
-/// no such thread runs.
+/// The scheduling policy of this process's thread named `name` (field 41
+/// of its stat): "fifo", "normal" or "other N"; "gone" if no such thread
+/// runs.
 fn thread_policy(name: &str) -> String {
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
+    let Some(threads) = thread_stats() else {
         return "unknown".into();
     };
-    for t in dir.flatten() {
-        let Ok(stat) = std::fs::read_to_string(t.path().join("stat")) else {
-            continue;
-        };
-        let Some((head, rest)) = stat.rsplit_once(") ") else {
-            continue;
-        };
-        if head.split_once('(').is_none_or(|(_, comm)| comm != name) {
-            continue;
-        }
-        // Fields from 3 (state) on: policy is field 41.
-        return match rest.split_whitespace().nth(38) {
+    match threads.iter().find(|(comm, _)| comm == name) {
+        None => "gone".into(),
+        Some((_, f)) => match f.get(38).map(String::as_str) {
             Some("0") => "normal".into(),
             Some("1") => "fifo".into(),
             Some(p) => format!("other {p}"),
             None => "unknown".into(),
-        };
+        },
     }
-    "gone".into()
 }
 
 fn rss_mb() -> f64 {

@@ -105,8 +105,8 @@ fn run(rx: Receiver<(Instant, Arc<Notify>)>) {
 ///   timed waits are not rounded up by the default 50 µs slack;
 /// - with `realtime`: the `SCHED_FIFO` policy at priority [`FIFO_PRIORITY`],
 ///   so a tick that is due preempts the connection threads at once. This
-///   needs `CAP_SYS_NICE` (root, or `securityContext.capabilities.add:
-///   [SYS_NICE]` in a pod). Without it the server logs a warning once and
+///   needs `CAP_SYS_NICE` or a real-time priority limit (`RLIMIT_RTPRIO`)
+///   of at least [`FIFO_PRIORITY`]. Without either the server logs a warning once and
 ///   runs at normal priority. The kernel's real-time throttling (by default
 ///   95 % of each second) still leaves the other threads some CPU if the
 ///   rooms ever spin.
@@ -133,7 +133,7 @@ impl Priority {
                 if !REFUSAL_LOGGED.swap(true, std::sync::atomic::Ordering::Relaxed) {
                     tracing::warn!(
                         "real-time scheduling of the tick clock refused ({e}); running at \
-                         normal priority (it needs CAP_SYS_NICE)"
+                         normal priority (it needs CAP_SYS_NICE or an rtprio limit of 10)"
                     );
                 }
                 false

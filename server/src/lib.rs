@@ -157,8 +157,8 @@ pub struct ServerConfig {
     /// Run the tick clock and the rooms at real-time priority
     /// (`SCHED_FIFO`, Linux; `--realtime-clock`), so a tick that is due is
     /// not queued behind the connection threads on a busy box. Needs
-    /// `CAP_SYS_NICE`; without it the server logs a warning and runs at
-    /// normal priority.
+    /// `CAP_SYS_NICE` or an rtprio limit of at least 10; without either the
+    /// server logs a warning and runs at normal priority.
     pub realtime_clock: bool,
     /// Log each running room's status line once a second (the demo prints
     /// its own instead).

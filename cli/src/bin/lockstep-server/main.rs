@@ -127,8 +127,8 @@ struct Cli {
     exit_after_match: bool,
     /// Run the tick clock and the rooms at real-time priority (SCHED_FIFO,
     /// Linux), so a tick that is due is not queued behind the connection
-    /// threads on a busy machine. Needs CAP_SYS_NICE (root, or the pod's
-    /// securityContext adding SYS_NICE); without it the server warns and
+    /// threads on a busy machine. Needs CAP_SYS_NICE or an rtprio limit of
+    /// at least 10 (docs/deploy.md); without either the server warns and
     /// runs at normal priority.
     #[arg(long, env = "LOCKSTEP_REALTIME_CLOCK")]
     realtime_clock: bool,
