@@ -15,3 +15,4 @@ pub mod net;
 pub mod offline;
 #[cfg(feature = "test-hooks")]
 pub mod testing;
+pub mod view;

@@ -85,6 +85,24 @@ enum Command {
         #[arg(long, value_delimiter = ',', value_name = "LIST", default_values_t = tune::DEFAULT_RELAX_ITERATIONS)]
         relax: Vec<u32>,
     },
+    /// Look at a scene, a replay or a desync bundle in a browser.
+    ///
+    /// Re-simulates the file (a scene for --ticks ticks with no inputs; a
+    /// replay or bundle with its recorded inputs and the demo's rules),
+    /// then serves a page on a local HTTP socket and prints its URL. The
+    /// page draws every body, with a tick slider, overlays and each body's
+    /// exact state; a bundle shows the majority and the diverging player
+    /// side by side. Runs until Ctrl-C.
+    View {
+        /// The scene file, replay or desync bundle.
+        file: PathBuf,
+        /// Where to serve the page (port 0: any free port).
+        #[arg(long, default_value = "127.0.0.1:0", value_name = "ADDR")]
+        listen: std::net::SocketAddr,
+        /// How many ticks of a scene file to step.
+        #[arg(long, default_value_t = 600, value_name = "N", value_parser = clap::value_parser!(u64).range(0..=100_000))]
+        ticks: u64,
+    },
 }
 
 /// `--cost`.
@@ -100,6 +118,11 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Replay { file } => ExitCode::from(check_replay_command(&file, &Demo)),
+        Command::View {
+            file,
+            listen,
+            ticks,
+        } => view(&file, listen, ticks),
         Command::Tune {
             scene,
             max_error,
@@ -167,6 +190,40 @@ fn main() -> ExitCode {
                     ExitCode::from(2)
                 }
             }
+        }
+    }
+}
+
+fn view(file: &std::path::Path, listen: std::net::SocketAddr, ticks: u64) -> ExitCode {
+    let data = match lockstep_client::view::load_view(file, &Demo, ticks) {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("lockstep view: error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let listener = match std::net::TcpListener::bind(listen) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("lockstep view: error: listening on {listen}: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let addr = listener.local_addr().unwrap_or(listen);
+    println!(
+        "viewing {} ({:?}: {} bodies, ticks {}..={}): http://{addr}/",
+        file.display(),
+        data.kind,
+        data.bodies.len(),
+        data.ticks.first().copied().unwrap_or(0),
+        data.ticks.last().copied().unwrap_or(0),
+    );
+    let _ = std::io::stdout().flush();
+    match lockstep_client::view::http::serve(listener, data) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("lockstep view: error: {e}");
+            ExitCode::from(2)
         }
     }
 }

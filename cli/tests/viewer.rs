@@ -1,0 +1,537 @@
+//! `lockstep view` in a real browser: headless Chromium, driven through
+//! ChromeDriver's WebDriver HTTP interface, opens the viewer on a scene, a
+//! replay and a desync bundle, waits for the first frame, checks from the
+//! page's own state and its pixels that every body is drawn, moves the
+//! tick slider and checks that the world moved to the exact state the
+//! viewer serves for that tick.
+//!
+//! Needs Debian's `chromium` and `chromium-driver` (or LOCKSTEP_CHROMIUM
+//! and LOCKSTEP_CHROMEDRIVER). Where they are missing the tests say so and
+//! pass, unless LOCKSTEP_BROWSER_TESTS=require (as `.ci/run` sets), which
+//! makes a missing browser a failure. LOCKSTEP_SCREENSHOT_DIR keeps the
+//! screenshots (docs/img/viewer-*.png came from here).
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Kills a child process when dropped.
+struct Guard(Child);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The browser and its driver, or None (with the reason printed) when they
+/// are not installed and not required.
+fn browser() -> Option<(PathBuf, PathBuf)> {
+    let path = |var: &str, default: &str| {
+        PathBuf::from(std::env::var_os(var).unwrap_or_else(|| default.into()))
+    };
+    let chromium = path("LOCKSTEP_CHROMIUM", "/usr/bin/chromium");
+    let driver = path("LOCKSTEP_CHROMEDRIVER", "/usr/bin/chromedriver");
+    if chromium.exists() && driver.exists() {
+        return Some((chromium, driver));
+    }
+    let required = std::env::var("LOCKSTEP_BROWSER_TESTS").is_ok_and(|v| v == "require");
+    assert!(
+        !required,
+        "LOCKSTEP_BROWSER_TESTS=require, but {} or {} is missing",
+        chromium.display(),
+        driver.display()
+    );
+    eprintln!(
+        "skipping the browser test: {} or {} is missing (apt-get install chromium chromium-driver)",
+        chromium.display(),
+        driver.display()
+    );
+    None
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// One HTTP/1.1 request with `Connection: close`; returns the status and
+/// the body.
+fn http(addr: SocketAddr, method: &str, path: &str, body: Option<&Value>) -> (u16, Vec<u8>) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
+    let body = body.map(|b| b.to_string()).unwrap_or_default();
+    write!(
+        s,
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nContent-Type: application/json\r\n\
+         Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
+    // Read the head, then exactly the body its Content-Length gives (a
+    // driver may keep the connection open), or to the end of a chunked
+    // body, or to EOF.
+    let mut raw = Vec::new();
+    let mut buf = [0u8; 65536];
+    let split = loop {
+        if let Some(p) = raw.windows(4).position(|w| w == b"\r\n\r\n") {
+            break p;
+        }
+        let n = s.read(&mut buf).unwrap();
+        assert!(n > 0, "the connection closed before the response head");
+        raw.extend_from_slice(&buf[..n]);
+    };
+    let head = String::from_utf8_lossy(&raw[..split]).to_ascii_lowercase();
+    let status = head
+        .split_whitespace()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap();
+    let length = head.lines().find_map(|l| {
+        l.strip_prefix("content-length:")
+            .and_then(|v| v.trim().parse::<usize>().ok())
+    });
+    let chunked = head.contains("transfer-encoding: chunked");
+    let mut payload = raw[split + 4..].to_vec();
+    loop {
+        let done = match length {
+            Some(n) => payload.len() >= n,
+            None => chunked && payload.ends_with(b"0\r\n\r\n"),
+        };
+        if done {
+            break;
+        }
+        let n = s.read(&mut buf).unwrap();
+        if n == 0 {
+            break;
+        }
+        payload.extend_from_slice(&buf[..n]);
+    }
+    if chunked {
+        payload = unchunk(&payload);
+    }
+    (status, payload)
+}
+
+fn unchunk(mut b: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let line_end = b.windows(2).position(|w| w == b"\r\n").unwrap();
+        let size =
+            usize::from_str_radix(std::str::from_utf8(&b[..line_end]).unwrap().trim(), 16).unwrap();
+        if size == 0 {
+            return out;
+        }
+        out.extend_from_slice(&b[line_end + 2..line_end + 2 + size]);
+        b = &b[line_end + 2 + size + 2..];
+    }
+}
+
+/// A WebDriver session on headless Chromium.
+struct Browser {
+    driver: SocketAddr,
+    session: String,
+    _driver: Guard,
+}
+
+impl Browser {
+    fn start(chromium: &Path, chromedriver: &Path, profile: &Path) -> Browser {
+        let port = free_port();
+        let child = Command::new(chromedriver)
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let guard = Guard(child);
+        let driver: SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while TcpStream::connect(driver).is_err() {
+            assert!(Instant::now() < deadline, "chromedriver did not start");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let _ = std::fs::remove_dir_all(profile);
+        let caps = json!({"capabilities": {"alwaysMatch": {
+            "browserName": "chrome",
+            "goog:chromeOptions": {
+                "binary": chromium.to_str().unwrap(),
+                "args": [
+                    "--headless=new", "--no-sandbox", "--disable-gpu",
+                    "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                    "--disable-quic", "--no-first-run", "--disable-background-networking",
+                    "--disable-component-update", "--disable-sync",
+                    "--window-size=1280,720",
+                    format!("--user-data-dir={}", profile.display()),
+                ]
+            }
+        }}});
+        let (status, body) = http(driver, "POST", "/session", Some(&caps));
+        let v: Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(status, 200, "new session: {v}");
+        let session = v["value"]["sessionId"].as_str().unwrap().to_owned();
+        Browser {
+            driver,
+            session,
+            _driver: guard,
+        }
+    }
+
+    fn call(&self, method: &str, path: &str, body: Option<&Value>) -> Value {
+        let path = format!("/session/{}{path}", self.session);
+        let (status, b) = http(self.driver, method, &path, body);
+        let v: Value = serde_json::from_slice(&b).unwrap();
+        assert_eq!(status, 200, "{method} {path}: {v}");
+        v["value"].clone()
+    }
+
+    fn open(&self, url: &str) {
+        self.call("POST", "/url", Some(&json!({ "url": url })));
+    }
+
+    fn run(&self, script: &str) -> Value {
+        self.call(
+            "POST",
+            "/execute/sync",
+            Some(&json!({ "script": script, "args": [] })),
+        )
+    }
+
+    fn status(&self) -> Value {
+        self.run("return window.lockstepViewer ? window.lockstepViewer.status() : null")
+    }
+
+    /// Waits until the page has drawn a frame (or reported an error).
+    fn wait_ready(&self) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(90);
+        loop {
+            let s = self.status();
+            assert!(s["error"].is_null(), "the page reported: {s}");
+            if s["ready"] == true && s["framesDrawn"].as_u64() >= Some(1) {
+                return s;
+            }
+            assert!(Instant::now() < deadline, "no frame drawn: {s}");
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    }
+
+    /// Moves the slider as a user does (value, then an input event) and
+    /// waits for the frame to be drawn.
+    fn slide_to(&self, frame: usize) -> Value {
+        let before = self.status()["framesDrawn"].as_u64().unwrap();
+        self.run(&format!(
+            "const s = document.getElementById('slider'); s.value = {frame}; \
+             s.dispatchEvent(new Event('input')); return null"
+        ));
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let s = self.status();
+            if s["framesDrawn"].as_u64().unwrap() > before {
+                assert_eq!(s["frame"].as_u64(), Some(frame as u64), "{s}");
+                return s;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "no frame drawn after the slider moved"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    fn pose(&self, body: i64) -> Vec<f64> {
+        self.run(&format!("return window.lockstepViewer.pose({body})"))
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    }
+
+    fn screenshot(&self, name: &str) {
+        let b64 = self.call("GET", "/screenshot", None);
+        let png = base64(b64.as_str().unwrap());
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "a PNG");
+        let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("viewer-{name}.png"));
+        std::fs::write(&out, &png).unwrap();
+        if let Some(dir) = std::env::var_os("LOCKSTEP_SCREENSHOT_DIR") {
+            std::fs::write(Path::new(&dir).join(format!("viewer-{name}.png")), &png).unwrap();
+        }
+    }
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let path = format!("/session/{}", self.session);
+        let _ = std::panic::catch_unwind(|| http(self.driver, "DELETE", &path, None));
+    }
+}
+
+fn base64(s: &str) -> Vec<u8> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {c}"),
+    };
+    let bytes: Vec<u8> = s.bytes().filter(|&c| c != b'=').collect();
+    let mut out = Vec::with_capacity(bytes.len() * 3 / 4);
+    for chunk in bytes.chunks(4) {
+        let v: Vec<u32> = chunk.iter().map(|&c| val(c) as u32).collect();
+        let n = v
+            .iter()
+            .enumerate()
+            .fold(0, |acc, (i, &x)| acc | x << (18 - 6 * i));
+        out.extend_from_slice(&n.to_be_bytes()[1..chunk.len()]);
+    }
+    out
+}
+
+/// A running `lockstep view` and its URL.
+struct Viewer {
+    url: String,
+    addr: SocketAddr,
+    _child: Guard,
+}
+
+fn view(args: &[&str]) -> Viewer {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lockstep"))
+        .arg("view")
+        .args(args)
+        .current_dir(repo())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap_or_else(|| panic!("no URL in {line:?}"))
+        .to_owned();
+    let addr = url
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .parse()
+        .unwrap();
+    Viewer {
+        url,
+        addr,
+        _child: Guard(child),
+    }
+}
+
+fn exact_state(v: &Viewer, frame: usize, body: i64) -> Value {
+    let (status, b) = http(
+        v.addr,
+        "GET",
+        &format!("/state?frame={frame}&body={body}"),
+        None,
+    );
+    assert_eq!(status, 200);
+    serde_json::from_slice(&b).unwrap()
+}
+
+fn body_count(scene: &str) -> u64 {
+    let text = std::fs::read_to_string(repo().join(scene)).unwrap();
+    let world = lockstep_core::scene::load_world(&text, scene).unwrap();
+    world.body_handles().count() as u64
+}
+
+/// Checks that the page drew every body and lit a good part of the view.
+fn check_drawn(b: &Browser, s: &Value, bodies: u64) {
+    assert_eq!(s["bodies"].as_u64(), Some(bodies), "{s}");
+    assert_eq!(s["bodiesDrawn"].as_u64(), Some(bodies), "{s}");
+    let lit = b
+        .run("return window.lockstepViewer.litPixels()")
+        .as_u64()
+        .unwrap();
+    assert!(lit > 20_000, "only {lit} pixels differ from the background");
+}
+
+/// Moves the slider from `from` to `to` and checks that `body` moved to
+/// the exact state the viewer serves for that frame.
+fn check_slider_moves(b: &Browser, v: &Viewer, body: i64, from: usize, to: usize) {
+    b.slide_to(from);
+    let p0 = b.pose(body);
+    let s = b.slide_to(to);
+    let p1 = b.pose(body);
+    assert_ne!(
+        p0, p1,
+        "body {body} did not move between frames {from} and {to}"
+    );
+    let exact = exact_state(v, to, body);
+    assert_eq!(exact["tick"], s["tick"]);
+    for k in 0..3 {
+        let want: f64 = exact["position"][k].as_str().unwrap().parse().unwrap();
+        assert!(
+            (p1[k] - want).abs() < 1e-4,
+            "axis {k}: drawn {} exact {want}",
+            p1[k]
+        );
+    }
+}
+
+#[test]
+fn the_viewer_draws_a_scene_and_its_slider_moves_the_world() {
+    let Some((chromium, driver)) = browser() else {
+        return;
+    };
+    let tmp = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let v = view(&["scenes/shapes.toml", "--ticks", "240"]);
+    let b = Browser::start(&chromium, &driver, &tmp.join("chromium-scene"));
+    b.open(&v.url);
+    let s = b.wait_ready();
+    assert_eq!(s["kind"], "scene");
+    assert_eq!(s["frames"].as_u64(), Some(241));
+    check_drawn(&b, &s, body_count("scenes/shapes.toml"));
+    let ball = b
+        .run("return window.lockstepViewer.bodyIndex('ball')")
+        .as_i64()
+        .unwrap();
+    assert!(ball >= 0);
+    check_slider_moves(&b, &v, ball, 0, 45);
+    // The overlays draw without errors.
+    b.run(
+        "for (const id of ['ov-contacts', 'ov-aabbs', 'ov-names']) { \
+         const c = document.getElementById(id); c.checked = true; c.dispatchEvent(new Event('change')); } \
+         return null",
+    );
+    b.slide_to(46);
+    assert!(b.status()["error"].is_null());
+    // Picking a body from the list shows its exact state for the tick.
+    let crate_ = b
+        .run("return window.lockstepViewer.bodyIndex('crate')")
+        .as_i64()
+        .unwrap();
+    b.run(&format!(
+        "document.querySelector('#bodies div[data-i=\"{crate_}\"]').click(); return null"
+    ));
+    let exact = exact_state(&v, 46, crate_);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let panel = b.run("return document.getElementById('state').textContent");
+        let panel = panel.as_str().unwrap();
+        if panel.contains("\"crate\"") {
+            for k in 0..3 {
+                let want = exact["position"][k].as_str().unwrap();
+                assert!(panel.contains(want), "{want} in {panel}");
+            }
+            break;
+        }
+        assert!(Instant::now() < deadline, "no exact state shown: {panel}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(b.status()["picked"].as_i64(), Some(crate_));
+    b.screenshot("scene");
+}
+
+#[test]
+fn the_viewer_plays_a_replay_and_shows_a_bundles_diverging_bodies() {
+    let Some((chromium, driver)) = browser() else {
+        return;
+    };
+    // A short demo match in which one bot nudges a body: a replay and a
+    // desync bundle.
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("viewer-match");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
+        .args([
+            "--demo",
+            "--duration",
+            "1.5",
+            "--bots",
+            "3",
+            "--diverge-at",
+            "40",
+        ])
+        .env("LOCKSTEP_REPLAY_DIR", dir.join("replays"))
+        .env("LOCKSTEP_CERT_OUT", dir.join("dev-cert.pem"))
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "the demo reports its desync: {out:?}"
+    );
+    let files: Vec<PathBuf> = std::fs::read_dir(dir.join("replays"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let find = |ext: &str| {
+        files
+            .iter()
+            .find(|p| p.extension().is_some_and(|e| e == ext))
+            .unwrap_or_else(|| panic!("no .{ext} in {files:?}"))
+            .to_str()
+            .unwrap()
+            .to_owned()
+    };
+    let (replay, bundle) = (find("replay"), find("bundle"));
+    let demo_bodies = body_count("scenes/demo.toml");
+
+    let b = Browser::start(&chromium, &driver, &dir.join("chromium"));
+    let v = view(&[&replay]);
+    b.open(&v.url);
+    let s = b.wait_ready();
+    assert_eq!(s["kind"], "replay");
+    assert!(s["frames"].as_u64().unwrap() > 60, "{s}");
+    check_drawn(&b, &s, demo_bodies);
+    let player = b
+        .run("return window.lockstepViewer.bodyIndex('player0')")
+        .as_i64()
+        .unwrap();
+    let mover = if player >= 0 {
+        player
+    } else {
+        // Any body that moves between the two frames.
+        b.run(
+            "const v = window.lockstepViewer; v.setFrame(0); const a = []; \
+             for (let i = 0; i < v.status().bodies; i++) a.push(v.pose(i)); v.setFrame(60); \
+             for (let i = 0; i < a.length; i++) if (v.pose(i).some((x, k) => x !== a[i][k])) return i; \
+             return -1",
+        )
+        .as_i64()
+        .unwrap()
+    };
+    assert!(mover >= 0, "nothing moves in the replay");
+    check_slider_moves(&b, &v, mover, 0, 60);
+
+    let v = view(&[&bundle]);
+    b.open(&v.url);
+    let s = b.wait_ready();
+    assert_eq!(s["kind"], "bundle");
+    let diverging = s["diverging"].as_array().unwrap();
+    assert!(
+        !diverging.is_empty(),
+        "the bundle's diverging bodies are lit: {s}"
+    );
+    assert_eq!(
+        s["frame"].as_u64().unwrap() + 1,
+        s["frames"].as_u64().unwrap()
+    );
+    check_drawn(&b, &s, demo_bodies);
+    let panel = b.run("return document.getElementById('desync').textContent");
+    assert!(
+        panel.as_str().unwrap().contains("first differing field"),
+        "{panel}"
+    );
+    b.screenshot("bundle");
+}

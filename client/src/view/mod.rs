@@ -1,0 +1,878 @@
+//! The viewer's data: a scene, a replay or a desync bundle turned into what
+//! a browser draws (each body's geometry once, then every tick's poses and
+//! contacts), served by [`http`] with the page embedded in the binary.
+//!
+//! Everything here runs after the simulation: the world is stepped exactly
+//! as `lockstep sim` or `lockstep replay` step it, and only its results are
+//! converted to `f32` for drawing. The exact state of a body (the decimal
+//! strings of `--dump-state`) is kept per tick and served on request.
+//! The wire format is documented in docs/viewer.md.
+
+pub mod http;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use lockstep_core::math::{Scalar, Transform};
+use lockstep_core::shape::Shape;
+use lockstep_core::{BodyHandle, World};
+use lockstep_proto::{FieldKind, Replay};
+use serde::Serialize;
+
+use crate::game::RulesFactory;
+use crate::offline::{apply_bundle, check_header, is_bundle};
+
+/// What a view was built from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ViewKind {
+    /// A scene file, stepped with no inputs.
+    Scene,
+    /// A recorded match, re-simulated with its inputs.
+    Replay,
+    /// A desync bundle: the match up to the desync, and the diverging
+    /// player's values at the desync tick.
+    Bundle,
+}
+
+/// Why a file could not be viewed.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewError {
+    /// The file could not be read.
+    #[error("reading {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// Not a scene (TOML), a replay or a bundle.
+    #[error("{0}")]
+    Format(String),
+    /// The replay's rules, scene or snapshot did not check out.
+    #[error("{0}")]
+    Replay(String),
+    /// The simulation raised a fault.
+    #[error("tick {tick}: the simulation reported {faults}")]
+    Fault {
+        /// The tick.
+        tick: u64,
+        /// What it reported.
+        faults: String,
+    },
+}
+
+/// A collider's geometry in its body's frame, for drawing.
+#[derive(Clone, Debug, Serialize)]
+#[serde(tag = "type", rename_all = "lowercase")]
+pub enum Geometry {
+    /// A ball.
+    Sphere {
+        /// Radius.
+        radius: f32,
+    },
+    /// A capsule along local y.
+    Capsule {
+        /// Half the segment's length.
+        half_height: f32,
+        /// Radius.
+        radius: f32,
+    },
+    /// A box.
+    Box {
+        /// Half-extents.
+        half_extents: [f32; 3],
+    },
+    /// Triangles (hulls, meshes and height fields).
+    Mesh {
+        /// Vertices.
+        vertices: Vec<[f32; 3]>,
+        /// Counter-clockwise triangles.
+        indices: Vec<[u32; 3]>,
+    },
+}
+
+/// One collider of a body.
+#[derive(Clone, Debug, Serialize)]
+pub struct ColliderView {
+    /// The shape kind's name ("box", "convex_hull", ...).
+    pub shape: &'static str,
+    /// Whether it is a trigger (drawn translucent).
+    pub trigger: bool,
+    /// Pose in the body frame: position, then quaternion x, y, z, w.
+    pub local: [f32; 7],
+    /// The geometry.
+    pub geometry: Geometry,
+}
+
+/// A body as the page lists it.
+#[derive(Clone, Debug, Serialize)]
+pub struct BodyView {
+    /// Handle index.
+    pub handle: u32,
+    /// Handle generation.
+    pub generation: u32,
+    /// The scene's name for it.
+    pub name: String,
+    /// "static", "dynamic" or "kinematic".
+    pub kind: &'static str,
+    /// Its colliders.
+    pub colliders: Vec<ColliderView>,
+}
+
+/// A body's exact state at one tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExactState {
+    /// Body origin.
+    pub position: [Scalar; 3],
+    /// Rotation x, y, z, w.
+    pub rotation: [Scalar; 4],
+    /// Linear velocity of the centre of mass.
+    pub linear_velocity: [Scalar; 3],
+    /// Angular velocity.
+    pub angular_velocity: [Scalar; 3],
+    /// Whether it sleeps.
+    pub asleep: bool,
+}
+
+/// A contact point for the overlay: the point and the normal (A to B).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactMark {
+    /// World point.
+    pub point: [f32; 3],
+    /// Unit normal.
+    pub normal: [f32; 3],
+}
+
+/// One field that differs between the majority and a diverging player.
+#[derive(Clone, Debug, Serialize)]
+pub struct FieldView {
+    /// The engine's name for the field.
+    pub name: String,
+    /// The majority's value, as exact decimals.
+    pub expected: Vec<String>,
+    /// The diverging player's value.
+    pub got: Vec<String>,
+}
+
+/// A body the room found diverging.
+#[derive(Clone, Debug, Serialize)]
+pub struct DivergingBody {
+    /// Its position in [`ViewData::bodies`].
+    pub body: usize,
+    /// Its name.
+    pub name: String,
+    /// The differing fields, first first.
+    pub fields: Vec<FieldView>,
+    /// The diverging player's pose of the body, where its fields say
+    /// (position, quaternion x, y, z, w); the majority's otherwise.
+    pub minority_pose: [f32; 7],
+}
+
+/// A diverging player.
+#[derive(Clone, Debug, Serialize)]
+pub struct SuspectView {
+    /// Its slot.
+    pub slot: u8,
+    /// How many bodies differ (listed or not).
+    pub bodies_differing: u32,
+    /// Whether its contact state differs too.
+    pub contacts_differ: bool,
+    /// The listed bodies.
+    pub bodies: Vec<DivergingBody>,
+}
+
+/// What a bundle says about its desync.
+#[derive(Clone, Debug, Serialize)]
+pub struct DesyncView {
+    /// The desync tick.
+    pub tick: u64,
+    /// Its frame.
+    pub frame: usize,
+    /// The reference slot.
+    pub reference: u8,
+    /// Whether the reference held the majority hash.
+    pub majority: bool,
+    /// The diverging players.
+    pub suspects: Vec<SuspectView>,
+}
+
+/// Everything the viewer serves for one file.
+#[derive(Clone, Debug)]
+pub struct ViewData {
+    /// What it was built from.
+    pub kind: ViewKind,
+    /// A title (the file name).
+    pub title: String,
+    /// The scene's tick rate, Hz.
+    pub tick_rate: u32,
+    /// Every body seen, in the order first seen (handle order per tick).
+    pub bodies: Vec<BodyView>,
+    /// Tick of each frame: for a scene, the world's tick (as `lockstep sim`
+    /// prints it); for a replay, the match tick whose inputs and step made
+    /// the frame (as the room and `lockstep replay` name it).
+    pub ticks: Vec<u64>,
+    /// Per frame, per body: its exact state, or None where absent.
+    pub states: Vec<Vec<Option<ExactState>>>,
+    /// Per frame: the touching contact points.
+    pub contacts: Vec<Vec<ContactMark>>,
+    /// For a bundle: the desync.
+    pub desync: Option<DesyncView>,
+}
+
+/// Builds the view of `path`: a replay or bundle when it parses as one
+/// (re-simulated with `game`'s rules), a scene file otherwise (stepped for
+/// `scene_ticks` ticks).
+///
+/// # Errors
+/// [`ViewError`].
+pub fn load_view(
+    path: &Path,
+    game: &dyn RulesFactory,
+    scene_ticks: u64,
+) -> Result<ViewData, ViewError> {
+    let bytes = std::fs::read(path).map_err(|source| ViewError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    let title = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    match Replay::parse(&bytes) {
+        Ok(replay) => view_replay(&replay, game, title),
+        Err(replay_err) => {
+            let text = std::str::from_utf8(&bytes).map_err(|_| {
+                ViewError::Format(format!(
+                    "{}: neither a scene file (not UTF-8 text) nor a replay ({replay_err})",
+                    path.display()
+                ))
+            })?;
+            let world = lockstep_core::scene::load_world(text, &path.display().to_string())
+                .map_err(|e| ViewError::Format(e.to_string()))?;
+            view_scene(world, scene_ticks, title)
+        }
+    }
+}
+
+/// Steps a scene world `ticks` times with no inputs and records it.
+///
+/// # Errors
+/// [`ViewError::Fault`] if a step reports a fault.
+pub fn view_scene(mut world: World, ticks: u64, title: String) -> Result<ViewData, ViewError> {
+    let mut rec = Recorder::new(ViewKind::Scene, title, &world);
+    rec.record(&world, 0);
+    for _ in 0..ticks {
+        let report = world.step();
+        if !report.faults.is_empty() {
+            return Err(ViewError::Fault {
+                tick: report.tick,
+                faults: format!("{:?}", report.faults),
+            });
+        }
+        rec.record(&world, report.tick);
+    }
+    Ok(rec.finish())
+}
+
+/// Re-simulates a replay or a bundle with `game`'s rules and records it.
+///
+/// # Errors
+/// [`ViewError::Replay`] when the rules, the scene or the hash layout do
+/// not match.
+pub fn view_replay(
+    replay: &Replay,
+    game: &dyn RulesFactory,
+    title: String,
+) -> Result<ViewData, ViewError> {
+    check_header(replay, game).map_err(|e| ViewError::Replay(e.to_string()))?;
+    let text = std::str::from_utf8(&replay.header.scene)
+        .map_err(|e| ViewError::Replay(format!("the recorded scene is not UTF-8: {e}")))?;
+    let mut world = lockstep_core::scene::load_world(text, "recorded scene")
+        .map_err(|e| ViewError::Replay(e.to_string()))?;
+    let mut rules = game
+        .new_rules(&world)
+        .map_err(|e| ViewError::Replay(e.to_string()))?;
+    let bundle = is_bundle(replay);
+    let kind = if bundle {
+        ViewKind::Bundle
+    } else {
+        ViewKind::Replay
+    };
+    let located = if bundle {
+        replay.located.last().cloned()
+    } else {
+        None
+    };
+    let end = located.as_ref().map_or(replay.ticks.len(), |d| {
+        (d.tick as usize + 1).min(replay.ticks.len())
+    });
+    // One frame per match tick, after its inputs and step: the state whose
+    // hash the room compared for that tick, labelled as the room labels it.
+    let mut rec = Recorder::new(kind, title, &world);
+    for t in &replay.ticks[..end] {
+        apply_bundle(&mut world, &mut *rules, t);
+        rec.record(&world, t.tick);
+    }
+    if end == 0 {
+        // A match that ended before its first tick: the scene as it starts.
+        rec.record(&world, 0);
+    }
+    let mut data = rec.finish();
+    if let Some(report) = located {
+        data.desync = Some(desync_view(&data, &world, &report));
+    }
+    Ok(data)
+}
+
+fn desync_view(
+    data: &ViewData,
+    world: &World,
+    report: &lockstep_proto::DesyncReport,
+) -> DesyncView {
+    let frame = data.ticks.len().saturating_sub(1);
+    let slot_of = |h: u32, g: u32| {
+        data.bodies
+            .iter()
+            .position(|b| b.handle == h && b.generation == g)
+    };
+    let suspects = report
+        .suspects
+        .iter()
+        .map(|s| SuspectView {
+            slot: s.slot.0,
+            bodies_differing: s.bodies_differing,
+            contacts_differ: s.contacts_differ,
+            bodies: s
+                .bodies
+                .iter()
+                .filter_map(|b| {
+                    let body = slot_of(b.handle, b.generation)?;
+                    let state = data.states[frame][body]?;
+                    let handle = world
+                        .body_handles()
+                        .find(|h| h.index() == b.handle && h.generation() == b.generation);
+                    let center = handle
+                        .and_then(|h| world.body(h).ok())
+                        .map(|r| r.center_of_mass());
+                    Some(DivergingBody {
+                        body,
+                        name: b.name.clone(),
+                        fields: b
+                            .fields
+                            .iter()
+                            .map(|f| FieldView {
+                                name: f.name.clone(),
+                                expected: words(f.kind, &f.expected),
+                                got: words(f.kind, &f.got),
+                            })
+                            .collect(),
+                        minority_pose: minority_pose(&state, center, &b.fields),
+                    })
+                })
+                .collect(),
+        })
+        .collect();
+    DesyncView {
+        tick: report.tick,
+        frame,
+        reference: report.reference.0,
+        majority: report.majority,
+        suspects,
+    }
+}
+
+fn words(kind: FieldKind, w: &[u64]) -> Vec<String> {
+    w.iter()
+        .map(|&x| match kind {
+            FieldKind::Word => x.to_string(),
+            FieldKind::Int => (x as i64).to_string(),
+            FieldKind::Scalar => Scalar::from_bits(x as i64).to_string(),
+        })
+        .collect()
+}
+
+fn f(v: Scalar) -> f32 {
+    v.to_f64() as f32
+}
+
+fn q_rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
+    // v + 2w (u × v) + 2 u × (u × v), u = (x, y, z).
+    let (u, w) = ([q[0], q[1], q[2]], q[3]);
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let t = cross(u, v);
+    let t2 = cross(u, t);
+    [0, 1, 2].map(|k| v[k] + 2.0 * w * t[k] + 2.0 * t2[k])
+}
+
+/// The diverging player's pose of a body: its centre of mass and rotation
+/// where its fields differ, the majority's otherwise; the origin follows
+/// from the centre and the body-frame offset between them. For drawing only.
+fn minority_pose(
+    state: &ExactState,
+    center: Option<lockstep_core::math::Vec3>,
+    fields: &[lockstep_proto::FieldDiff],
+) -> [f32; 7] {
+    let p = state.position.map(|s| s.to_f64());
+    let q = state.rotation.map(|s| s.to_f64());
+    let c = center.map_or(p, |c| [c.x, c.y, c.z].map(|s| s.to_f64()));
+    let scalars = |name: &str, n: usize| {
+        fields
+            .iter()
+            .find(|f| f.name == name && f.got.len() == n)
+            .map(|f| {
+                f.got
+                    .iter()
+                    .map(|&w| Scalar::from_bits(w as i64).to_f64())
+                    .collect::<Vec<_>>()
+            })
+    };
+    let c_min = scalars("center_of_mass", 3).map_or(c, |v| [v[0], v[1], v[2]]);
+    let q_min = scalars("rotation (x, y, z, w)", 4).map_or(q, |v| [v[0], v[1], v[2], v[3]]);
+    // Offset from origin to centre in the body frame (rotate by q⁻¹).
+    let d = [c[0] - p[0], c[1] - p[1], c[2] - p[2]];
+    let local = q_rotate([-q[0], -q[1], -q[2], q[3]], d);
+    let off = q_rotate(q_min, local);
+    [
+        (c_min[0] - off[0]) as f32,
+        (c_min[1] - off[1]) as f32,
+        (c_min[2] - off[2]) as f32,
+        q_min[0] as f32,
+        q_min[1] as f32,
+        q_min[2] as f32,
+        q_min[3] as f32,
+    ]
+}
+
+fn transform7(t: &Transform) -> [f32; 7] {
+    let (p, q) = (t.translation, t.rotation);
+    [f(p.x), f(p.y), f(p.z), f(q.x), f(q.y), f(q.z), f(q.w)]
+}
+
+fn v3(v: lockstep_core::math::Vec3) -> [f32; 3] {
+    [f(v.x), f(v.y), f(v.z)]
+}
+
+fn geometry(shape: &Shape) -> Geometry {
+    match shape {
+        Shape::Sphere(s) => Geometry::Sphere {
+            radius: f(s.radius),
+        },
+        Shape::Capsule(c) => Geometry::Capsule {
+            half_height: f(c.half_height),
+            radius: f(c.radius),
+        },
+        Shape::Cuboid(b) => Geometry::Box {
+            half_extents: v3(b.half_extents),
+        },
+        Shape::ConvexHull(h) => {
+            let mut indices = Vec::new();
+            for face in 0..h.faces().len() {
+                let vs = h.face_vertices(face);
+                for k in 1..vs.len().saturating_sub(1) {
+                    indices.push([vs[0], vs[k], vs[k + 1]]);
+                }
+            }
+            Geometry::Mesh {
+                vertices: h.vertices().iter().map(|&v| v3(v)).collect(),
+                indices,
+            }
+        }
+        Shape::TriMesh(m) => Geometry::Mesh {
+            vertices: m.vertices().iter().map(|&v| v3(v)).collect(),
+            indices: m.indices().to_vec(),
+        },
+        Shape::HeightField(h) => {
+            let (rows, cols) = (h.rows(), h.cols());
+            let mut vertices = Vec::with_capacity(rows as usize * cols as usize);
+            for r in 0..rows {
+                for c in 0..cols {
+                    vertices.push(h.vertex(r, c).map_or([0.0; 3], v3));
+                }
+            }
+            // The cells' split as `HeightField::cell_triangles` documents it.
+            let at = |r: u32, c: u32| r * cols + c;
+            let mut indices = Vec::new();
+            for r in 0..rows.saturating_sub(1) {
+                for c in 0..cols.saturating_sub(1) {
+                    let (a, b, cc, d) = (at(r, c), at(r, c + 1), at(r + 1, c), at(r + 1, c + 1));
+                    indices.push([a, d, b]);
+                    indices.push([a, cc, d]);
+                }
+            }
+            Geometry::Mesh { vertices, indices }
+        }
+    }
+}
+
+struct Recorder {
+    data: ViewData,
+    slots: BTreeMap<(u32, u32), usize>,
+}
+
+impl Recorder {
+    fn new(kind: ViewKind, title: String, world: &World) -> Recorder {
+        Recorder {
+            data: ViewData {
+                kind,
+                title,
+                tick_rate: world.config().tick_rate,
+                bodies: Vec::new(),
+                ticks: Vec::new(),
+                states: Vec::new(),
+                contacts: Vec::new(),
+                desync: None,
+            },
+            slots: BTreeMap::new(),
+        }
+    }
+
+    fn slot(&mut self, world: &World, h: BodyHandle) -> Option<usize> {
+        let key = (h.index(), h.generation());
+        if let Some(&s) = self.slots.get(&key) {
+            return Some(s);
+        }
+        let b = world.body(h).ok()?;
+        let colliders = b
+            .colliders()
+            .iter()
+            .filter_map(|&c| world.collider(c).ok())
+            .map(|c| ColliderView {
+                shape: c.shape.kind().name(),
+                trigger: c.is_trigger,
+                local: transform7(&c.local_pose),
+                geometry: geometry(&c.shape),
+            })
+            .collect();
+        self.data.bodies.push(BodyView {
+            handle: h.index(),
+            generation: h.generation(),
+            name: b.name().to_owned(),
+            kind: b.kind().name(),
+            colliders,
+        });
+        let s = self.data.bodies.len() - 1;
+        self.slots.insert(key, s);
+        Some(s)
+    }
+
+    fn record(&mut self, world: &World, tick: u64) {
+        let handles: Vec<BodyHandle> = world.body_handles().collect();
+        let mut frame = vec![None; self.data.bodies.len()];
+        for h in handles {
+            let Some(s) = self.slot(world, h) else {
+                continue;
+            };
+            if frame.len() <= s {
+                frame.resize(s + 1, None);
+            }
+            let Ok(b) = world.body(h) else { continue };
+            let (p, q, v, w) = (
+                b.position(),
+                b.rotation(),
+                b.linear_velocity(),
+                b.angular_velocity(),
+            );
+            frame[s] = Some(ExactState {
+                position: [p.x, p.y, p.z],
+                rotation: [q.x, q.y, q.z, q.w],
+                linear_velocity: [v.x, v.y, v.z],
+                angular_velocity: [w.x, w.y, w.z],
+                asleep: b.is_sleeping(),
+            });
+        }
+        let contacts = world
+            .contact_pairs()
+            .iter()
+            .filter(|p| p.touching)
+            .flat_map(|p| {
+                let n = v3(p.manifold.normal);
+                p.manifold.points().iter().map(move |c| ContactMark {
+                    point: v3(c.point),
+                    normal: n,
+                })
+            })
+            .collect();
+        self.data.ticks.push(tick);
+        self.data.states.push(frame);
+        self.data.contacts.push(contacts);
+    }
+
+    fn finish(mut self) -> ViewData {
+        let n = self.data.bodies.len();
+        for f in &mut self.data.states {
+            f.resize(n, None);
+        }
+        self.data
+    }
+}
+
+/// The `/frames` body: every frame's poses and contacts, little-endian
+/// (docs/viewer.md): "LSVF", version 1, frame count, body count (u32
+/// each); per frame the tick (u64), per body a flags byte (1 present, 2
+/// asleep) and position and quaternion x, y, z, w (7 × f32), then the
+/// contact count (u32) and per contact point and normal (6 × f32).
+pub fn encode_frames(data: &ViewData) -> Vec<u8> {
+    let nb = data.bodies.len();
+    let mut out = Vec::with_capacity(16 + data.ticks.len() * (8 + nb * 29 + 4));
+    out.extend_from_slice(b"LSVF");
+    out.extend_from_slice(&1u32.to_le_bytes());
+    out.extend_from_slice(&(data.ticks.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(nb as u32).to_le_bytes());
+    for (i, &tick) in data.ticks.iter().enumerate() {
+        out.extend_from_slice(&tick.to_le_bytes());
+        for s in &data.states[i] {
+            let (flags, vals) = match s {
+                Some(s) => (
+                    1u8 | if s.asleep { 2 } else { 0 },
+                    [
+                        f(s.position[0]),
+                        f(s.position[1]),
+                        f(s.position[2]),
+                        f(s.rotation[0]),
+                        f(s.rotation[1]),
+                        f(s.rotation[2]),
+                        f(s.rotation[3]),
+                    ],
+                ),
+                None => (0, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]),
+            };
+            out.push(flags);
+            for v in vals {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        out.extend_from_slice(&(data.contacts[i].len() as u32).to_le_bytes());
+        for c in &data.contacts[i] {
+            for v in c.point.iter().chain(&c.normal) {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    out
+}
+
+/// The `/world` JSON: kind, title, tick rate, frame count, bodies with
+/// their geometry, and the desync of a bundle.
+pub fn world_json(data: &ViewData) -> String {
+    #[derive(Serialize)]
+    struct World<'a> {
+        kind: ViewKind,
+        title: &'a str,
+        tick_rate: u32,
+        frames: usize,
+        first_tick: u64,
+        bodies: &'a [BodyView],
+        desync: &'a Option<DesyncView>,
+    }
+    serde_json::to_string(&World {
+        kind: data.kind,
+        title: &data.title,
+        tick_rate: data.tick_rate,
+        frames: data.ticks.len(),
+        first_tick: data.ticks.first().copied().unwrap_or(0),
+        bodies: &data.bodies,
+        desync: &data.desync,
+    })
+    .unwrap_or_else(|_| "{}".into())
+}
+
+/// The `/state` JSON: a body's exact state at a frame, as the decimal
+/// strings of `--dump-state`, or None for a frame or body out of range.
+pub fn state_json(data: &ViewData, frame: usize, body: usize) -> Option<String> {
+    let s = (*data.states.get(frame)?.get(body)?)?;
+    let b = data.bodies.get(body)?;
+    let d = |v: &[Scalar]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    let v = serde_json::json!({
+        "frame": frame,
+        "tick": data.ticks[frame],
+        "handle": format!("{}:{}", b.handle, b.generation),
+        "name": b.name,
+        "kind": b.kind,
+        "position": d(&s.position),
+        "rotation (x, y, z, w)": d(&s.rotation),
+        "linear_velocity": d(&s.linear_velocity),
+        "angular_velocity": d(&s.angular_velocity),
+        "asleep": s.asleep,
+    });
+    Some(v.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shapes() -> ViewData {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
+        load_view(&path, &crate::game::Demo, 30).unwrap()
+    }
+
+    #[test]
+    fn a_scene_gives_one_frame_per_tick_with_every_body_and_shape() {
+        let v = shapes();
+        assert_eq!(v.kind, ViewKind::Scene);
+        assert_eq!(v.ticks, (0..=30).collect::<Vec<_>>());
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
+        let world = crate::offline::load_scene_file(&path).unwrap();
+        assert_eq!(v.bodies.len(), world.body_handles().count());
+        let mut kinds: Vec<&str> = v
+            .bodies
+            .iter()
+            .flat_map(|b| b.colliders.iter().map(|c| c.shape))
+            .collect();
+        kinds.sort_unstable();
+        kinds.dedup();
+        assert_eq!(
+            kinds,
+            [
+                "box",
+                "capsule",
+                "convex_hull",
+                "heightfield",
+                "sphere",
+                "trimesh"
+            ]
+        );
+        // Every mesh index points at a vertex.
+        for c in v.bodies.iter().flat_map(|b| &b.colliders) {
+            if let Geometry::Mesh { vertices, indices } = &c.geometry {
+                assert!(!indices.is_empty());
+                assert!(
+                    indices
+                        .iter()
+                        .flatten()
+                        .all(|&i| (i as usize) < vertices.len())
+                );
+            }
+        }
+        assert!(
+            v.states
+                .iter()
+                .all(|f| f.len() == v.bodies.len() && f.iter().all(Option::is_some))
+        );
+        assert!(
+            v.contacts.last().is_some_and(|c| !c.is_empty()),
+            "things rest on the floor"
+        );
+    }
+
+    #[test]
+    fn the_exact_state_is_the_dump_of_that_tick() {
+        let v = shapes();
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
+        let mut world = crate::offline::load_scene_file(&path).unwrap();
+        for _ in 0..30 {
+            world.step();
+        }
+        let dump = crate::offline::dump_state(&world);
+        for (i, b) in dump.bodies.iter().enumerate() {
+            let s: serde_json::Value =
+                serde_json::from_str(&state_json(&v, 30, i).unwrap()).unwrap();
+            assert_eq!(s["handle"], b.handle.as_str());
+            assert_eq!(s["position"], serde_json::json!(b.position));
+            let [w, x, y, z] = b.rotation.clone();
+            assert_eq!(s["rotation (x, y, z, w)"], serde_json::json!([x, y, z, w]));
+            assert_eq!(s["linear_velocity"], serde_json::json!(b.linear_velocity));
+            assert_eq!(s["asleep"], b.asleep);
+        }
+        assert!(state_json(&v, 31, 0).is_none());
+        assert!(state_json(&v, 0, v.bodies.len()).is_none());
+    }
+
+    #[test]
+    fn the_frame_stream_has_its_documented_layout() {
+        let v = shapes();
+        let bytes = encode_frames(&v);
+        assert_eq!(&bytes[..4], b"LSVF");
+        let word = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+        assert_eq!(word(4), 1);
+        assert_eq!(word(8) as usize, v.ticks.len());
+        assert_eq!(word(12) as usize, v.bodies.len());
+        // Walk every frame as the page does.
+        let mut o = 16;
+        for (i, &tick) in v.ticks.iter().enumerate() {
+            assert_eq!(
+                u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap()),
+                tick
+            );
+            o += 8;
+            for (b, s) in v.states[i].iter().enumerate() {
+                let s = s.unwrap();
+                assert_eq!(bytes[o] & 1, 1, "present");
+                assert_eq!(bytes[o] & 2 != 0, s.asleep);
+                let x = f32::from_le_bytes(bytes[o + 1..o + 5].try_into().unwrap());
+                assert_eq!(x, s.position[0].to_f64() as f32, "body {b}");
+                o += 29;
+            }
+            let n = word(o) as usize;
+            assert_eq!(n, v.contacts[i].len());
+            o += 4 + n * 24;
+        }
+        assert_eq!(o, bytes.len());
+    }
+
+    #[test]
+    fn a_file_that_is_neither_is_a_clear_error() {
+        let dir = std::env::temp_dir().join(format!("lockstep-view-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let bad = dir.join("bad.toml");
+        std::fs::write(&bad, "[[body]]\nshape = 3\n").unwrap();
+        let e = load_view(&bad, &crate::game::Demo, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("bad.toml"), "{e}");
+        let bin = dir.join("junk.replay");
+        std::fs::write(&bin, [0xff, 0xfe, 0x00, 0x01]).unwrap();
+        let e = load_view(&bin, &crate::game::Demo, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("neither a scene file"), "{e}");
+        let e = load_view(&dir.join("missing"), &crate::game::Demo, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("reading "), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_minority_pose_follows_its_centre_and_rotation() {
+        let s = Scalar::from_f64_lossy;
+        let state = ExactState {
+            position: [s(1.0), s(2.0), s(3.0)],
+            rotation: [s(0.0), s(0.0), s(0.0), s(1.0)],
+            linear_velocity: [Scalar::ZERO; 3],
+            angular_velocity: [Scalar::ZERO; 3],
+            asleep: false,
+        };
+        // Centre 0.5 m along x from the origin; the diverging player has the
+        // centre 1 m higher and the body turned 180° about y.
+        let centre = lockstep_core::math::Vec3::new(s(1.5), s(2.0), s(3.0));
+        let bits = |v: f64| s(v).to_bits() as u64;
+        let fields = vec![
+            lockstep_proto::FieldDiff {
+                name: "center_of_mass".into(),
+                kind: FieldKind::Scalar,
+                expected: vec![bits(1.5), bits(2.0), bits(3.0)],
+                got: vec![bits(1.5), bits(3.0), bits(3.0)],
+            },
+            lockstep_proto::FieldDiff {
+                name: "rotation (x, y, z, w)".into(),
+                kind: FieldKind::Scalar,
+                expected: vec![0, 0, 0, bits(1.0)],
+                got: vec![0, bits(1.0), 0, 0],
+            },
+        ];
+        let p = minority_pose(&state, Some(centre), &fields);
+        assert_eq!(p, [2.0, 3.0, 3.0, 0.0, 1.0, 0.0, 0.0]);
+        assert_eq!(
+            minority_pose(&state, Some(centre), &[]),
+            [1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 1.0]
+        );
+    }
+}
