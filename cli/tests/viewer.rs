@@ -535,3 +535,120 @@ fn the_viewer_plays_a_replay_and_shows_a_bundles_diverging_bodies() {
     );
     b.screenshot("bundle");
 }
+
+fn metric(addr: SocketAddr, name: &str) -> Option<u64> {
+    let (_, body) = http(addr, "GET", "/metrics", None);
+    String::from_utf8_lossy(&body)
+        .lines()
+        .find_map(|l| l.strip_prefix(&format!("{name} "))?.trim().parse().ok())
+}
+
+#[test]
+fn the_viewer_follows_a_live_room_that_pays_nothing_until_watched() {
+    let Some((chromium, driver)) = browser() else {
+        return;
+    };
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("viewer-live");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (view_port, metrics_port) = (free_port(), free_port());
+    let server = Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
+        .args(["--demo", "--duration", "10", "--bots", "3"])
+        .args(["--view", &format!("127.0.0.1:{view_port}")])
+        .args(["--metrics", &format!("127.0.0.1:{metrics_port}")])
+        .env("LOCKSTEP_REPLAY_DIR", dir.join("replays"))
+        .env("LOCKSTEP_CERT_OUT", dir.join("dev-cert.pem"))
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut server = Guard(server);
+    let live: SocketAddr = format!("127.0.0.1:{view_port}").parse().unwrap();
+    let metrics: SocketAddr = format!("127.0.0.1:{metrics_port}").parse().unwrap();
+    // Wait for the room to play a second with nobody watching.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        if TcpStream::connect(live).is_ok() {
+            let (_, body) = http(live, "GET", "/world", None);
+            let w: Value = serde_json::from_slice(&body).unwrap();
+            if w["rooms"][0]["ticks"].as_u64().is_some_and(|t| t >= 60) {
+                assert_eq!(w["kind"], "rooms");
+                assert_eq!(w["rooms"][0]["name"], "demo");
+                break;
+            }
+        }
+        assert!(Instant::now() < deadline, "the demo room did not start");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(
+        metric(metrics, "lockstep_view_ticks_simulated_total"),
+        Some(0),
+        "nothing is re-simulated while nobody watches"
+    );
+    // Spectators only read.
+    for method in ["POST", "PUT", "DELETE"] {
+        assert_eq!(http(live, method, "/frames?room=demo", None).0, 405);
+    }
+
+    let b = Browser::start(&chromium, &driver, &dir.join("chromium"));
+    b.open(&format!("http://{live}/?room=demo"));
+    let s = b.wait_ready();
+    assert_eq!(s["kind"], "live");
+    assert_eq!(s["live"], true);
+    assert_eq!(s["following"], true);
+    check_drawn(&b, &s, body_count("scenes/demo.toml"));
+    let first = s["tick"].as_u64().unwrap();
+    std::thread::sleep(Duration::from_secs(1));
+    let later = b.status();
+    assert!(
+        later["tick"].as_u64().unwrap() >= first + 30,
+        "the page follows the match: {first} then {later}"
+    );
+    assert!(metric(metrics, "lockstep_view_ticks_simulated_total").unwrap() >= first);
+    // The exact state a spectator sees, to compare with the replay's.
+    let tick = later["tick"].as_u64().unwrap();
+    let player = b
+        .run("return window.lockstepViewer.bodyIndex('player0')")
+        .as_i64()
+        .unwrap();
+    let (status, live_state) = http(
+        live,
+        "GET",
+        &format!("/state?room=demo&tick={tick}&body={player}"),
+        None,
+    );
+    assert_eq!(status, 200);
+    let live_state: Value = serde_json::from_slice(&live_state).unwrap();
+    b.screenshot("live");
+    drop(b);
+    // The watched match ends as an unwatched one does: the bots agree on
+    // every tick and the replay verifies (the demo's exit status says so).
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let status = loop {
+        if let Some(s) = server.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "the demo did not end");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(status.success(), "{status:?}");
+    // What the spectator saw is what the players simulated: the replay,
+    // re-simulated offline, has the same exact state at that tick.
+    let replay = std::fs::read_dir(dir.join("replays"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "replay"))
+        .unwrap();
+    let v = view(&[replay.to_str().unwrap()]);
+    let offline = exact_state(&v, tick as usize, player);
+    assert_eq!(offline["tick"], tick);
+    for field in [
+        "position",
+        "rotation (x, y, z, w)",
+        "linear_velocity",
+        "angular_velocity",
+    ] {
+        assert_eq!(offline[field], live_state[field], "{field} at tick {tick}");
+    }
+}

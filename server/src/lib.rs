@@ -31,6 +31,7 @@ mod conn;
 pub mod log;
 pub mod metrics;
 mod room;
+pub mod spectate;
 mod tls;
 
 use std::collections::HashMap;
@@ -108,6 +109,17 @@ impl Default for RoomSettings {
     }
 }
 
+/// The live viewer (`ServerConfig::view`).
+#[derive(Clone, Debug)]
+pub struct ViewSettings {
+    /// The viewer's HTTP address (TCP; port 0 picks one, see
+    /// [`ServerEvent::ViewListening`]).
+    pub listen: SocketAddr,
+    /// How rooms are re-simulated for viewers: the game's rules, as for
+    /// `verifier` (`lockstep_client::game::RulesVerifier`).
+    pub sim: Arc<dyn lockstep_proto::verify::VerifierFactory>,
+}
+
 /// Everything [`run`] needs.
 #[derive(Clone, Debug)]
 pub struct ServerConfig {
@@ -146,6 +158,8 @@ pub struct ServerConfig {
     /// Address of the Prometheus `/metrics`, `/healthz` and `/readyz`
     /// listener (TCP), if any (`--metrics`).
     pub metrics: Option<SocketAddr>,
+    /// Serve live rooms to the browser viewer (`--view`); see [`spectate`].
+    pub view: Option<ViewSettings>,
     /// Stop after the first match ends (one match per process, as game
     /// server fleets run them; `--exit-after-match`).
     pub exit_after_match: bool,
@@ -196,6 +210,7 @@ impl ServerConfig {
             require_tokens: false,
             verifier: None,
             metrics: None,
+            view: None,
             exit_after_match: false,
             realtime_clock: false,
             agones: None,
@@ -264,6 +279,11 @@ pub enum ServerEvent {
     Status(RoomStatus),
     /// The metrics listener is bound.
     MetricsListening {
+        /// Its address.
+        addr: SocketAddr,
+    },
+    /// The live viewer is bound (`--view`).
+    ViewListening {
         /// Its address.
         addr: SocketAddr,
     },
@@ -510,6 +530,8 @@ pub(crate) struct Shared {
     pub(crate) room_threads: Option<clock::RoomThreads>,
     /// Agones mode: whether and how the server is allocated.
     pub(crate) allocation: std::sync::RwLock<agones::AllocationState>,
+    /// The live viewer's rooms (`--view`).
+    pub(crate) spectate: Option<Arc<spectate::Spectate>>,
 }
 
 impl Shared {
@@ -633,6 +655,19 @@ pub async fn run(
     let room_threads =
         clock::RoomThreads::start(room_threads, priority).map_err(ServerError::Thread)?;
     let clock = clock::Clock::start(priority).map_err(ServerError::Thread)?;
+    let spectate = config
+        .view
+        .as_ref()
+        .map(|v| Arc::new(spectate::Spectate::new(v.sim.clone())));
+    let view_listener = match &config.view {
+        Some(v) => {
+            let l = std::net::TcpListener::bind(v.listen)
+                .map_err(|e| ServerError::Bind(v.listen, e))?;
+            let local = l.local_addr().map_err(|e| ServerError::Bind(v.listen, e))?;
+            Some((l, local))
+        }
+        None => None,
+    };
     let shared = Arc::new(Shared {
         config,
         scene_hash,
@@ -650,7 +685,17 @@ pub async fn run(
         } else {
             agones::AllocationState::Off
         }),
+        spectate,
     });
+    if let (Some((listener, local)), Some(spectate)) = (view_listener, &shared.spectate) {
+        crate::log!("viewer on http://{local}/ (live rooms, read-only)");
+        shared.emit(ServerEvent::ViewListening { addr: local });
+        let routes = Arc::new(spectate::LiveRoutes(spectate.clone()));
+        std::thread::Builder::new()
+            .name("lockstep-view".into())
+            .spawn(move || lockstep_view::http::serve(listener, routes))
+            .map_err(ServerError::Thread)?;
+    }
     let metrics_task = match shared.config.metrics {
         Some(a) => {
             let listener = metrics::bind(a)

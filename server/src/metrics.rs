@@ -87,8 +87,9 @@ impl Metrics {
         self.refusals[kind].fetch_add(1, Ordering::Relaxed);
     }
 
-    /// The Prometheus text exposition of every metric.
-    pub(crate) fn render(&self, rooms: usize) -> String {
+    /// The Prometheus text exposition of every metric; `view_ticks`: the
+    /// ticks re-simulated for the live viewer, when it is on.
+    pub(crate) fn render(&self, rooms: usize, view_ticks: Option<u64>) -> String {
         let mut o = String::new();
         let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
         let gauge = |o: &mut String, name: &str, help: &str, v: i64| {
@@ -169,6 +170,14 @@ impl Metrics {
                 let _ = writeln!(o, "{name} {v}");
             }
         }
+        if let Some(v) = view_ticks {
+            let name = "lockstep_view_ticks_simulated_total";
+            let _ = writeln!(
+                o,
+                "# HELP {name} Ticks re-simulated for live viewers (none while nobody watches).\n\
+                 # TYPE {name} counter\n{name} {v}"
+            );
+        }
         let name = "lockstep_tick_lateness_seconds";
         let _ = writeln!(
             o,
@@ -224,7 +233,11 @@ async fn answer(shared: &Shared, mut stream: tokio::net::TcpStream) -> std::io::
     let (status, body, kind) = match (method, path) {
         ("GET", "/metrics") => {
             let rooms = shared.rooms.lock().map_or(0, |r| r.len());
-            ("200 OK", m.render(rooms), "text/plain; version=0.0.4")
+            let view = shared
+                .spectate
+                .as_ref()
+                .map(|v| v.ticks_simulated.load(Ordering::Relaxed));
+            ("200 OK", m.render(rooms, view), "text/plain; version=0.0.4")
         }
         ("GET", "/healthz") => ("200 OK", "ok\n".into(), "text/plain"),
         ("GET", "/readyz") if m.ready.load(Ordering::Relaxed) && !*shared.shutdown.borrow() => {

@@ -219,7 +219,7 @@ fn view(file: &std::path::Path, listen: std::net::SocketAddr, ticks: u64) -> Exi
         data.ticks.last().copied().unwrap_or(0),
     );
     let _ = std::io::stdout().flush();
-    match lockstep_client::view::http::serve(listener, data) {
+    match lockstep_client::view::http::serve_data(listener, data) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("lockstep view: error: {e}");

@@ -243,6 +243,8 @@ struct RoomTask {
     /// Tick lateness samples in microseconds (the first 131,072 ticks).
     lateness_us: Vec<u32>,
     replay: Option<Replay>,
+    /// The viewer's feed of this room (`--view`): its closed bundles.
+    feed: Option<Arc<crate::spectate::RoomFeed>>,
     /// When the first player joined (the lobby timeout counts from it).
     first_join: Option<Duration>,
 }
@@ -311,6 +313,10 @@ impl RoomTask {
                 ""
             }
         );
+        let feed = shared.spectate.as_ref().map(|v| {
+            let c = room.config();
+            v.open(&name, &c.scene, c.scene_hash)
+        });
         let seats = (0..room.config().max_players).map(|_| None).collect();
         Self {
             shared,
@@ -334,6 +340,7 @@ impl RoomTask {
             counted: (0, 0, false),
             lateness_us: Vec::new(),
             replay,
+            feed,
             first_join: None,
         }
     }
@@ -387,6 +394,9 @@ impl RoomTask {
             self.pump();
         }
         self.finish();
+        if let (Some(v), Some(f)) = (&self.shared.spectate, &self.feed) {
+            v.close(f);
+        }
         // Stop taking joins: a join racing the end is refused by the
         // closed channel.
         rx.close();
@@ -942,6 +952,9 @@ impl RoomTask {
                     .metrics
                     .inputs_substituted
                     .fetch_add(substituted as u64, std::sync::atomic::Ordering::Relaxed);
+                if let Some(f) = &self.feed {
+                    f.push(&bundle);
+                }
                 if let Some(v) = self.verifier.as_mut() {
                     let started = Instant::now();
                     let hash = v.apply(&bundle);

@@ -121,6 +121,12 @@ struct Cli {
     /// address (e.g. 0.0.0.0:9100 in a container).
     #[arg(long, value_name = "ADDR", env = "LOCKSTEP_METRICS")]
     metrics: Option<SocketAddr>,
+    /// Serve the live rooms to the browser viewer on this TCP address (e.g.
+    /// 127.0.0.1:8080; open it in a browser). A room is re-simulated on the
+    /// server with the demo's rules only while someone watches; viewers
+    /// only read and cannot send input.
+    #[arg(long, value_name = "ADDR", env = "LOCKSTEP_VIEW")]
+    view: Option<SocketAddr>,
     /// Exit (status 0) once the first match has ended and its replay is
     /// flushed: one match per process.
     #[arg(long, env = "LOCKSTEP_EXIT_AFTER_MATCH")]
@@ -290,6 +296,12 @@ async fn main() -> ExitCode {
     config.require_tokens = cli.require_tokens;
     config.room.late_join = cli.late_join;
     config.metrics = cli.metrics;
+    config.view = cli.view.map(|listen| lockstep_server::ViewSettings {
+        listen,
+        sim: std::sync::Arc::new(lockstep_client::game::RulesVerifier {
+            game: std::sync::Arc::new(Demo),
+        }),
+    });
     config.exit_after_match = cli.exit_after_match;
     config.realtime_clock = cli.realtime_clock;
     if cli.agones {

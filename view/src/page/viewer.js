@@ -20,6 +20,7 @@ window.lockstepViewer = {
       tick: S.frames.length ? S.frames[S.frame].tick : null,
       bodies: S.nb, bodiesDrawn: S.bodiesDrawn, framesDrawn: S.framesDrawn,
       diverging: [...S.diverging.keys()], picked: S.picked,
+      live: S.live, following: S.follow, rooms: S.rooms || null,
     };
   },
   // Pixels that differ from the background in the last drawn frame.
@@ -389,6 +390,7 @@ function drawLabels(split) {
 
 // ---- UI --------------------------------------------------------------------
 function setFrame(i) {
+  if (!S.frames.length) return;
   S.frame = Math.max(0, Math.min(S.frames.length - 1, i | 0));
   $('slider').value = S.frame;
   $('tick').textContent = `tick ${S.frames[S.frame].tick} (${S.frame + 1}/${S.frames.length})`;
@@ -399,7 +401,8 @@ function setFrame(i) {
 async function showState() {
   if (S.picked < 0) return;
   const want = [S.frame, S.picked];
-  const r = await fetch(`/state?frame=${want[0]}&body=${want[1]}`);
+  const at = S.live ? `room=${encodeURIComponent(S.room)}&tick=${S.frames[want[0]].tick}` : `frame=${want[0]}`;
+  const r = await fetch(`/state?${at}&body=${want[1]}`);
   if (S.frame !== want[0] || S.picked !== want[1]) return;
   $('state').classList.remove('muted');
   $('state').textContent = r.ok ? JSON.stringify(await r.json(), null, 1) : 'not present at this tick';
@@ -466,8 +469,19 @@ function showDesync() {
 function bindInput() {
   const slider = $('slider');
   slider.max = S.frames.length - 1;
-  slider.addEventListener('input', () => setFrame(Number(slider.value)));
-  $('play').onclick = () => { S.playing = !S.playing; $('play').innerHTML = S.playing ? '&#10074;&#10074;' : '&#9654;'; };
+  slider.addEventListener('input', () => {
+    setFrame(Number(slider.value));
+    if (S.live) { S.follow = S.frame === S.frames.length - 1; $('play').innerHTML = S.follow ? '&#10074;&#10074;' : '&#9654;'; }
+  });
+  $('play').onclick = () => {
+    if (S.live) { // live: follow the newest frame, or hold still
+      S.follow = !S.follow;
+      if (S.follow) setFrame(S.frames.length - 1);
+      $('play').innerHTML = S.follow ? '&#10074;&#10074;' : '&#9654;';
+      return;
+    }
+    S.playing = !S.playing; $('play').innerHTML = S.playing ? '&#10074;&#10074;' : '&#9654;';
+  };
   $('back').onclick = () => setFrame(S.frame - 1);
   $('fwd').onclick = () => setFrame(S.frame + 1);
   $('speed').onchange = () => { S.speed = Number($('speed').value); };
@@ -547,13 +561,77 @@ function loop(t) {
   requestAnimationFrame(loop);
 }
 
+const MAX_LIVE_FRAMES = 3600;
+
+// The rooms of a live server, as links; refreshed every second.
+async function roomList() {
+  const w = await (await fetch('/world')).json();
+  S.rooms = w.rooms.map((r) => r.name);
+  $('title').textContent = 'live rooms';
+  $('summary').textContent = w.rooms.length ? `${w.rooms.length} room(s) open: pick one` : 'no room is open yet';
+  const list = $('bodies');
+  list.textContent = '';
+  for (const r of w.rooms) {
+    const a = document.createElement('div');
+    a.textContent = `${r.name} (${r.ticks} ticks)`;
+    a.onclick = () => { location.search = '?room=' + encodeURIComponent(r.name); };
+    list.appendChild(a);
+  }
+  setTimeout(roomList, 1000);
+}
+
+// A live room: new frames are polled for (the server answers when one is
+// closed, or after a second), appended, and followed while the slider is
+// at the newest frame.
+async function poll() {
+  try {
+    const last = S.frames[S.frames.length - 1];
+    const q = `room=${encodeURIComponent(S.room)}` + (last ? `&after=${last.tick}` : '');
+    const r = await fetch(`/frames?${q}`);
+    if (r.status === 404) { $('summary').textContent = `room ${S.room}: the match is over`; S.ended = true; return; }
+    if (!r.ok) throw new Error(await r.text());
+    const parsed = parseFrames(await r.arrayBuffer());
+    if (parsed.nb > S.nb) { // bodies were added: fetch their geometry
+      S.world = await (await fetch(`/world?room=${encodeURIComponent(S.room)}`)).json();
+      S.nb = parsed.nb; setupGL(); listBodies();
+    }
+    if (parsed.frames.length) {
+      const follow = S.follow || !S.frames.length;
+      S.frames.push(...parsed.frames);
+      const drop = Math.max(0, S.frames.length - MAX_LIVE_FRAMES);
+      if (drop) { S.frames.splice(0, drop); S.frame = Math.max(0, S.frame - drop); }
+      $('slider').max = S.frames.length - 1;
+      if (follow) setFrame(S.frames.length - 1); else setFrame(S.frame);
+      $('summary').textContent = `live room ${S.room}: ${S.nb} bodies, tick ${S.frames[S.frames.length - 1].tick} at ${S.world.tick_rate} Hz`;
+      if (!S.ready) { frameCamera(); render(); S.ready = true; requestAnimationFrame(loop); }
+    }
+  } catch (e) {
+    S.error = String(e && e.message || e);
+    $('summary').textContent = `error: ${S.error}`;
+    return;
+  }
+  setTimeout(poll, 0);
+}
+
 async function main() {
   try {
-    S.world = await (await fetch('/world')).json();
+    S.room = new URLSearchParams(location.search).get('room');
+    const q = S.room ? `?room=${encodeURIComponent(S.room)}` : '';
+    const wr = await fetch('/world' + q);
+    if (!wr.ok) throw new Error(await wr.text());
+    S.world = await wr.json();
+    if (S.world.kind === 'rooms') { roomList(); return; }
+    $('title').textContent = S.world.title;
+    if (S.world.kind === 'live') {
+      S.live = true; S.follow = true; S.nb = S.world.bodies.length;
+      setupGL(); bindInput(); listBodies();
+      $('play').innerHTML = '&#10074;&#10074;';
+      poll();
+      return;
+    }
     const parsed = parseFrames(await (await fetch('/frames')).arrayBuffer());
     S.frames = parsed.frames; S.nb = parsed.nb;
     if (!S.frames.length) throw new Error('no frames');
-    $('title').textContent = S.world.title;
     $('summary').textContent = `${S.world.kind}: ${S.nb} bodies, ticks ${S.frames[0].tick}–${S.frames[S.frames.length - 1].tick} at ${S.world.tick_rate} Hz`;
     if (S.world.desync) {
       const d = S.world.desync;
