@@ -412,7 +412,7 @@ fn the_viewer_draws_a_scene_and_its_slider_moves_the_world() {
          const c = document.getElementById(id); c.checked = true; c.dispatchEvent(new Event('change')); } \
          return null",
     );
-    b.slide_to(46);
+    b.slide_to(200);
     assert!(b.status()["error"].is_null());
     // Picking a body from the list shows its exact state for the tick.
     let crate_ = b
@@ -422,7 +422,7 @@ fn the_viewer_draws_a_scene_and_its_slider_moves_the_world() {
     b.run(&format!(
         "document.querySelector('#bodies div[data-i=\"{crate_}\"]').click(); return null"
     ));
-    let exact = exact_state(&v, 46, crate_);
+    let exact = exact_state(&v, 200, crate_);
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
         let panel = b.run("return document.getElementById('state').textContent");
