@@ -441,16 +441,17 @@ fn the_viewer_draws_a_scene_and_its_slider_moves_the_world() {
     b.screenshot("scene");
 }
 
-#[test]
-fn the_viewer_plays_a_replay_and_shows_a_bundles_diverging_bodies() {
-    let Some((chromium, driver)) = browser() else {
-        return;
-    };
-    // A short demo match in which one bot nudges a body: a replay and a
-    // desync bundle.
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("viewer-match");
+/// An empty directory under the test target's temporary directory.
+fn fresh_dir(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A short demo match in `dir` in which one bot nudges a body before tick
+/// 40: its replay and its desync bundle.
+fn demo_match(dir: &Path) -> (String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
         .args([
             "--demo",
@@ -463,7 +464,7 @@ fn the_viewer_plays_a_replay_and_shows_a_bundles_diverging_bodies() {
         ])
         .env("LOCKSTEP_REPLAY_DIR", dir.join("replays"))
         .env("LOCKSTEP_CERT_OUT", dir.join("dev-cert.pem"))
-        .current_dir(&dir)
+        .current_dir(dir)
         .output()
         .unwrap();
     assert_eq!(
@@ -484,7 +485,49 @@ fn the_viewer_plays_a_replay_and_shows_a_bundles_diverging_bodies() {
             .unwrap()
             .to_owned()
     };
-    let (replay, bundle) = (find("replay"), find("bundle"));
+    (find("replay"), find("bundle"))
+}
+
+fn world_of(v: &Viewer) -> Value {
+    let (status, body) = http(v.addr, "GET", "/world", None);
+    assert_eq!(status, 200);
+    serde_json::from_slice(&body).unwrap()
+}
+
+/// No browser needed: `--from` and `--ticks` pick the frames of a replay,
+/// and a bundle's frames always end at its desync tick.
+#[test]
+fn view_shows_a_window_of_a_replay_and_a_bundle_ends_at_its_desync() {
+    let dir = fresh_dir("viewer-window");
+    let (replay, bundle) = demo_match(&dir);
+    let w = world_of(&view(&[&replay, "--from", "30", "--ticks", "20"]));
+    assert_eq!(w["kind"], "replay");
+    assert_eq!(
+        (w["first_tick"].as_u64(), w["frames"].as_u64()),
+        (Some(30), Some(20))
+    );
+    let w = world_of(&view(&[&bundle, "--ticks", "10"]));
+    assert_eq!(w["kind"], "bundle");
+    let desync = w["desync"]["tick"].as_u64().unwrap();
+    assert_eq!(w["frames"].as_u64(), Some(10));
+    assert_eq!(w["first_tick"].as_u64(), Some(desync - 9));
+    assert_eq!(w["desync"]["frame"].as_u64(), Some(9));
+    // A scene or replay that does not exist is a clear error, status 2.
+    let out = Command::new(env!("CARGO_BIN_EXE_lockstep"))
+        .args(["view", "no/such.replay"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no/such.replay"));
+}
+
+#[test]
+fn the_viewer_plays_a_replay_and_shows_a_bundles_diverging_bodies() {
+    let Some((chromium, driver)) = browser() else {
+        return;
+    };
+    let dir = fresh_dir("viewer-match");
+    let (replay, bundle) = demo_match(&dir);
     let demo_bodies = body_count("scenes/demo.toml");
 
     let b = Browser::start(&chromium, &driver, &dir.join("chromium"));
@@ -548,9 +591,7 @@ fn the_viewer_follows_a_live_room_that_pays_nothing_until_watched() {
     let Some((chromium, driver)) = browser() else {
         return;
     };
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("viewer-live");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("viewer-live");
     let (view_port, metrics_port) = (free_port(), free_port());
     let server = Command::new(env!("CARGO_BIN_EXE_lockstep-server"))
         .args(["--demo", "--duration", "10", "--bots", "3"])

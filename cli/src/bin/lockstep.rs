@@ -99,9 +99,15 @@ enum Command {
         /// Where to serve the page (port 0: any free port).
         #[arg(long, default_value = "127.0.0.1:0", value_name = "ADDR")]
         listen: std::net::SocketAddr,
-        /// How many ticks of a scene file to step.
-        #[arg(long, default_value_t = 600, value_name = "N", value_parser = clap::value_parser!(u64).range(0..=100_000))]
-        ticks: u64,
+        /// The first tick shown [default: 0; for a bundle, the last --ticks
+        /// ticks up to the desync].
+        #[arg(long, value_name = "TICK")]
+        from: Option<u64>,
+        /// How many ticks to show: a scene is stepped to --from + N [default:
+        /// 600]; a replay shows N ticks from --from [default: 3600, a minute
+        /// at 60 Hz]. Every frame is kept in memory and sent to the browser.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+        ticks: Option<u64>,
     },
 }
 
@@ -121,8 +127,9 @@ fn main() -> ExitCode {
         Command::View {
             file,
             listen,
+            from,
             ticks,
-        } => view(&file, listen, ticks),
+        } => view(&file, listen, lockstep_client::view::Window { from, ticks }),
         Command::Tune {
             scene,
             max_error,
@@ -194,8 +201,12 @@ fn main() -> ExitCode {
     }
 }
 
-fn view(file: &std::path::Path, listen: std::net::SocketAddr, ticks: u64) -> ExitCode {
-    let data = match lockstep_client::view::load_view(file, &Demo, ticks) {
+fn view(
+    file: &std::path::Path,
+    listen: std::net::SocketAddr,
+    window: lockstep_client::view::Window,
+) -> ExitCode {
+    let data = match lockstep_client::view::load_view(file, &Demo, window) {
         Ok(d) => d,
         Err(e) => {
             eprintln!("lockstep view: error: {e}");

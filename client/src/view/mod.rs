@@ -47,16 +47,35 @@ pub enum ViewError {
     },
 }
 
+/// Ticks a scene file is stepped by default.
+pub const SCENE_TICKS: u64 = 600;
+/// Frames a replay or bundle shows by default (a minute at 60 Hz): a long
+/// match is viewed a window at a time, since every frame is kept in memory
+/// and sent to the browser.
+pub const REPLAY_TICKS: u64 = 3600;
+
+/// Which ticks a view shows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Window {
+    /// The first tick shown. Default: 0; for a bundle, the last
+    /// `ticks` before and including the desync tick.
+    pub from: Option<u64>,
+    /// How many ticks: a scene is stepped to `from + ticks` (default
+    /// [`SCENE_TICKS`]); a replay shows `ticks` from `from` (default
+    /// [`REPLAY_TICKS`]). A bundle always ends at its desync tick.
+    pub ticks: Option<u64>,
+}
+
 /// Builds the view of `path`: a replay or bundle when it parses as one
-/// (re-simulated with `game`'s rules), a scene file otherwise (stepped for
-/// `scene_ticks` ticks).
+/// (re-simulated with `game`'s rules), a scene file otherwise (stepped with
+/// no inputs), over `window`.
 ///
 /// # Errors
 /// [`ViewError`].
 pub fn load_view(
     path: &Path,
     game: &dyn RulesFactory,
-    scene_ticks: u64,
+    window: Window,
 ) -> Result<ViewData, ViewError> {
     let bytes = std::fs::read(path).map_err(|source| ViewError::Io {
         path: path.display().to_string(),
@@ -67,7 +86,7 @@ pub fn load_view(
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     match Replay::parse(&bytes) {
-        Ok(replay) => view_replay(&replay, game, title),
+        Ok(replay) => view_replay(&replay, game, title, window),
         Err(replay_err) => {
             let text = std::str::from_utf8(&bytes).map_err(|_| {
                 ViewError::Format(format!(
@@ -77,19 +96,24 @@ pub fn load_view(
             })?;
             let world = lockstep_core::scene::load_world(text, &path.display().to_string())
                 .map_err(|e| ViewError::Format(e.to_string()))?;
-            view_scene(world, scene_ticks, title)
+            view_scene(world, window, title)
         }
     }
 }
 
-/// Steps a scene world `ticks` times with no inputs and records it.
+/// Steps a scene world with no inputs to the end of `window` and records
+/// the ticks in it.
 ///
 /// # Errors
 /// [`ViewError::Fault`] if a step reports a fault.
-pub fn view_scene(mut world: World, ticks: u64, title: String) -> Result<ViewData, ViewError> {
+pub fn view_scene(mut world: World, window: Window, title: String) -> Result<ViewData, ViewError> {
+    let from = window.from.unwrap_or(0);
+    let end = from.saturating_add(window.ticks.unwrap_or(SCENE_TICKS));
     let mut rec = Recorder::new(ViewKind::Scene, title, &world);
-    rec.record(&world, 0);
-    for _ in 0..ticks {
+    if from == 0 {
+        rec.record(&world, 0);
+    }
+    for _ in 0..end {
         let report = world.step();
         if !report.faults.is_empty() {
             return Err(ViewError::Fault {
@@ -97,12 +121,15 @@ pub fn view_scene(mut world: World, ticks: u64, title: String) -> Result<ViewDat
                 faults: format!("{:?}", report.faults),
             });
         }
-        rec.record(&world, report.tick);
+        if report.tick >= from {
+            rec.record(&world, report.tick);
+        }
     }
     Ok(rec.finish())
 }
 
-/// Re-simulates a replay or a bundle with `game`'s rules and records it.
+/// Re-simulates a replay or a bundle with `game`'s rules and records the
+/// ticks in `window`.
 ///
 /// # Errors
 /// [`ViewError::Replay`] when the rules, the scene or the hash layout do
@@ -111,6 +138,7 @@ pub fn view_replay(
     replay: &Replay,
     game: &dyn RulesFactory,
     title: String,
+    window: Window,
 ) -> Result<ViewData, ViewError> {
     check_header(replay, game).map_err(|e| ViewError::Replay(e.to_string()))?;
     let text = std::str::from_utf8(&replay.header.scene)
@@ -134,16 +162,38 @@ pub fn view_replay(
     let end = located.as_ref().map_or(replay.ticks.len(), |d| {
         (d.tick as usize + 1).min(replay.ticks.len())
     });
+    let n = window.ticks.unwrap_or(REPLAY_TICKS).max(1);
+    let (from, last) = match &located {
+        // A bundle ends at its desync tick.
+        Some(d) => (
+            window
+                .from
+                .unwrap_or(d.tick.saturating_sub(n - 1))
+                .min(d.tick),
+            d.tick,
+        ),
+        None => {
+            let from = window.from.unwrap_or(0);
+            (from, from.saturating_add(n - 1))
+        }
+    };
     // One frame per match tick, after its inputs and step: the state whose
     // hash the room compared for that tick, labelled as the room labels it.
     let mut rec = Recorder::new(kind, title, &world);
     for t in &replay.ticks[..end] {
+        if t.tick > last {
+            break;
+        }
         apply_bundle(&mut world, &mut *rules, t);
-        rec.record(&world, t.tick);
+        if t.tick >= from {
+            rec.record(&world, t.tick);
+        }
     }
-    if end == 0 {
-        // A match that ended before its first tick: the scene as it starts.
-        rec.record(&world, 0);
+    if rec.data().ticks.is_empty() {
+        // A window past the end, or a match that ended before its first
+        // tick: the last state reached.
+        let tick = replay.ticks[..end].last().map_or(0, |t| t.tick);
+        rec.record(&world, tick);
     }
     let mut data = rec.finish();
     if let Some(report) = located {
@@ -279,7 +329,15 @@ mod tests {
 
     fn shapes() -> ViewData {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
-        load_view(&path, &crate::game::Demo, 30).unwrap()
+        load_view(
+            &path,
+            &crate::game::Demo,
+            Window {
+                from: None,
+                ticks: Some(30),
+            },
+        )
+        .unwrap()
     }
 
     #[test]
@@ -329,6 +387,29 @@ mod tests {
             v.contacts.last().is_some_and(|c| !c.is_empty()),
             "things rest on the floor"
         );
+    }
+
+    #[test]
+    fn a_window_of_a_scene_starts_where_asked() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
+        let window = Window {
+            from: Some(100),
+            ticks: Some(20),
+        };
+        let v = load_view(&path, &crate::game::Demo, window).unwrap();
+        assert_eq!(v.ticks, (100..=120).collect::<Vec<_>>());
+        let full = shapes_to(120);
+        assert_eq!(v.states[0], full.states[100]);
+        assert_eq!(v.states[20], full.states[120]);
+    }
+
+    fn shapes_to(ticks: u64) -> ViewData {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
+        let window = Window {
+            from: None,
+            ticks: Some(ticks),
+        };
+        load_view(&path, &crate::game::Demo, window).unwrap()
     }
 
     #[test]
@@ -392,17 +473,17 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let bad = dir.join("bad.toml");
         std::fs::write(&bad, "[[body]]\nshape = 3\n").unwrap();
-        let e = load_view(&bad, &crate::game::Demo, 1)
+        let e = load_view(&bad, &crate::game::Demo, Window::default())
             .unwrap_err()
             .to_string();
         assert!(e.contains("bad.toml"), "{e}");
         let bin = dir.join("junk.replay");
         std::fs::write(&bin, [0xff, 0xfe, 0x00, 0x01]).unwrap();
-        let e = load_view(&bin, &crate::game::Demo, 1)
+        let e = load_view(&bin, &crate::game::Demo, Window::default())
             .unwrap_err()
             .to_string();
         assert!(e.contains("neither a scene file"), "{e}");
-        let e = load_view(&dir.join("missing"), &crate::game::Demo, 1)
+        let e = load_view(&dir.join("missing"), &crate::game::Demo, Window::default())
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("reading "), "{e}");
