@@ -1092,3 +1092,93 @@ fn overlaps_and_box_sweeps_against_a_height_field() {
     );
     assert!(!h.initially_overlapping);
 }
+
+/// A random convex shape of size 0.2–1.2 m: sphere, capsule, box or hull.
+fn random_convex(rng: &mut u64) -> Shape {
+    let mut r = |lo: f64, hi: f64| lo + (hi - lo) * lcg(rng);
+    match (r(0.0, 4.0)) as u32 {
+        0 => sphere(r(0.2, 1.0)),
+        1 => Shape::Capsule(Capsule::new(s(r(0.1, 0.8)), s(r(0.1, 0.5))).unwrap()),
+        2 => cuboid(r(0.1, 0.8), r(0.1, 0.8), r(0.1, 0.8)),
+        _ => {
+            let points: Vec<Vec3> = (0..8)
+                .map(|_| v(r(-0.8, 0.8), r(-0.8, 0.8), r(-0.8, 0.8)))
+                .collect();
+            ConvexHull::from_points(&points)
+                .map(Shape::from)
+                .unwrap_or_else(|_| cuboid(0.5, 0.5, 0.5))
+        }
+    }
+}
+
+fn random_rotation(rng: &mut u64) -> Quat {
+    let axis = v(lcg(rng) - 0.5, lcg(rng) - 0.5, lcg(rng) - 0.5)
+        .try_normalize()
+        .unwrap_or(Vec3::Y);
+    Quat::from_axis_angle(axis, s(lcg(rng) * std::f64::consts::TAU)).normalize()
+}
+
+/// Seeded shapes and motions: a sweep's fraction is never one at which the
+/// moving shape overlaps what it hit (nor anything else), and a shape that
+/// starts clear of everything is never reported as starting in contact.
+#[test]
+fn a_sweep_never_returns_an_overlapping_fraction() {
+    let mut rng = 0x5eed_u64;
+    let (mut hits, mut cases) = (0, 0);
+    for _ in 0..200 {
+        let mut w = world();
+        for _ in 0..6 {
+            let at = v(
+                lcg(&mut rng) * 8.0 - 4.0,
+                lcg(&mut rng) * 8.0 - 4.0,
+                lcg(&mut rng) * 8.0 - 4.0,
+            );
+            let rot = random_rotation(&mut rng);
+            let shape = random_convex(&mut rng);
+            fixed(&mut w, at, rot, shape);
+        }
+        let mut out = Vec::new();
+        for _ in 0..40 {
+            let shape = random_convex(&mut rng);
+            let pose = Transform::new(
+                v(
+                    lcg(&mut rng) * 16.0 - 8.0,
+                    lcg(&mut rng) * 16.0 - 8.0,
+                    lcg(&mut rng) * 16.0 - 8.0,
+                ),
+                random_rotation(&mut rng),
+            );
+            w.overlap_shape(&shape, &pose, &QueryFilter::default(), &mut out)
+                .unwrap();
+            if !out.is_empty() {
+                continue;
+            }
+            cases += 1;
+            // Aim near the middle of the targets, with some spread.
+            let aim = v(
+                lcg(&mut rng) * 6.0 - 3.0,
+                lcg(&mut rng) * 6.0 - 3.0,
+                lcg(&mut rng) * 6.0 - 3.0,
+            );
+            let d = (aim - pose.translation) * s(1.0 + lcg(&mut rng));
+            let Some(h) = w
+                .cast_shape(&shape, &pose, d, &QueryFilter::default())
+                .unwrap()
+            else {
+                continue;
+            };
+            hits += 1;
+            assert!(!h.initially_overlapping, "started clear: {h:?}");
+            let at = Transform::new(pose.translation + d * h.fraction, pose.rotation);
+            w.overlap_shape(&shape, &at, &QueryFilter::default(), &mut out)
+                .unwrap();
+            assert!(
+                out.is_empty(),
+                "{:?} swept by {d:?} from {pose:?} overlaps {out:?} at fraction {}",
+                shape.kind(),
+                h.fraction
+            );
+        }
+    }
+    assert!(cases > 4000 && hits > 1000, "{cases} cases, {hits} hits");
+}

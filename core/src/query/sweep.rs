@@ -12,6 +12,11 @@
 //! [`MAX_SWEEP_ITERATIONS`] (reported as no hit: every `t` reached so far was
 //! verified apart, and no contact was verified).
 //!
+//! When rounding lets an advance land in contact, the interval between the
+//! last fraction verified apart and that one is halved until a fraction is
+//! apart by at most `TOL`; failing that, the last fraction verified apart is
+//! reported.
+//!
 //! The reported fraction is therefore *safe*: the moving shape placed there
 //! does not overlap the target, and is at most `TOL / v̂_n` earlier than the
 //! exact first contact, with `v̂_n` the closing speed along the normal per
@@ -68,20 +73,18 @@ fn sweep_convex<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
     max: Scalar,
 ) -> Option<SweepIntersection> {
     let mut t = Scalar::ZERO;
-    let mut last: Option<(Vec3, Vec3)> = None;
+    // The last fraction verified apart, with the target's closest point and
+    // normal there.
+    let mut last: Option<(Scalar, Vec3, Vec3)> = None;
     for _ in 0..MAX_SWEEP_ITERATIONS {
         let pa = Transform::new(pose_a.translation + translation * t, pose_a.rotation);
         match distance(a, &pa, b, pose_b) {
             DistanceResult::Overlapping => {
-                if let Some((point, normal)) = last {
+                if let Some(apart) = last {
                     // An advance that aimed at TOL/2 landed in contact
-                    // (rounding): report it with the last good normal.
-                    return Some(SweepIntersection {
-                        fraction: t,
-                        point,
-                        normal,
-                        initially_overlapping: false,
-                    });
+                    // (rounding): the first contact lies between the last
+                    // fraction verified apart and this one.
+                    return Some(bisect(a, pose_a, translation, b, pose_b, apart, t));
                 }
                 let (point, normal) = match penetration(a, &pa, b, pose_b) {
                     Some(p) => (p.point_b, -p.normal),
@@ -120,11 +123,57 @@ fn sweep_convex<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
                 if t > max {
                     return None;
                 }
-                last = Some((point_b, -normal));
+                last = Some((t, point_b, -normal));
             }
         }
     }
     None
+}
+
+/// The contact between `apart` (a fraction verified apart, with the
+/// target's closest point and normal there) and `overlapping` (a fraction in
+/// contact): halves the interval until a fraction is apart by at most
+/// [`SWEEP_TOLERANCE`], and otherwise reports the last fraction verified
+/// apart. Never a fraction at which the shapes overlap.
+fn bisect<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
+    a: &A,
+    pose_a: &Transform,
+    translation: Vec3,
+    b: &B,
+    pose_b: &Transform,
+    apart: (Scalar, Vec3, Vec3),
+    overlapping: Scalar,
+) -> SweepIntersection {
+    let (mut lo, mut point, mut normal) = apart;
+    let mut hi = overlapping;
+    for _ in 0..MAX_SWEEP_ITERATIONS {
+        // The midpoint rounded down, so that it never reaches `hi`.
+        let mid = Scalar::from_bits(lo.to_bits() + ((hi.to_bits() - lo.to_bits()) >> 1));
+        if mid == lo {
+            break;
+        }
+        let pa = Transform::new(pose_a.translation + translation * mid, pose_a.rotation);
+        match distance(a, &pa, b, pose_b) {
+            DistanceResult::Overlapping => hi = mid,
+            DistanceResult::Separated {
+                distance: gap,
+                point_b,
+                normal: n,
+                ..
+            } => {
+                (lo, point, normal) = (mid, point_b, -n);
+                if gap <= SWEEP_TOLERANCE {
+                    break;
+                }
+            }
+        }
+    }
+    SweepIntersection {
+        fraction: lo,
+        point,
+        normal,
+        initially_overlapping: false,
+    }
 }
 
 /// Sweeps the convex shape `moving` from `pose` along `translation` against
@@ -163,4 +212,53 @@ pub fn sweep_shape(
         true
     });
     Ok(best)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shape::Sphere;
+
+    /// The interval an advance that landed in contact leaves: the result is
+    /// apart, within the tolerance of the exact contact, and no later.
+    #[test]
+    fn bisecting_a_landed_advance_reports_a_fraction_apart() {
+        let ball = Sphere::new(Scalar::ONE).unwrap();
+        let origin = Transform::IDENTITY;
+        let target = Transform::from_translation(Vec3::from_ints(5, 0, 0));
+        let translation = Vec3::from_ints(10, 0, 0);
+        // The spheres touch when the mover has gone 3 m: fraction 0.3.
+        let apart = (Scalar::from_ratio(1, 10), Vec3::ZERO, -Vec3::X);
+        let h = bisect(
+            &ball,
+            &origin,
+            translation,
+            &ball,
+            &target,
+            apart,
+            Scalar::from_ratio(1, 2),
+        );
+        assert!(!h.initially_overlapping);
+        let exact = Scalar::from_ratio(3, 10);
+        assert!(h.fraction <= exact, "{}", h.fraction);
+        assert!((exact - h.fraction) * Scalar::from_int(10) <= SWEEP_TOLERANCE);
+        let at = Transform::from_translation(translation * h.fraction);
+        assert!(matches!(
+            distance(&ball, &at, &ball, &target),
+            DistanceResult::Separated { .. }
+        ));
+        assert_eq!(h.normal, -Vec3::X);
+        // An interval with nothing apart in it to find keeps the fraction
+        // verified apart.
+        let h = bisect(
+            &ball,
+            &origin,
+            translation,
+            &ball,
+            &target,
+            apart,
+            Scalar::from_ratio(1, 10) + Scalar::from_bits(1),
+        );
+        assert_eq!(h.fraction, Scalar::from_ratio(1, 10));
+    }
 }
