@@ -577,6 +577,20 @@ fn the_viewer_plays_a_replay_and_shows_a_bundles_diverging_bodies() {
         "{panel}"
     );
     b.screenshot("bundle");
+    // Overlaid: one view, the diverging player's poses as ghosts.
+    let before = b.status()["framesDrawn"].as_u64().unwrap();
+    b.run(
+        "const r = document.querySelector('input[name=mode][value=overlay]'); r.checked = true; \
+         r.dispatchEvent(new Event('change')); return null",
+    );
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while b.status()["framesDrawn"].as_u64().unwrap() <= before {
+        assert!(Instant::now() < deadline, "no frame drawn overlaid");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let s = b.status();
+    assert!(s["error"].is_null(), "{s}");
+    check_drawn(&b, &s, demo_bodies);
 }
 
 fn metric(addr: SocketAddr, name: &str) -> Option<u64> {

@@ -244,38 +244,31 @@ function drawWorld(vp, side, x, y, w, h) {
   gl.uniformMatrix4fv(gl.getUniformLocation(S.mesh, 'uVP'), false, vp);
   const uModel = gl.getUniformLocation(S.mesh, 'uModel'), uColor = gl.getUniformLocation(S.mesh, 'uColor');
   let drawn = 0;
+  // Opaque colliders first; triggers and ghosts after, blended, without
+  // writing depth: [body, collider, model matrix, colour, alpha].
   const translucent = [];
-  const one = (i, poses, o, alpha, tint) => {
-    const b = S.world.bodies[i], m = poseMat(poses, o), asleep = (f.flags[i] & 2) !== 0;
-    const c = tint || bodyColor(i, b, asleep);
-    for (const d of S.draw[i]) {
-      const a = d.trigger ? 0.25 : alpha;
-      if (a < 1 && !translucent.done) { translucent.push([i, poses, o, a, tint]); continue; }
-      gl.uniformMatrix4fv(uModel, false, mul(m, d.local));
-      gl.uniform4f(uColor, c[0], c[1], c[2], a);
-      gl.bindVertexArray(d.vao); gl.drawArrays(gl.TRIANGLES, 0, d.count);
-    }
+  const draw = (d, m, c, a) => {
+    gl.uniformMatrix4fv(uModel, false, mul(m, d.local));
+    gl.uniform4f(uColor, c[0], c[1], c[2], a);
+    gl.bindVertexArray(d.vao); gl.drawArrays(gl.TRIANGLES, 0, d.count);
   };
   for (let i = 0; i < S.nb; i++) {
     if (!(f.flags[i] & 1)) continue;
     const [poses, o] = poseOf(f, i, side);
-    one(i, poses, o, 1); drawn++;
+    const m = poseMat(poses, o), c = bodyColor(i, S.world.bodies[i], (f.flags[i] & 2) !== 0);
+    for (const d of S.draw[i]) {
+      if (d.trigger) translucent.push([i, d, m, c, 0.25]); else draw(d, m, c, 1);
+    }
+    drawn++;
   }
   if (side === 'overlay' && S.frame === S.desyncFrame) {
-    for (const [i, p] of S.diverging) translucent.push([i, p, 0, 0.4, [1.0, 0.35, 0.3]]);
-  }
-  gl.enable(gl.BLEND); gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA); gl.depthMask(false);
-  translucent.done = true;
-  for (const t of translucent.splice(0)) {
-    const [i, poses, o, a, tint] = t;
-    const b = S.world.bodies[i], m = poseMat(poses, o);
-    const c = tint || bodyColor(i, b, (f.flags[i] & 2) !== 0);
-    for (const d of S.draw[i]) {
-      gl.uniformMatrix4fv(uModel, false, mul(m, d.local));
-      gl.uniform4f(uColor, c[0], c[1], c[2], d.trigger ? 0.25 : a);
-      gl.bindVertexArray(d.vao); gl.drawArrays(gl.TRIANGLES, 0, d.count);
+    for (const [i, p] of S.diverging) {
+      const m = poseMat(p, 0);
+      for (const d of S.draw[i]) translucent.push([i, d, m, [1.0, 0.35, 0.3], 0.4]);
     }
   }
+  gl.enable(gl.BLEND); gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA); gl.depthMask(false);
+  for (const [, d, m, c, a] of translucent) draw(d, m, c, a);
   gl.disable(gl.BLEND); gl.depthMask(true);
   drawOverlays(vp, f, side);
   return drawn;
