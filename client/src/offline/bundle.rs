@@ -8,7 +8,7 @@
 use lockstep_core::World;
 use lockstep_proto::{BodyDiff, DesyncReport, FieldDiff, Replay, SuspectReport};
 
-use super::replay::{ReplayVerifyError, apply_bundle, check_header};
+use super::replay::{ReplayVerifyError, apply_bundle, check_header, recorded_world};
 use crate::game::RulesFactory;
 use crate::net::dump_bodies;
 
@@ -58,10 +58,7 @@ pub fn reproduce_bundle(
         .last()
         .cloned()
         .ok_or(ReplayVerifyError::NotABundle)?;
-    let text = std::str::from_utf8(&replay.header.scene)
-        .map_err(|e| ReplayVerifyError::Scene(format!("not UTF-8: {e}")))?;
-    let mut world = lockstep_core::scene::load_world(text, "bundle scene")
-        .map_err(|e| ReplayVerifyError::Scene(e.to_string()))?;
+    let mut world = recorded_world(replay, "bundle scene")?;
     let mut rules = game
         .new_rules(&world)
         .map_err(|e| ReplayVerifyError::Game(e.to_string()))?;

@@ -230,6 +230,18 @@ pub fn apply_bundle(world: &mut World, game: &mut dyn GameRules, bundle: &TickBu
     world.step();
 }
 
+/// Builds the world from the scene a replay (or bundle) recorded;
+/// `label` names it in error messages.
+///
+/// # Errors
+/// [`ReplayVerifyError::Scene`] if the scene is not UTF-8 or does not build.
+pub fn recorded_world(replay: &Replay, label: &str) -> Result<World, ReplayVerifyError> {
+    let text = std::str::from_utf8(&replay.header.scene)
+        .map_err(|e| ReplayVerifyError::Scene(format!("not UTF-8: {e}")))?;
+    lockstep_core::scene::load_world(text, label)
+        .map_err(|e| ReplayVerifyError::Scene(e.to_string()))
+}
+
 /// Checks that a replay's header matches `game` and this engine's hash
 /// layout.
 ///
@@ -266,10 +278,7 @@ pub fn verify_replay(
     game: &dyn RulesFactory,
 ) -> Result<ReplayCheck, ReplayVerifyError> {
     check_header(replay, game)?;
-    let text = std::str::from_utf8(&replay.header.scene)
-        .map_err(|e| ReplayVerifyError::Scene(format!("not UTF-8: {e}")))?;
-    let mut world = lockstep_core::scene::load_world(text, "replay scene")
-        .map_err(|e| ReplayVerifyError::Scene(e.to_string()))?;
+    let mut world = recorded_world(replay, "replay scene")?;
     let got = world.state_hash();
     if got != replay.header.scene_hash {
         return Err(ReplayVerifyError::SceneHash {

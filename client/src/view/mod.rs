@@ -18,7 +18,7 @@ pub use lockstep_view::{
 };
 
 use crate::game::RulesFactory;
-use crate::offline::{apply_bundle, check_header, is_bundle};
+use crate::offline::{apply_bundle, check_header, is_bundle, recorded_world};
 
 /// Why a file could not be viewed.
 #[derive(Debug, thiserror::Error)]
@@ -141,10 +141,8 @@ pub fn view_replay(
     window: Window,
 ) -> Result<ViewData, ViewError> {
     check_header(replay, game).map_err(|e| ViewError::Replay(e.to_string()))?;
-    let text = std::str::from_utf8(&replay.header.scene)
-        .map_err(|e| ViewError::Replay(format!("the recorded scene is not UTF-8: {e}")))?;
-    let mut world = lockstep_core::scene::load_world(text, "recorded scene")
-        .map_err(|e| ViewError::Replay(e.to_string()))?;
+    let mut world =
+        recorded_world(replay, "recorded scene").map_err(|e| ViewError::Replay(e.to_string()))?;
     let mut rules = game
         .new_rules(&world)
         .map_err(|e| ViewError::Replay(e.to_string()))?;
