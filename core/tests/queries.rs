@@ -1182,3 +1182,21 @@ fn a_sweep_never_returns_an_overlapping_fraction() {
     }
     assert!(cases > 4000 && hits > 1000, "{cases} cases, {hits} hits");
 }
+
+/// A box resting within the sweep tolerance of the floor is stopped only
+/// when it moves into the floor: sliding along it or lifting off is free
+/// (what move-and-slide needs), and pressing down is a hit at fraction 0.
+#[test]
+fn a_shape_resting_on_the_floor_is_hit_only_when_it_presses_in() {
+    let (w, ground) = one(v(0.0, -1.0, 0.0), cuboid(10.0, 1.0, 10.0));
+    let box_ = cuboid(0.5, 0.5, 0.5);
+    let rest = v(0.0, 0.5, 0.0) + Vec3::Y * SWEEP_TOLERANCE.half().half();
+    assert!(sweep(&w, &box_, rest, v(3.0, 0.0, 0.0)).is_none());
+    assert!(sweep(&w, &box_, rest, v(0.0, 2.0, 0.0)).is_none());
+    assert!(sweep(&w, &box_, rest, v(2.0, 1.0, -1.0)).is_none());
+    let h = sweep(&w, &box_, rest, v(1.0, -1.0, 0.0)).unwrap();
+    assert_eq!(h.collider, ground);
+    assert_eq!(h.fraction, Scalar::ZERO);
+    assert!(!h.initially_overlapping);
+    assert_eq!(h.normal, Vec3::Y);
+}

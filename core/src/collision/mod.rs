@@ -9,6 +9,7 @@ pub mod dynamic_tree;
 pub mod manifold;
 pub mod narrow;
 pub mod reuse;
+pub mod toi;
 
 pub use broad_phase::{BroadPhase, BroadPhaseError, PairStats, ProxyId, ProxyKey, ProxyKind};
 pub use contacts::{

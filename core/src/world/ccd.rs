@@ -22,17 +22,14 @@
 //! end of the tick: the centre linearly, the rotation at a constant rate
 //! about the fixed axis taking the start orientation to the end one.
 //!
-//! **Time of impact** by conservative advancement (Mirtich; Erin Catto's
-//! GDC 2013 "Continuous Collision"): at the fraction `t`, GJK gives the gap
-//! `d` and the normal `n`. No point of the moving collider approaches the
-//! plane through the target's closest point faster than
-//! `Δc·n + θ·ρ` per unit of `t` (`Δc` the centre's motion, `θ` the tick's
-//! rotation angle, `ρ` the collider's largest distance from the centre of
-//! mass), so advancing by `(d − CCD_TARGET_GAP) / (Δc·n + θ·ρ)` keeps the
-//! gap at least [`CCD_TARGET_GAP`]. The loop stops with a hit when
-//! `d ≤ CCD_TARGET_GAP + CCD_TOLERANCE`, with a miss when the bound is not
-//! positive or `t` passes 1 (or the best hit so far), and after
-//! [`CCD_MAX_ITERATIONS`] with a hit at the last (safe) `t`.
+//! **Time of impact** by the conservative advancement that shape sweeps use
+//! too ([`crate::collision::toi`]): each advance aims at a gap of
+//! [`CCD_TARGET_GAP`], a gap within [`CCD_TOLERANCE`] of it is a hit, the
+//! rotation is bounded by the tick's angle times the collider's largest
+//! distance from the centre of mass. The body is stopped at the last
+//! fraction verified apart, also when [`CCD_MAX_ITERATIONS`] is reached
+//! (early, never through). This module keeps the candidate selection, the
+//! core sweep of pairs already touching, and the response.
 //!
 //! **Already touching.** A pair closer than `CCD_TARGET_GAP + CCD_TOLERANCE`
 //! at the start of the tick (a box sliding on the floor, a body resting on
@@ -58,7 +55,8 @@
 
 use crate::body::{BodyHandle, BodyHot, BodyKind};
 use crate::collider::Collider;
-use crate::collision::narrow::gjk::{DistanceResult, SupportShape, distance};
+use crate::collision::narrow::gjk::SupportShape;
+use crate::collision::toi::{Motion, Toi, ToiSettings, time_of_impact};
 use crate::collision::{ProxyId, ProxyKey};
 use crate::math::elem::isqrt_u128;
 use crate::math::{Aabb, Quat, Scalar, Transform, Vec3};
@@ -178,52 +176,30 @@ fn extent_of(shape: &Shape) -> Option<Extent> {
     }
 }
 
-/// The interpolated motion of a body over the tick.
-#[derive(Clone, Copy, Debug)]
-struct Motion {
-    c0: Vec3,
-    q0: Quat,
-    delta: Vec3,
-    axis: Vec3,
-    angle: Scalar,
-    local_center: Vec3,
-}
+/// The CCD settings: aim at the target gap, a hit within the tolerance of
+/// it.
+const SETTINGS: ToiSettings = ToiSettings {
+    target: CCD_TARGET_GAP,
+    tolerance: CCD_TOLERANCE,
+    max_iterations: CCD_MAX_ITERATIONS,
+};
 
-impl Motion {
-    /// Centre of mass and rotation at fraction `t`.
-    fn at(&self, t: Scalar) -> (Vec3, Quat) {
-        let c = self.c0 + self.delta * t;
-        if self.angle.is_zero() {
-            return (c, self.q0);
-        }
-        let q = (Quat::from_axis_angle(self.axis, self.angle * t) * self.q0).normalize();
-        (c, q)
-    }
-
-    /// The body origin's pose at fraction `t`.
-    fn origin_at(&self, t: Scalar) -> Transform {
-        let (c, q) = self.at(t);
-        Transform::new(c - q.rotate(self.local_center), q)
-    }
-}
-
-/// How one collider pair's sweep ended.
+/// How one collider pair's sweep ended, for CCD.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Toi {
-    /// First reached the target gap at this fraction.
+enum Outcome {
+    /// Stop at this fraction.
     Hit(Scalar),
     /// No contact up to the limit.
     Miss,
-    /// Already within the touching distance at the start, and approaching.
+    /// Already within `touch` at the start (or overlapping), and
+    /// approaching.
     Touching,
 }
 
-/// Conservative advancement of `a` (at `local` in the body-origin frame,
-/// all its points within `rho` of the centre of mass) along `m` towards the
-/// fixed `b` at `pose_b`, up to fraction `limit`. A pair that starts closer
-/// than `touch` while approaching is [`Toi::Touching`]; otherwise the first
-/// fraction at which the gap is within `CCD_TOLERANCE` of `CCD_TARGET_GAP`
-/// is a hit (0 included).
+/// The shared time-of-impact routine, read for CCD: a pair that starts
+/// within `touch` while approaching (or overlapping) is
+/// [`Outcome::Touching`]; a converged or exhausted sweep stops the body at
+/// the last fraction verified apart.
 #[allow(clippy::too_many_arguments)]
 fn sweep<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
     a: &A,
@@ -234,50 +210,22 @@ fn sweep<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
     pose_b: &Transform,
     limit: Scalar,
     touch: Scalar,
-) -> Toi {
-    let spin = m.angle * rho;
-    let mut t = Scalar::ZERO;
-    let mut last = None;
-    for _ in 0..CCD_MAX_ITERATIONS {
-        let pose_a = m.origin_at(t).mul_transform(local);
-        match distance(a, &pose_a, b, pose_b) {
-            DistanceResult::Overlapping => {
-                // Only rounding can land an advance in contact: fall back to
-                // the last fraction verified apart.
-                return match last {
-                    Some(prev) => Toi::Hit(prev),
-                    None => Toi::Touching,
-                };
-            }
-            DistanceResult::Separated {
-                distance: gap,
-                normal,
-                ..
-            } => {
-                let bound = m.delta.dot(normal) + spin;
-                if !bound.is_positive() {
-                    return Toi::Miss;
-                }
-                if gap <= CCD_TARGET_GAP + CCD_TOLERANCE {
-                    return if last.is_none() && gap <= touch {
-                        Toi::Touching
-                    } else {
-                        Toi::Hit(t)
-                    };
-                }
-                let Some(step) = (gap - CCD_TARGET_GAP).checked_div(bound) else {
-                    return Toi::Miss;
-                };
-                let next = t + step;
-                if next > limit || next > Scalar::ONE {
-                    return Toi::Miss;
-                }
-                last = Some(t);
-                t = next;
-            }
-        }
+) -> Outcome {
+    match time_of_impact(
+        a,
+        local,
+        rho,
+        m,
+        b,
+        pose_b,
+        limit.min(Scalar::ONE),
+        &SETTINGS,
+    ) {
+        Toi::Overlapping => Outcome::Touching,
+        Toi::Hit { at, at_start: true } if at.gap <= touch => Outcome::Touching,
+        Toi::Hit { at, .. } | Toi::Exhausted(at) => Outcome::Hit(at.fraction),
+        Toi::Miss => Outcome::Miss,
     }
-    Toi::Hit(t)
 }
 
 /// One solid collider of a swept body, with its CCD extents.
@@ -307,7 +255,7 @@ fn sweep_pair<B: SupportShape + ?Sized>(
     let local = &mover.local_pose;
     let first = CCD_TARGET_GAP + CCD_TOLERANCE;
     let toi = match sweep(a, local, part.rho, m, b, pose_b, limit, first) {
-        Toi::Touching => {
+        Outcome::Touching => {
             let quarter = part.ext.min.half().half();
             let inset = part.ext.min - quarter;
             // A core that itself touches is deep in: the solver's job.
@@ -340,8 +288,8 @@ fn sweep_pair<B: SupportShape + ?Sized>(
         other => other,
     };
     match toi {
-        Toi::Hit(t) => Some(t),
-        Toi::Miss | Toi::Touching => None,
+        Outcome::Hit(t) => Some(t),
+        Outcome::Miss | Outcome::Touching => None,
     }
 }
 

@@ -194,8 +194,9 @@ impl World {
     /// Sweeps the convex `shape` from `pose` along `translation` and returns
     /// the first collider it touches: the smallest time of impact, the
     /// lowest collider handle on ties. Colliders the shape already overlaps
-    /// at `pose` are reported at fraction 0 with `initially_overlapping`.
-    /// A zero translation is an overlap test.
+    /// at `pose` are reported at fraction 0 with `initially_overlapping`;
+    /// one the shape only touches (within the tolerance) is a hit at 0 while
+    /// the shape moves towards it, and no hit when it slides along or away.
     ///
     /// The fraction is safe (the shape placed there does not overlap the
     /// collider) and within [`SWEEP_TOLERANCE`](crate::query::SWEEP_TOLERANCE)
