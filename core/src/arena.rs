@@ -129,6 +129,11 @@ impl<T> Arena<T> {
         })
     }
 
+    /// How many slots were ever used (live or free).
+    pub fn slot_count(&self) -> usize {
+        self.slots.len()
+    }
+
     /// Number of live values.
     pub fn len(&self) -> usize {
         self.len

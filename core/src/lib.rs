@@ -11,6 +11,7 @@ pub mod body;
 pub mod collider;
 pub mod collision;
 pub mod hash;
+pub mod joint;
 pub mod math;
 pub mod query;
 pub mod scene;
@@ -21,5 +22,6 @@ pub mod world;
 
 pub use body::{BodyDesc, BodyHandle, BodyKind};
 pub use collider::{ColliderDesc, ColliderHandle, CollisionFilter, Material};
+pub use joint::{JointDesc, JointEvent, JointHandle, JointKind, Motor, Spring};
 pub use math::{Aabb, Faults, Mat3, Quat, Scalar, SymMat3, Transform, Vec3};
 pub use world::{BodyRef, StepReport, World, WorldConfig, WorldError};

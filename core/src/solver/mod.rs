@@ -3,4 +3,5 @@
 
 pub(crate) mod contact_solver;
 pub mod integrate;
+pub(crate) mod joint_solver;
 pub mod sleep;

@@ -130,6 +130,7 @@ impl World {
             colliders,
             broad,
             candidates,
+            joints,
             ..
         } = self;
         let filter = |ka: ProxyKey, kb: ProxyKey| {
@@ -139,7 +140,10 @@ impl World {
             ) else {
                 return false;
             };
-            a.body != b.body && !(a.is_trigger && b.is_trigger) && a.filter.allows(&b.filter)
+            a.body != b.body
+                && !(a.is_trigger && b.is_trigger)
+                && a.filter.allows(&b.filter)
+                && !joints.blocks(a.body, b.body)
         };
         broad.update_pairs(filter, candidates)
     }
@@ -301,7 +305,7 @@ impl World {
         let mut total = 0;
         let mut all = false;
         loop {
-            let woken = self.wake_pass(all);
+            let woken = self.wake_pass(all) + self.wake_joined();
             total += woken;
             if woken == 0 {
                 break;

@@ -156,6 +156,10 @@ pub struct StepReport {
     pub sleeping_bodies: u32,
     /// Kinematic bodies moved.
     pub kinematic_bodies: u32,
+    /// Joints solved (those with an awake dynamic body).
+    pub joints: u32,
+    /// Joints that broke (see `World::joint_events`).
+    pub joints_broken: u32,
     /// Body-substeps that needed the gyroscopic midpoint solve.
     pub gyroscopic_solves: u32,
     /// Body-substeps whose angular speed was capped at
@@ -243,4 +247,10 @@ pub enum WorldError {
     /// A mass, density or other body parameter is out of range.
     #[error("invalid body parameter: {0}")]
     InvalidParameter(String),
+    /// The joint handle is stale or was never issued by this world.
+    #[error("no such joint: {0:?}")]
+    InvalidJoint(crate::joint::JointHandle),
+    /// A joint's parameters are out of range.
+    #[error("invalid joint: {0}")]
+    InvalidJointParameter(String),
 }

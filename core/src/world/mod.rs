@@ -4,6 +4,7 @@ mod body_ref;
 mod ccd;
 mod collide;
 mod config;
+mod joints;
 mod observe;
 mod query;
 mod state_hash;
@@ -72,6 +73,13 @@ pub struct World {
     broad: BroadPhase,
     contacts: ContactSet,
     faults: Faults,
+    joints: joints::JointSet,
+    /// The joints that broke in the last step (an output, not state).
+    #[serde(skip)]
+    joint_events: Vec<crate::joint::JointEvent>,
+    /// Scratch: this tick's joints for the solver (reused every step).
+    #[serde(skip)]
+    joint_solver: crate::solver::joint_solver::JointSolver,
     /// Scratch: the broad phase's candidate pairs (reused every step).
     #[serde(skip)]
     candidates: Vec<(ProxyKey, ProxyKey)>,
@@ -117,6 +125,9 @@ impl World {
             broad: BroadPhase::new(config.broad_phase_margin),
             contacts: ContactSet::default(),
             faults: Faults::NONE,
+            joints: joints::JointSet::default(),
+            joint_events: Vec::new(),
+            joint_solver: Default::default(),
             candidates: Vec::new(),
             solver: ContactSolver::default(),
             islands: IslandScratch::default(),
@@ -259,6 +270,7 @@ impl World {
         if !self.bodies.contains(h) {
             return Err(WorldError::InvalidBody(h));
         }
+        self.remove_joints_of(h);
         // (The pairs still name its colliders: wake what rested on it first.)
         self.wake_touching(Toucher::Body(h));
         let cold = self.bodies.remove(h).ok_or(WorldError::InvalidBody(h))?;
@@ -815,6 +827,7 @@ impl World {
     /// world until its first step).
     pub(crate) fn rebuild_derived(&mut self) {
         self.bodies.refresh_awake();
+        self.joints.rebuild();
     }
 
     /// Checks the cross-references a decoded snapshot must satisfy: every
@@ -846,6 +859,12 @@ impl World {
                 if self.colliders.get(ch.0).map(|c| c.body) != Some(bh) {
                     return Err(format!("{bh} lists a collider that is not its own"));
                 }
+            }
+        }
+        for (jh, j) in self.joints.arena.iter() {
+            let (a, b) = (j.desc.body_a, j.desc.body_b);
+            if !self.bodies.contains(a) || !self.bodies.contains(b) || a == b {
+                return Err(format!("joint {jh:?} does not join two live bodies"));
             }
         }
         Ok(())

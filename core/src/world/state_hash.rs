@@ -14,8 +14,8 @@ pub const STATE_HASH_VERSION: u64 = 7;
 
 impl World {
     /// The canonical hash of everything that influences later steps: the
-    /// settings, the tick, and every body's state and colliders, in handle
-    /// order, from the raw bits. Equal hashes on two peers mean equal
+    /// settings, the tick, every body's state and colliders, in handle
+    /// order, the contact cache and the joints, from the raw bits. Equal hashes on two peers mean equal
     /// simulations (up to 2⁻⁶⁴ chance).
     ///
     /// Two worlds built and stepped the same way have the same hash; a
@@ -70,6 +70,7 @@ impl World {
             h.word(self.body_hash_of(hot, cold));
         }
         self.contacts.hash_into(&mut h);
+        self.joints.hash_into(&mut h);
         h.finish()
     }
 

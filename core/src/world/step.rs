@@ -4,12 +4,15 @@
 //! and the [`Stage::name`], so profilers attribute instructions to stages
 //! (see [`Stage`]); an observed step is told when each one ends.
 
+use crate::arena::Arena;
 use crate::body::{BodyHot, BodyKind};
 use crate::collision::ContactPair;
 use crate::collision::contacts::PairKind;
+use crate::joint::Joint;
 use crate::math::{Scalar, Vec3};
 use crate::solver::contact_solver::{ContactSolver, PairInfo, Softness, SolverParams, SolverStats};
 use crate::solver::integrate::{self, VelocityCounters};
+use crate::solver::joint_solver::{JOINT_DAMPING_RATIO, JointParams, JointSolver};
 use crate::solver::sleep;
 
 use super::observe::{Guarded, Notify, Quiet, Stage, StepObserver};
@@ -107,7 +110,10 @@ impl World {
 
         let params = self.solver_params();
         let prep = self.stage_prepare_contacts(&params);
+        report.buffer_growths += u32::from(self.prepare_joints());
+        report.joints = self.joint_solver.len() as u32;
         n.finished(Stage::PrepareContacts);
+        let jparams = self.joint_params(&params);
         report.contact_constraints = prep.constraints;
         report.buffer_growths += prep.growths;
 
@@ -117,9 +123,16 @@ impl World {
             bodies,
             solver,
             contacts,
+            joints,
+            joint_solver,
             ..
         } = self;
         let (hot, awake) = bodies.awake_slots_mut();
+        let mut js = Joints {
+            solver: joint_solver,
+            arena: &mut joints.arena,
+            params: jparams,
+        };
         for _ in 0..cfg.substeps {
             let c = stage_integrate_velocities(hot, awake, cfg.gravity, h);
             n.finished(Stage::IntegrateVelocities);
@@ -127,13 +140,13 @@ impl World {
             report.gyroscopic_solves += c.gyroscopic;
             report.spin_capped += c.clamped;
             // Poses are as the last full gather (or `prepare`) saw them.
-            stage_warm_start(solver, hot);
+            stage_warm_start(solver, &mut js, hot);
             n.finished(Stage::WarmStart);
-            stage_solve(solver, &params, cfg.solver_iterations, hot);
+            stage_solve(solver, &mut js, &params, cfg.solver_iterations, hot);
             n.finished(Stage::Solve);
             stage_integrate_positions(hot, awake, h);
             n.finished(Stage::IntegratePositions);
-            stage_relax(solver, &params, cfg.relax_iterations, hot);
+            stage_relax(solver, &mut js, &params, cfg.relax_iterations, hot);
             n.finished(Stage::Relax);
         }
         stage_restitution(solver, &params, hot);
@@ -141,6 +154,11 @@ impl World {
         stage_store_impulses(solver, contacts.pairs_mut());
         n.finished(Stage::StoreImpulses);
         stage_finish_velocities(hot, awake);
+        // Joints past their thresholds break (after the last substep's
+        // impulses are known).
+        let (broken, grew) = self.stage_break_joints();
+        report.joints_broken = broken;
+        report.buffer_growths += u32::from(grew);
         n.finished(Stage::FinishVelocities);
 
         let ccd = self.stage_ccd();
@@ -188,6 +206,7 @@ impl World {
             contacts,
             islands,
             config,
+            joints,
             ..
         } = self;
         // Only pairs with an awake body can join islands or stop a body
@@ -206,6 +225,12 @@ impl World {
                 let b = colliders.get(p.b.0)?.body.0.index;
                 Some(sleep::Link { a, b })
             });
+        // Joined bodies share an island: they sleep and wake together.
+        let joined = joints.arena.iter().map(|(_, j)| sleep::Link {
+            a: j.desc.body_a.index(),
+            b: j.desc.body_b.index(),
+        });
+        let links = links.chain(joined);
         let (hot, awake) = bodies.awake_slots_mut();
         let slept =
             sleep::update_sleep(hot, awake, links, &config.sleep, config.tick_rate, islands);
@@ -255,6 +280,35 @@ impl World {
             omega_max: omega_max(substep_rate),
             max_push_out: cfg.max_push_out,
             restitution_threshold: cfg.restitution_threshold,
+        }
+    }
+
+    /// Lists this tick's joints for the solver. Returns whether a buffer
+    /// grew.
+    fn prepare_joints(&mut self) -> bool {
+        let World {
+            bodies,
+            joints,
+            joint_solver,
+            ..
+        } = self;
+        if joints.arena.is_empty() && joint_solver.is_empty() {
+            return false;
+        }
+        joint_solver.prepare(&joints.arena, bodies)
+    }
+
+    /// The joints' settings for this world's substep: the contact spring's
+    /// frequency doubled (capped at a quarter of the substep rate, as the
+    /// contacts' is) and [`JOINT_DAMPING_RATIO`].
+    fn joint_params(&self, params: &SolverParams) -> JointParams {
+        let cfg = &self.config;
+        let substep_rate = cfg.tick_rate as i64 * cfg.substeps as i64;
+        let hertz = (cfg.contact_hertz * Scalar::TWO).min(Scalar::from_ratio(substep_rate, 4));
+        JointParams {
+            h: params.h,
+            inv_h: params.inv_h,
+            softness: Softness::new(hertz, JOINT_DAMPING_RATIO, params.h),
         }
     }
 
@@ -345,14 +399,36 @@ fn stage_integrate_velocities(
     integrate::integrate_velocities(hot, awake, gravity, h)
 }
 
-/// The previous substep's (or tick's) impulses applied again.
+/// The joints of this tick, for the substep stages.
+struct Joints<'a> {
+    solver: &'a mut JointSolver,
+    arena: &'a mut Arena<Joint>,
+    params: JointParams,
+}
+
+impl Joints<'_> {
+    fn is_empty(&self) -> bool {
+        self.solver.is_empty()
+    }
+}
+
+/// The previous substep's (or tick's) impulses applied again: the joints'
+/// to the bodies, the contacts' to the contact solver's velocities (which
+/// go back to the bodies at once when joints will solve next, so they see
+/// them).
 #[inline(never)]
-fn stage_warm_start(solver: &mut ContactSolver, hot: &[BodyHot]) {
+fn stage_warm_start(solver: &mut ContactSolver, js: &mut Joints<'_>, hot: &mut [BodyHot]) {
+    if !js.is_empty() {
+        js.solver.warm_start(js.arena, hot);
+    }
     if solver.is_empty() {
         return;
     }
     solver.gather_velocities(hot);
     solver.warm_start();
+    if !js.is_empty() {
+        solver.scatter_velocities(hot);
+    }
 }
 
 /// The soft solve passes with push-out and the shock pass over the
@@ -360,12 +436,21 @@ fn stage_warm_start(solver: &mut ContactSolver, hot: &[BodyHot]) {
 #[inline(never)]
 fn stage_solve(
     solver: &mut ContactSolver,
+    js: &mut Joints<'_>,
     params: &SolverParams,
     iterations: u32,
     hot: &mut [BodyHot],
 ) {
+    if !js.is_empty() {
+        for _ in 0..iterations {
+            js.solver.solve(js.arena, hot, &js.params, true);
+        }
+    }
     if solver.is_empty() {
         return;
+    }
+    if !js.is_empty() {
+        solver.gather_velocities(hot);
     }
     for _ in 0..iterations {
         solver.solve(params, true);
@@ -385,10 +470,16 @@ fn stage_integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar) {
 #[inline(never)]
 fn stage_relax(
     solver: &mut ContactSolver,
+    js: &mut Joints<'_>,
     params: &SolverParams,
     iterations: u32,
     hot: &mut [BodyHot],
 ) {
+    if !js.is_empty() {
+        for _ in 0..iterations {
+            js.solver.solve(js.arena, hot, &js.params, false);
+        }
+    }
     if solver.is_empty() {
         return;
     }
