@@ -57,6 +57,8 @@ pub fn build_world_with_config(
     };
     let mut world =
         World::new(config).map_err(|e| at(1, SceneErrorKind::OutOfRange, e.to_string()))?;
+    let mut handles = Vec::with_capacity(desc.bodies.len());
+    let mut sleepers = Vec::new();
     for body in &desc.bodies {
         let kind = body.kind;
         let world_desc = WorldBodyDesc {
@@ -108,11 +110,41 @@ pub fn build_world_with_config(
                 .set_angular_velocity(handle, body.angular_velocity)
                 .map_err(|e| at(body.line, SceneErrorKind::OutOfRange, e.to_string()))?;
             if body.asleep {
-                world
-                    .sleep_body(handle)
-                    .map_err(|e| at(body.line, SceneErrorKind::OutOfRange, e.to_string()))?;
+                sleepers.push((handle, body.line));
             }
         }
+        handles.push(handle);
+    }
+    // Joints after every body (a joint may name a later body), in file
+    // order.
+    for j in &desc.joints {
+        let find = |name: &str| {
+            desc.bodies
+                .iter()
+                .position(|b| b.name == name)
+                .map(|i| handles[i])
+        };
+        let (Some(a), Some(b)) = (find(&j.body_a), find(&j.body_b)) else {
+            return Err(at(
+                j.line,
+                SceneErrorKind::OutOfRange,
+                format!("joint {:?}: a body it names is not in the scene", j.name),
+            ));
+        };
+        let mut jd = crate::joint::JointDesc::new(j.kind, a, b)
+            .frames(j.frame_a, j.frame_b)
+            .collide_connected(j.collide_connected)
+            .breakable(j.break_force, j.break_torque);
+        jd.name = j.name.clone();
+        world
+            .add_joint(jd)
+            .map_err(|e| at(j.line, SceneErrorKind::OutOfRange, e.to_string()))?;
+    }
+    // Asleep bodies go to sleep last: adding a joint wakes its bodies.
+    for (handle, line) in sleepers {
+        world
+            .sleep_body(handle)
+            .map_err(|e| at(line, SceneErrorKind::OutOfRange, e.to_string()))?;
     }
     Ok(world)
 }

@@ -24,6 +24,35 @@ pub struct SceneDesc {
     /// The bodies in file order. Determinism: the builder must create them in
     /// this order, since creation order is simulation order.
     pub bodies: Vec<BodyDesc>,
+    /// The `[[joints]]` in file order (created after every body, in this
+    /// order).
+    pub joints: Vec<JointSceneDesc>,
+}
+
+/// One `[[joints]]` table, validated: its bodies exist and differ, its
+/// parameters are in range, its angles are in radians.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointSceneDesc {
+    /// The joint's name ("" when the file gives none).
+    pub name: String,
+    /// What it constrains, with its limits, motor or spring.
+    pub kind: crate::joint::JointKind,
+    /// The first body's name.
+    pub body_a: String,
+    /// The second body's name.
+    pub body_b: String,
+    /// The joint frame in A's body frame (`anchor_a`, `rotation_a`).
+    pub frame_a: crate::math::Transform,
+    /// The joint frame in B's body frame.
+    pub frame_b: crate::math::Transform,
+    /// Whether the two bodies collide with each other.
+    pub collide_connected: bool,
+    /// Break thresholds, N and N·m.
+    pub break_force: Option<Scalar>,
+    /// See `break_force`.
+    pub break_torque: Option<Scalar>,
+    /// 1-based line of the table, for errors.
+    pub line: u32,
 }
 
 impl SceneDesc {

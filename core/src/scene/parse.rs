@@ -8,16 +8,45 @@
 
 use toml_edit::Document;
 
-use super::desc::{BodyDesc, BodyKindDesc, MaterialDesc, SceneDesc, WorldDesc};
+use super::desc::{BodyDesc, BodyKindDesc, JointSceneDesc, MaterialDesc, SceneDesc, WorldDesc};
 use super::error::{SceneError, SceneErrorKind, Source, line_column};
 use super::reader::{Result, TableView};
 use super::rotation::read_rotation;
 use super::shape::read_shape;
-use crate::math::{Quat, Scalar, Vec3};
+use crate::math::{Quat, Scalar, Transform, Vec3};
 use crate::world::MAX_SOLVER_ITERATIONS;
 
 /// Keys of the root table.
-const ROOT_KEYS: &[&str] = &["world", "materials", "bodies"];
+const ROOT_KEYS: &[&str] = &["world", "materials", "bodies", "joints"];
+/// Keys of a `[[joints]]` table.
+const JOINT_KEYS: &[&str] = &[
+    "name",
+    "kind",
+    "body_a",
+    "body_b",
+    "anchor_a",
+    "anchor_b",
+    "rotation_a",
+    "rotation_b",
+    "collide_connected",
+    "break_force",
+    "break_torque",
+    "cone_deg",
+    "twist_deg",
+    "limits_deg",
+    "limits",
+    "motor_speed",
+    "motor_target_deg",
+    "motor_target",
+    "max_force",
+    "length",
+    "min_length",
+    "max_length",
+    "spring_hertz",
+    "spring_damping_ratio",
+];
+/// Joint kinds, as written.
+const JOINT_KINDS: &[&str] = &["spherical", "revolute", "prismatic", "fixed", "distance"];
 /// Keys of `[world]`.
 const WORLD_KEYS: &[&str] = &[
     "gravity",
@@ -115,10 +144,326 @@ pub fn parse_scene(text: &str, file_name: &str) -> std::result::Result<SceneDesc
         }
     }
 
+    let mut joints = Vec::new();
+    if let Some(field) = root.get("joints") {
+        let tables = root.table_array(&field, "[[joints]] tables")?;
+        for (index, mut t) in tables.into_iter().enumerate() {
+            t.set_context(format!("joint #{}", index + 1));
+            joints.push(read_joint(&mut t, &bodies)?);
+        }
+    }
+
     Ok(SceneDesc {
         world,
         materials,
         bodies,
+        joints,
+    })
+}
+
+/// Reads one `[[joints]]` table; `bodies` are the scene's bodies.
+fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDesc> {
+    use crate::joint::{JointKind, Motor, Spring};
+    t.check_keys(JOINT_KEYS, "a joint")?;
+    let name = match t.get("name") {
+        Some(f) => t.string(&f)?.to_owned(),
+        None => String::new(),
+    };
+    if !name.is_empty() {
+        t.set_context(format!("joint \"{name}\""));
+    }
+    let line = line_column(t.src.text, t.at).0;
+    let body = |key: &str| -> Result<(String, BodyKindDesc)> {
+        let f = t.require(key, "the name of a body in this scene")?;
+        let n = t.string(&f)?;
+        match bodies.iter().find(|b| b.name == n) {
+            Some(b) => Ok((n.to_owned(), b.kind)),
+            None => Err(t.error(
+                f.at,
+                SceneErrorKind::OutOfRange,
+                format!("{key} = \"{n}\" names no body of this scene"),
+            )),
+        }
+    };
+    let (body_a, kind_a) = body("body_a")?;
+    let (body_b, kind_b) = body("body_b")?;
+    if body_a == body_b {
+        return Err(t.error(
+            t.at,
+            SceneErrorKind::OutOfRange,
+            format!("a joint needs two different bodies; both are \"{body_a}\""),
+        ));
+    }
+    if kind_a != BodyKindDesc::Dynamic && kind_b != BodyKindDesc::Dynamic {
+        return Err(t.error(
+            t.at,
+            SceneErrorKind::OutOfRange,
+            format!("at least one of \"{body_a}\" and \"{body_b}\" must be dynamic"),
+        ));
+    }
+    let frame = |a: &str, r: &str| -> Result<Transform> {
+        let mut f = Transform::IDENTITY;
+        if let Some(v) = t.get(a) {
+            f.translation = t.vec3(&v)?;
+        }
+        if let Some(v) = t.get(r) {
+            f.rotation = read_rotation(t, &v)?;
+        }
+        Ok(f)
+    };
+    let frame_a = frame("anchor_a", "rotation_a")?;
+    let frame_b = frame("anchor_b", "rotation_b")?;
+
+    let kind_field = t.require(
+        "kind",
+        "one of: spherical, revolute, prismatic, fixed, distance",
+    )?;
+    let kind_name = t.string(&kind_field)?;
+    // The keys each kind reads (the others are errors, so a key meant for
+    // another kind is not silently ignored).
+    let allowed: &[&str] = match kind_name {
+        "spherical" => &["cone_deg", "twist_deg"],
+        "revolute" => &["limits_deg", "motor_speed", "motor_target_deg", "max_force"],
+        "prismatic" => &["limits", "motor_speed", "motor_target", "max_force"],
+        "fixed" => &[],
+        "distance" => &[
+            "length",
+            "min_length",
+            "max_length",
+            "spring_hertz",
+            "spring_damping_ratio",
+        ],
+        other => {
+            return Err(t.error(
+                kind_field.at,
+                SceneErrorKind::WrongType,
+                format!(
+                    "unknown joint kind \"{other}\" (expected one of: {})",
+                    JOINT_KINDS.join(", ")
+                ),
+            ));
+        }
+    };
+    const KIND_KEYS: &[&str] = &[
+        "cone_deg",
+        "twist_deg",
+        "limits_deg",
+        "limits",
+        "motor_speed",
+        "motor_target_deg",
+        "motor_target",
+        "max_force",
+        "length",
+        "min_length",
+        "max_length",
+        "spring_hertz",
+        "spring_damping_ratio",
+    ];
+    for key in KIND_KEYS {
+        if !allowed.contains(key)
+            && let Some(f) = t.get(key)
+        {
+            return Err(t.error(
+                f.at,
+                SceneErrorKind::UnknownKey,
+                format!("a {kind_name} joint has no {key}"),
+            ));
+        }
+    }
+    let angle = |f: &super::reader::Field<'_>| -> Result<Scalar> {
+        let d = t.scalar_where(
+            f,
+            |v| v.abs() <= Scalar::from_int(180),
+            "between -180 and 180 (degrees)",
+        )?;
+        Ok(super::rotation::degrees_to_radians(d))
+    };
+    let pair = |key: &str, degrees: bool| -> Result<Option<(Scalar, Scalar)>> {
+        let Some(f) = t.get(key) else {
+            return Ok(None);
+        };
+        let [lo, hi] = t.scalars::<2>(&f, "[lower, upper]")?;
+        let (lo, hi) = if degrees {
+            if lo.abs() > Scalar::from_int(180) || hi.abs() > Scalar::from_int(180) {
+                return Err(t.out_of_range(
+                    f.at,
+                    key,
+                    "two angles between -180 and 180 (degrees)",
+                    &format!("[{lo}, {hi}]"),
+                ));
+            }
+            (
+                super::rotation::degrees_to_radians(lo),
+                super::rotation::degrees_to_radians(hi),
+            )
+        } else {
+            (lo, hi)
+        };
+        if lo > hi {
+            return Err(t.out_of_range(
+                f.at,
+                key,
+                "[lower, upper] with lower ≤ upper",
+                &format!("[{lo}, {hi}]"),
+            ));
+        }
+        Ok(Some((lo, hi)))
+    };
+    let motor = |target_key: &str, degrees: bool| -> Result<Option<Motor>> {
+        let speed = t.get("motor_speed");
+        let target = t.get(target_key);
+        let max = t.get("max_force");
+        let max_force = match &max {
+            Some(f) => Some(t.scalar_where(f, |v| !v.is_negative(), "≥ 0 (N or N·m)")?),
+            None => None,
+        };
+        let need_max = |at: usize| {
+            t.error(
+                at,
+                SceneErrorKind::MissingKey,
+                "a motor needs max_force (the largest force or torque it may apply)",
+            )
+        };
+        match (speed, target) {
+            (Some(a), Some(b)) => Err(t.error(
+                a.at.max(b.at),
+                SceneErrorKind::Conflict,
+                format!("a motor has a speed or a target, not both (motor_speed and {target_key})"),
+            )),
+            (Some(f), None) => Ok(Some(Motor::Speed {
+                speed: t.scalar(&f)?,
+                max_force: max_force.ok_or_else(|| need_max(f.at))?,
+            })),
+            (None, Some(f)) => {
+                let target = if degrees { angle(&f)? } else { t.scalar(&f)? };
+                Ok(Some(Motor::Position {
+                    target,
+                    max_force: max_force.ok_or_else(|| need_max(f.at))?,
+                }))
+            }
+            (None, None) => match max {
+                Some(f) => Err(t.error(
+                    f.at,
+                    SceneErrorKind::MissingKey,
+                    format!("max_force without a motor (give motor_speed or {target_key})"),
+                )),
+                None => Ok(None),
+            },
+        }
+    };
+    let kind = match kind_name {
+        "spherical" => JointKind::Spherical {
+            cone: match t.get("cone_deg") {
+                Some(f) => {
+                    let c = t.scalar_where(
+                        &f,
+                        |v| !v.is_negative() && v <= Scalar::from_int(180),
+                        "between 0 and 180 (degrees)",
+                    )?;
+                    Some(super::rotation::degrees_to_radians(c))
+                }
+                None => None,
+            },
+            twist: pair("twist_deg", true)?,
+        },
+        "revolute" => JointKind::Revolute {
+            limits: pair("limits_deg", true)?,
+            motor: motor("motor_target_deg", true)?,
+        },
+        "prismatic" => JointKind::Prismatic {
+            limits: pair("limits", false)?,
+            motor: motor("motor_target", false)?,
+        },
+        "fixed" => JointKind::Fixed,
+        _ => {
+            let nonneg = |key: &str| -> Result<Option<Scalar>> {
+                match t.get(key) {
+                    Some(f) => Ok(Some(t.scalar_where(&f, |v| !v.is_negative(), "≥ 0 (m)")?)),
+                    None => Ok(None),
+                }
+            };
+            let length = nonneg("length")?;
+            let min = nonneg("min_length")?;
+            let max = nonneg("max_length")?;
+            let hertz = match t.get("spring_hertz") {
+                Some(f) => Some(t.scalar_where(&f, |v| !v.is_negative(), "≥ 0 (Hz)")?),
+                None => None,
+            };
+            let damping = match t.get("spring_damping_ratio") {
+                Some(f) => Some(t.scalar_where(&f, |v| !v.is_negative(), "≥ 0")?),
+                None => None,
+            };
+            // Without a length: the distance the anchors start at is not
+            // known here (the bodies' poses are), so the file must say.
+            let Some(length) = length.or(max) else {
+                return Err(t.error(
+                    t.at,
+                    SceneErrorKind::MissingKey,
+                    "a distance joint needs length (or max_length, for a rope)",
+                ));
+            };
+            let spring = match (hertz, damping) {
+                (None, None) if min.is_none() && max.is_none() => None,
+                (h, d) => Some(Spring {
+                    hertz: h.unwrap_or(Scalar::ZERO),
+                    damping_ratio: d.unwrap_or(Scalar::ZERO),
+                }),
+            };
+            let min = min.unwrap_or(if spring.is_some() {
+                Scalar::ZERO
+            } else {
+                length
+            });
+            let max = max.unwrap_or(if spring.is_some() {
+                Scalar::from_int(1 << 20)
+            } else {
+                length
+            });
+            if min > max || length < min || length > max {
+                return Err(t.error(
+                    t.at,
+                    SceneErrorKind::OutOfRange,
+                    format!("distance needs min_length ≤ length ≤ max_length (got {min}, {length}, {max})"),
+                ));
+            }
+            if spring.is_none() && !length.is_positive() {
+                return Err(t.error(
+                    t.at,
+                    SceneErrorKind::OutOfRange,
+                    "a rigid distance joint needs a positive length",
+                ));
+            }
+            JointKind::Distance {
+                length,
+                min,
+                max,
+                spring,
+            }
+        }
+    };
+    let threshold = |key: &str, unit: &str| -> Result<Option<Scalar>> {
+        match t.get(key) {
+            Some(f) => Ok(Some(read_positive(t, &f, unit)?)),
+            None => Ok(None),
+        }
+    };
+    let break_force = threshold("break_force", "N")?;
+    let break_torque = threshold("break_torque", "N·m")?;
+    let collide_connected = match t.get("collide_connected") {
+        Some(f) => t.boolean(&f)?,
+        None => false,
+    };
+    Ok(JointSceneDesc {
+        name,
+        kind,
+        body_a,
+        body_b,
+        frame_a,
+        frame_b,
+        collide_connected,
+        break_force,
+        break_torque,
+        line,
     })
 }
 
