@@ -14,14 +14,15 @@ use std::fmt::Write as _;
 use std::sync::Arc;
 use std::time::Instant;
 
-use lockstep_core::shape::{ConvexHull, Cuboid, Shape};
+use lockstep_core::shape::{ConvexHull, Cuboid, Shape, Sphere};
 use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{
-    BodyDesc, BodyHandle, ColliderDesc, Material, Scalar, Vec3, World, WorldConfig,
+    BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, JointDesc, Material, Scalar, Vec3, World,
+    WorldConfig,
 };
 use rapier3d::prelude::{
-    ColliderBuilder, IntegrationParameters, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
-    SharedShape, Vector,
+    ColliderBuilder, IntegrationParameters, InteractionGroups, PhysicsWorld, RigidBodyBuilder,
+    RigidBodyHandle, SharedShape, SphericalJointBuilder, Vector,
 };
 
 use crate::scenes::{self, BodyShape, Scene};
@@ -124,25 +125,45 @@ pub fn build_ours(scene: &Scene, sleep: SleepConfig) -> (World, Vec<BodyHandle>)
                 ConvexHull::from_points(&pts).expect("hull of points on a sphere"),
             ))
         }
+        BodyShape::Sphere(radius) => Shape::Sphere(Sphere::new(s(*radius)).expect("radius")),
     };
-    let bodies = scene
+    let filter = if scene.collide {
+        CollisionFilter::default()
+    } else {
+        CollisionFilter {
+            mask: 0,
+            ..CollisionFilter::default()
+        }
+    };
+    let bodies: Vec<BodyHandle> = scene
         .positions
         .iter()
-        .map(|&p| {
-            let b = world
-                .create_body(&BodyDesc::dynamic().position(v3(p)))
-                .expect("body");
+        .enumerate()
+        .map(|(i, &p)| {
+            let desc = if scene.statics.binary_search(&i).is_ok() {
+                BodyDesc::fixed()
+            } else {
+                BodyDesc::dynamic()
+            };
+            let b = world.create_body(&desc.position(v3(p))).expect("body");
             world
                 .add_collider(
                     b,
                     ColliderDesc::new(shape.clone())
                         .density(s(scene.density))
-                        .material(material),
+                        .material(material)
+                        .filter(filter),
                 )
                 .expect("collider");
             b
         })
         .collect();
+    for &(a, b, at) in &scene.joints {
+        let (pa, pb) = (v3(scene.positions[a]), v3(scene.positions[b]));
+        world
+            .add_joint(JointDesc::spherical(bodies[a], bodies[b]).anchors(v3(at) - pa, v3(at) - pb))
+            .expect("joint");
+    }
     (world, bodies)
 }
 
@@ -227,24 +248,46 @@ impl Rapier {
                 let pts: Vec<Vector> = points.iter().map(|&p| rv(p)).collect();
                 SharedShape::convex_hull(&pts).expect("hull of points on a sphere")
             }
+            BodyShape::Sphere(radius) => SharedShape::ball(r(*radius)),
         };
-        let bodies = scene
+        let groups = if scene.collide {
+            InteractionGroups::all()
+        } else {
+            InteractionGroups::none()
+        };
+        let bodies: Vec<RigidBodyHandle> = scene
             .positions
             .iter()
-            .map(|&p| {
+            .enumerate()
+            .map(|(i, &p)| {
+                let builder = if scene.statics.binary_search(&i).is_ok() {
+                    RigidBodyBuilder::fixed()
+                } else {
+                    RigidBodyBuilder::dynamic()
+                };
                 world
                     .insert(
-                        RigidBodyBuilder::dynamic()
-                            .translation(rv(p))
-                            .can_sleep(false),
+                        builder.translation(rv(p)).can_sleep(false),
                         ColliderBuilder::new(shape.clone())
                             .density(r(scene.density))
                             .friction(r(scene.friction))
-                            .restitution(0.0),
+                            .restitution(0.0)
+                            .collision_groups(groups),
                     )
                     .0
             })
             .collect();
+        for &(a, b, at) in &scene.joints {
+            let (pa, pb) = (scene.positions[a], scene.positions[b]);
+            let rel = |p: [f64; 3]| rv([at[0] - p[0], at[1] - p[1], at[2] - p[2]]);
+            world.insert_impulse_joint(
+                bodies[a],
+                bodies[b],
+                SphericalJointBuilder::new()
+                    .local_anchor1(rel(pa))
+                    .local_anchor2(rel(pb)),
+            );
+        }
         Rapier { world, bodies }
     }
 }
@@ -483,7 +526,7 @@ pub(crate) fn scene_list(quick: bool) -> Vec<(&'static str, Option<Scene>)> {
         vec![
             ("large_pyramid", Some(scenes::large_pyramid(10, 5))),
             ("many_pyramids", Some(scenes::many_pyramids(2, 4, 10.0, 5))),
-            ("joint_grid", None),
+            ("joint_grid", Some(scenes::joint_grid(4, 5))),
             ("convex_pile", Some(scenes::convex_pile(2, 2, 2, 5))),
             ("jolt_pyramid", Some(scenes::jolt_pyramid(4, 5))),
         ]
@@ -494,7 +537,7 @@ pub(crate) fn scene_list(quick: bool) -> Vec<(&'static str, Option<Scene>)> {
                 "many_pyramids",
                 Some(scenes::many_pyramids(14, 10, 77.0, 100)),
             ),
-            ("joint_grid", None),
+            ("joint_grid", Some(scenes::joint_grid(100, 100))),
             ("convex_pile", Some(scenes::convex_pile(8, 8, 80, 500))),
             ("jolt_pyramid", Some(scenes::jolt_pyramid(15, 500))),
         ]

@@ -13,6 +13,8 @@ pub enum BodyShape {
     Cube(f64),
     /// The convex hull of these points, m.
     Hull(Vec<[f64; 3]>),
+    /// A sphere of this radius, m.
+    Sphere(f64),
 }
 
 /// A scene: a static ground box plus dynamic bodies of one shape.
@@ -37,6 +39,15 @@ pub struct Scene {
     pub tops: Vec<usize>,
     /// Steps per run.
     pub steps: usize,
+    /// Indices (into `positions`) of bodies that are static instead of
+    /// dynamic (sorted).
+    pub statics: Vec<usize>,
+    /// Spherical joints: two body indices and the anchor in world
+    /// coordinates at the start.
+    pub joints: Vec<(usize, usize, [f64; 3])>,
+    /// Whether the bodies collide at all (false: every collider is filtered
+    /// out of every pair, as joint_grid asks).
+    pub collide: bool,
 }
 
 /// Friction used in every scene (Box2D/Box3D's default).
@@ -70,6 +81,9 @@ pub fn large_pyramid(base: usize, steps: usize) -> Scene {
         positions,
         tops: vec![top],
         steps,
+        statics: Vec::new(),
+        joints: Vec::new(),
+        collide: true,
     }
 }
 
@@ -99,6 +113,9 @@ pub fn many_pyramids(grid: usize, base: usize, ground: f64, steps: usize) -> Sce
         positions,
         tops,
         steps,
+        statics: Vec::new(),
+        joints: Vec::new(),
+        collide: true,
     }
 }
 
@@ -162,6 +179,9 @@ pub fn convex_pile(nx: usize, nz: usize, ny: usize, steps: usize) -> Scene {
         positions,
         tops: Vec::new(),
         steps,
+        statics: Vec::new(),
+        joints: Vec::new(),
+        collide: true,
     }
 }
 
@@ -195,6 +215,49 @@ pub fn jolt_pyramid(layers: usize, steps: usize) -> Scene {
         positions,
         tops: vec![top],
         steps,
+        statics: Vec::new(),
+        joints: Vec::new(),
+        collide: true,
+    }
+}
+
+/// joint_grid: `n` × `n` spheres of radius 0.4 at `(k, −i, 0)`, row `i = 0`
+/// static, each sphere joined to its left and upper neighbours by a
+/// spherical joint at the midpoint, no contacts at all. The published scene
+/// counts `2n(n − 1)` joints; the `n − 1` between two static spheres of row 0
+/// constrain nothing (and our `add_joint` refuses them), so neither engine
+/// gets them: `2n(n − 1) − (n − 1)`.
+/// There is no ground to stand on; the suite's ground box is put far below,
+/// where nothing reaches it in the run.
+pub fn joint_grid(n: usize, steps: usize) -> Scene {
+    let mut positions = Vec::with_capacity(n * n);
+    let mut joints = Vec::with_capacity(2 * n * n.saturating_sub(1));
+    for i in 0..n {
+        for k in 0..n {
+            let index = i * n + k;
+            let p = [k as f64, -(i as f64), 0.0];
+            positions.push(p);
+            if k > 0 && i > 0 {
+                joints.push((index - 1, index, [k as f64 - 0.5, -(i as f64), 0.0]));
+            }
+            if i > 0 {
+                joints.push((index - n, index, [k as f64, 0.5 - i as f64, 0.0]));
+            }
+        }
+    }
+    Scene {
+        name: "joint_grid",
+        ground_half: [1.0, 1.0, 1.0],
+        ground_y: -10_000.0,
+        shape: BodyShape::Sphere(0.4),
+        density: 1000.0,
+        friction: FRICTION,
+        positions,
+        tops: Vec::new(),
+        steps,
+        statics: (0..n).collect(),
+        joints,
+        collide: false,
     }
 }
 
@@ -204,6 +267,10 @@ mod tests {
 
     #[test]
     fn scene_sizes_match_scenes_md() {
+        let grid = joint_grid(100, 100);
+        assert_eq!(grid.positions.len(), 10_000);
+        assert_eq!(grid.joints.len(), 19_800 - 99);
+        assert_eq!(grid.statics.len(), 100);
         assert_eq!(large_pyramid(100, 200).positions.len(), 5_050);
         let many = many_pyramids(14, 10, 77.0, 100);
         assert_eq!(many.positions.len(), 10_780);

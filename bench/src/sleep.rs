@@ -67,6 +67,9 @@ fn grid(nx: usize, nz: usize, steps: usize) -> Scene {
         positions,
         tops: Vec::new(),
         steps,
+        statics: Vec::new(),
+        joints: Vec::new(),
+        collide: true,
     }
 }
 

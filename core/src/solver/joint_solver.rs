@@ -76,6 +76,9 @@ struct Row {
     joint: u32,
     a: End,
     b: End,
+    /// Whether the rows read the joint frames' rotations (all but a
+    /// spherical joint without limits and a distance joint).
+    frames: bool,
 }
 
 /// The state of both ends at the current substep, and the joint's geometry
@@ -146,10 +149,16 @@ impl JointSolver {
                     frame: frame.rotation,
                 }
             };
+            let frames = match j.desc.kind {
+                JointKind::Spherical { cone, twist } => cone.is_some() || twist.is_some(),
+                JointKind::Distance { .. } => false,
+                _ => true,
+            };
             self.rows.push(Row {
                 joint: h.index,
                 a: end(ia, ha, &j.desc.frame_a),
                 b: end(ib, hb, &j.desc.frame_b),
+                frames,
             });
         }
         self.rows.capacity() != cap
@@ -365,13 +374,38 @@ fn geometry(row: &Row, hot: &[BodyHot]) -> Geometry {
     let b = &hot[row.b.slot as usize];
     let ra = a.rotation.rotate(row.a.anchor);
     let rb = b.rotation.rotate(row.b.anchor);
+    let (fa, fb) = if row.frames {
+        (a.rotation * row.a.frame, b.rotation * row.b.frame)
+    } else {
+        (a.rotation, b.rotation)
+    };
     Geometry {
         ra,
         rb,
         d: (b.center + rb) - (a.center + ra),
-        fa: a.rotation * row.a.frame,
-        fb: b.rotation * row.b.frame,
+        fa,
+        fb,
     }
+}
+
+/// The anchor block's `K` for anchors `ra`, `rb` (relative to the centres
+/// of mass, world axes), built at the current anchors on every visit.
+/// (Inverting it once per tick at the start anchors, as Box2D does, let a
+/// pendulum with a small bob gain energy: the bob's `K` is strongly
+/// anisotropic and turns with it.)
+fn point_mass(row: &Row, ra: Vec3, rb: Vec3) -> Mat3 {
+    let ms = row.a.inv_mass + row.b.inv_mass;
+    let col = |e: Vec3| {
+        let mut c = e * ms;
+        if row.a.dynamic {
+            c += row.a.inv_inertia.mul_vec(ra.cross(e)).cross(ra);
+        }
+        if row.b.dynamic {
+            c += row.b.inv_inertia.mul_vec(rb.cross(e)).cross(rb);
+        }
+        c
+    };
+    Mat3::from_cols(col(Vec3::X), col(Vec3::Y), col(Vec3::Z))
 }
 
 fn read(row: &Row, hot: &[BodyHot]) -> Vels {
@@ -589,19 +623,7 @@ fn motor_impulse(
 
 /// The anchor block: three rows that bring the anchors together.
 fn solve_point(row: &Row, g: &Geometry, vel: &mut Vels, acc: &mut Vec3, soft: &Softness) {
-    let ms = row.a.inv_mass + row.b.inv_mass;
-    let col = |e: Vec3| {
-        let mut c = e * ms;
-        if row.a.dynamic {
-            c += row.a.inv_inertia.mul_vec(g.ra.cross(e)).cross(g.ra);
-        }
-        if row.b.dynamic {
-            c += row.b.inv_inertia.mul_vec(g.rb.cross(e)).cross(g.rb);
-        }
-        c
-    };
-    let k = Mat3::from_cols(col(Vec3::X), col(Vec3::Y), col(Vec3::Z));
-    let Some(inv) = k.try_inverse() else {
+    let Some(inv) = point_mass(row, g.ra, g.rb).try_inverse() else {
         return;
     };
     let cdot = vel.vb + vel.wb.cross(g.rb) - vel.va - vel.wa.cross(g.ra);
