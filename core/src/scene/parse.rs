@@ -18,7 +18,10 @@ use crate::world::MAX_SOLVER_ITERATIONS;
 
 /// Keys of the root table.
 const ROOT_KEYS: &[&str] = &["world", "materials", "bodies", "joints"];
-/// Keys of a `[[joints]]` table.
+/// How many of [`JOINT_KEYS`] every joint kind reads (the rest belong to
+/// some kinds only).
+const COMMON_JOINT_KEYS: usize = 11;
+/// Keys of a `[[joints]]` table: the common ones, then the kinds' own.
 const JOINT_KEYS: &[&str] = &[
     "name",
     "kind",
@@ -244,22 +247,7 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
             ));
         }
     };
-    const KIND_KEYS: &[&str] = &[
-        "cone_deg",
-        "twist_deg",
-        "limits_deg",
-        "limits",
-        "motor_speed",
-        "motor_target_deg",
-        "motor_target",
-        "max_force",
-        "length",
-        "min_length",
-        "max_length",
-        "spring_hertz",
-        "spring_damping_ratio",
-    ];
-    for key in KIND_KEYS {
+    for key in &JOINT_KEYS[COMMON_JOINT_KEYS..] {
         if !allowed.contains(key)
             && let Some(f) = t.get(key)
         {

@@ -671,18 +671,30 @@ fn solve_hinge(row: &Row, g: &Geometry, vel: &mut Vels, acc: &mut Vec3, soft: &S
     let w = vel.wb - vel.wa;
     let r1 = w.dot(j1) + soft.bias_rate * p.dot(hb);
     let r2 = w.dot(j2) + soft.bias_rate * q.dot(hb);
-    // K⁻¹ r by Cramer's rule.
-    let (Some(x1), Some(x2)) = (
-        (k22 * r1 - k12 * r2).checked_div(det),
-        (k11 * r2 - k12 * r1).checked_div(det),
-    ) else {
+    let Some((l1, l2)) = block2([k11, k12, k22], det, [r1, r2], acc, soft) else {
         return;
     };
+    apply_angular(row, vel, j1 * l1 + j2 * l2);
+}
+
+/// The impulses of a soft 2×2 block with `K = [[k11, k12], [k12, k22]]`
+/// (determinant `det` > 0) and right-hand side `r = Ċ + b·C`: `K⁻¹r` by
+/// Cramer's rule, scaled, minus the relaxed accumulated impulses (`acc.x`,
+/// `acc.y`), which take the result.
+fn block2(
+    [k11, k12, k22]: [Scalar; 3],
+    det: Scalar,
+    [r1, r2]: [Scalar; 2],
+    acc: &mut Vec3,
+    soft: &Softness,
+) -> Option<(Scalar, Scalar)> {
+    let x1 = (k22 * r1 - k12 * r2).checked_div(det)?;
+    let x2 = (k11 * r2 - k12 * r1).checked_div(det)?;
     let l1 = -(x1 * soft.mass_scale) - acc.x * soft.impulse_scale;
     let l2 = -(x2 * soft.mass_scale) - acc.y * soft.impulse_scale;
     acc.x += l1;
     acc.y += l2;
-    apply_angular(row, vel, j1 * l1 + j2 * l2);
+    Some((l1, l2))
 }
 
 /// The two linear rows of a slider, across A's axis: they keep B's anchor
@@ -704,16 +716,9 @@ fn solve_slide(row: &Row, g: &Geometry, vel: &mut Vels, acc: &mut Vec3, soft: &S
     let dv = vel.vb - vel.va;
     let r1 = p.dot(dv) + pb.dot(vel.wb) - pa.dot(vel.wa) + soft.bias_rate * p.dot(g.d);
     let r2 = q.dot(dv) + qb.dot(vel.wb) - qa.dot(vel.wa) + soft.bias_rate * q.dot(g.d);
-    let (Some(x1), Some(x2)) = (
-        (k22 * r1 - k12 * r2).checked_div(det),
-        (k11 * r2 - k12 * r1).checked_div(det),
-    ) else {
+    let Some((l1, l2)) = block2([k11, k12, k22], det, [r1, r2], acc, soft) else {
         return;
     };
-    let l1 = -(x1 * soft.mass_scale) - acc.x * soft.impulse_scale;
-    let l2 = -(x2 * soft.mass_scale) - acc.y * soft.impulse_scale;
-    acc.x += l1;
-    acc.y += l2;
     apply_linear(row, g, vel, p, l1);
     apply_linear(row, g, vel, q, l2);
 }
@@ -727,7 +732,13 @@ fn twist_axis(g: &Geometry) -> Vec3 {
 /// The angle of B's frame about A's x axis: the twist of the swing–twist
 /// split of B's frame relative to A's, in (−π, π].
 fn twist_angle(g: &Geometry) -> Scalar {
-    let mut rel = g.fa.conjugate() * g.fb;
+    twist_between(g.fa, g.fb)
+}
+
+/// The twist about A's x axis of frame `fb` relative to frame `fa` (world
+/// rotations), in (−π, π].
+pub(crate) fn twist_between(fa: Quat, fb: Quat) -> Scalar {
+    let mut rel = fa.conjugate() * fb;
     if rel.w.is_negative() {
         rel = Quat::from_xyzw(-rel.x, -rel.y, -rel.z, -rel.w);
     }

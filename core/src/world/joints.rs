@@ -8,8 +8,7 @@ use crate::arena::Arena;
 use crate::body::{BodyHandle, BodyKind};
 use crate::hash::StateHasher;
 use crate::joint::{Joint, JointDesc, JointEvent, JointHandle, JointImpulses, JointKind, Motor};
-use crate::math::elem::atan2;
-use crate::math::{Quat, Scalar, Transform};
+use crate::math::{Scalar, Transform};
 
 use super::{World, WorldError};
 
@@ -400,11 +399,7 @@ impl World {
         let d = fb.translation - fa.translation;
         Ok(match j.desc.kind {
             JointKind::Revolute { .. } | JointKind::Spherical { .. } => {
-                let mut rel = fa.rotation.conjugate() * fb.rotation;
-                if rel.w.is_negative() {
-                    rel = Quat::from_xyzw(-rel.x, -rel.y, -rel.z, -rel.w);
-                }
-                atan2(rel.x, rel.w) * Scalar::TWO
+                crate::solver::joint_solver::twist_between(fa.rotation, fb.rotation)
             }
             JointKind::Prismatic { .. } => fa.rotation.rotate(crate::math::Vec3::X).dot(d),
             JointKind::Distance { .. } => d.length(),

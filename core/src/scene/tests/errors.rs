@@ -42,7 +42,7 @@ fn unknown_keys_are_rejected_with_a_suggestion() {
     );
     assert_error(
         "[physics]\n",
-        "test.toml:1:2: unknown key \"physics\" in the top level (expected one of: world, materials, bodies)",
+        "test.toml:1:2: unknown key \"physics\" in the top level (expected one of: world, materials, bodies, joints)",
     );
     assert_error(
         &format!("{BALL}rotation = {{ axis = [0, 1, 0], angle = 3 }}\n"),
