@@ -37,6 +37,11 @@ impl JointHandle {
     }
 }
 
+/// The `max` of a distance joint with no longest length (a spring without
+/// limits): 2²⁰ m, far beyond any scene and beyond the distance at which the
+/// solver treats a limit as idle.
+pub const UNBOUNDED_LENGTH: Scalar = Scalar::from_int(1 << 20);
+
 /// A motor on a revolute or prismatic joint's axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Motor {
@@ -254,13 +259,14 @@ impl JointDesc {
         )
     }
 
-    /// A spring of rest `length` (no limits: `min` 0, `max` unbounded).
+    /// A spring of rest `length` (no limits: `min` 0, `max`
+    /// [`UNBOUNDED_LENGTH`]).
     pub fn spring(a: BodyHandle, b: BodyHandle, length: Scalar, spring: Spring) -> JointDesc {
         JointDesc::new(
             JointKind::Distance {
                 length,
                 min: Scalar::ZERO,
-                max: Scalar::from_int(i32::MAX),
+                max: UNBOUNDED_LENGTH,
                 spring: Some(spring),
             },
             a,
@@ -334,9 +340,9 @@ pub enum JointEvent {
     Broken {
         /// The handle it had.
         joint: JointHandle,
-        /// Its bodies.
+        /// Its first body.
         body_a: BodyHandle,
-        /// Its bodies.
+        /// Its second body.
         body_b: BodyHandle,
         /// The constraint force (N) and torque (N·m) it carried.
         force: Scalar,

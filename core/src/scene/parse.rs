@@ -403,7 +403,7 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
                 length
             });
             let max = max.unwrap_or(if spring.is_some() {
-                Scalar::from_int(1 << 20)
+                crate::joint::UNBOUNDED_LENGTH
             } else {
                 length
             });

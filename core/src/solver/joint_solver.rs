@@ -31,7 +31,7 @@
 //! fixed-point arithmetic; no allocation once the list is warm.
 
 use crate::arena::Arena;
-use crate::body::{BodyHot, BodyKind, BodySet};
+use crate::body::{BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::joint::{Joint, JointKind, Motor};
 use crate::math::elem::atan2;
 use crate::math::{Mat3, Quat, Scalar, SymMat3, Vec3};
@@ -121,23 +121,18 @@ impl JointSolver {
         self.rows.clear();
         for (h, j) in joints.iter() {
             let (a, b) = (j.desc.body_a, j.desc.body_b);
-            let (ia, ib) = (a.index(), b.index());
             let (Some(ha), Some(hb)) = (bodies.hot(a), bodies.hot(b)) else {
                 continue;
-            };
-            let cold = |slot: u32| {
-                let handle = if slot == ia { a } else { b };
-                bodies.cold(handle).map(|c| c.local_center)
             };
             let moving = |b: &BodyHot| b.kind == BodyKind::Dynamic && !b.sleeping;
             if !moving(ha) && !moving(hb) {
                 continue;
             }
-            let end = |slot: u32, b: &BodyHot, frame: &crate::math::Transform| {
+            let end = |handle: BodyHandle, b: &BodyHot, frame: &crate::math::Transform| {
                 let dynamic = moving(b);
-                let center = cold(slot).unwrap_or(Vec3::ZERO);
+                let center = bodies.cold(handle).map_or(Vec3::ZERO, |c| c.local_center);
                 End {
-                    slot,
+                    slot: handle.index(),
                     dynamic,
                     inv_mass: if dynamic { b.inv_mass } else { Scalar::ZERO },
                     inv_inertia: if dynamic {
@@ -156,8 +151,8 @@ impl JointSolver {
             };
             self.rows.push(Row {
                 joint: h.index,
-                a: end(ia, ha, &j.desc.frame_a),
-                b: end(ib, hb, &j.desc.frame_b),
+                a: end(a, ha, &j.desc.frame_a),
+                b: end(b, hb, &j.desc.frame_b),
                 frames,
             });
         }
@@ -191,6 +186,9 @@ impl JointSolver {
                     let (p, q) = (g.fa.rotate(Vec3::Y), g.fa.rotate(Vec3::Z));
                     apply_linear(row, &g, &mut vel, p, imp.linear.x);
                     apply_linear(row, &g, &mut vel, q, imp.linear.y);
+                    let axis = g.fa.rotate(Vec3::X);
+                    let axial = imp.axial[0] - imp.axial[1] + imp.axial[2];
+                    apply_linear(row, &g, &mut vel, axis, axial);
                 }
                 JointKind::Distance { .. } => {
                     if let Some(u) = g.d.try_normalize() {
@@ -210,19 +208,20 @@ impl JointSolver {
                     let axial = imp.axial[0] - imp.axial[1] + imp.axial[2];
                     apply_angular(row, &mut vel, axis * axial);
                 }
-                JointKind::Spherical { .. } => {
-                    if let Some((n, _)) = cone_axis(&g) {
+                // A ball joint without limits has no limit rows to warm
+                // start (their impulses are zero): skip their axes.
+                JointKind::Spherical { cone, twist } => {
+                    if cone.is_some()
+                        && let Some((n, _)) = cone_axis(&g)
+                    {
                         apply_angular(row, &mut vel, -n * imp.axial[0]);
                     }
-                    let t = twist_axis(&g);
-                    apply_angular(row, &mut vel, t * (imp.axial[1] - imp.axial[2]));
+                    if twist.is_some() {
+                        let t = twist_axis(&g);
+                        apply_angular(row, &mut vel, t * (imp.axial[1] - imp.axial[2]));
+                    }
                 }
                 JointKind::Distance { .. } => {}
-            }
-            if let JointKind::Prismatic { .. } = j.desc.kind {
-                let axis = g.fa.rotate(Vec3::X);
-                let axial = imp.axial[0] - imp.axial[1] + imp.axial[2];
-                apply_linear(row, &g, &mut vel, axis, axial);
             }
             write(row, hot, &vel);
         }
