@@ -8,6 +8,7 @@
 
 pub mod arena;
 pub mod body;
+pub mod character;
 pub mod collider;
 pub mod collision;
 pub mod hash;

@@ -5,8 +5,11 @@
 //! ([`crate::collision::toi`]), with a motion of translation only. Each
 //! advance aims at a gap of `TOL/2`; a gap of at most `TOL` is a hit. A shape
 //! touching the target at the start is a hit at fraction 0 only while it
-//! moves towards it: one resting on a floor and moving along it or away from
-//! it is not stopped. When the iteration cap is reached (glancing approaches
+//! moves towards it by more than its gap over the whole translation: one
+//! resting on a floor and moving along it or away from it is not stopped,
+//! even when the computed normal leans by a few ulps (the distance along a
+//! translation is a convex function, so a path that closes less than the gap
+//! never touches). When the iteration cap is reached (glancing approaches
 //! close a share of the gap per step), the last fraction verified apart is
 //! reported as the hit: the path beyond it was not proven clear.
 //!
@@ -91,6 +94,12 @@ fn sweep_convex<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
         max,
         &SETTINGS,
     ) {
+        // Touching at the start while closing the gap by less than the gap
+        // over the whole path: the distance along a translation is convex,
+        // so it stays above `gap − closing · fraction > 0` and the path is
+        // clear (a shape sliding along a face whose computed normal leans
+        // by a few ulps is not stopped).
+        Toi::Hit { at, at_start: true } if at.gap > (-translation).dot(at.normal) * max => None,
         Toi::Hit { at, .. } | Toi::Exhausted(at) => Some(hit(at)),
         Toi::Miss => None,
         Toi::Overlapping => {

@@ -32,6 +32,13 @@ impl<'a> BodyRef<'a> {
         self.hot.kind
     }
 
+    /// The kinematic target set for the coming step
+    /// ([`World::set_kinematic_target`](super::World::set_kinematic_target)),
+    /// if any: where a kinematic body will be after it.
+    pub fn kinematic_target(&self) -> Option<Transform> {
+        self.cold.kinematic_target
+    }
+
     /// Pose of the body origin.
     pub fn pose(&self) -> Transform {
         self.hot.origin_pose(self.cold.local_center)
