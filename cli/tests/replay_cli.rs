@@ -140,7 +140,7 @@ fn a_replay_of_other_rules_says_so_and_exits_three() {
     let (code, out) = run("other-rules.replay", &bytes);
     assert_eq!(code, 3, "{out}");
     assert!(
-        out.contains("recorded with rules someone-elses-game v4, this check uses lockstep-demo v1"),
+        out.contains("recorded with rules someone-elses-game v4, this check uses lockstep-demo v2"),
         "{out}"
     );
     let bytes = record_with(10, None, |h| h.rules.version = Demo::VERSION + 1);

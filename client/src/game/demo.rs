@@ -1,29 +1,34 @@
-//! The demo game: players drive balls around a walled arena with piles of
-//! boxes to knock over.
+//! The demo game: players walk around a walled arena with piles of boxes
+//! to knock over.
+//!
+//! Each player is a kinematic capsule moved by the character controller
+//! ([`lockstep_core::character`]): it slides along walls and crates, climbs
+//! steps, snaps to the ground and pushes crates with a force of at most
+//! [`PUSH_FORCE`].
 //!
 //! # Rules, per tick, for each player slot in ascending order
-//! 1. **Who takes part.** A slot with an input entry is in the match; its
-//!    bytes are decoded as a [`DemoInput`], and anything that does not decode
-//!    counts as no input (stand still, no jump). A slot without an entry
-//!    whose body sleeps is left alone: players who never joined stay asleep
-//!    and untouched. A slot without an entry whose body is awake (a player
-//!    who left) is driven as if it gave no input until it is slower than
-//!    [`REST_SPEED`]; then it gets no force, comes to rest and falls asleep
-//!    like any resting body.
-//! 2. **Floor and walls** are the world's own contacts: the arena's boxes
-//!    stop the balls, and the crates are knocked over (sleeping crates wake
-//!    when a moving player touches them).
-//! 3. **Movement.** The wished horizontal velocity is `move · MAX_SPEED /
-//!    100`; a horizontal force `F = m · (v_wished − v) · GAIN` drives the
-//!    body toward it, with the acceleration capped at [`MAX_ACCEL`] (in the
-//!    air too: the demo has full air control).
-//! 4. **Jump.** A player standing on something (a contact whose normal,
-//!    seen from the player, points up by more than [`STANDING_COS`]) and
-//!    not already rising (vertical speed under 1 m/s) who presses jump gets
-//!    the impulse that sets its vertical speed to `JUMP_SPEED`.
+//! 1. **Who moves.** A slot with an input entry is in the match; its bytes
+//!    are decoded as a [`DemoInput`], and anything that does not decode
+//!    counts as no input (stand still, no jump). A slot without an entry is
+//!    driven as if it gave no input while its body still moves (a player who
+//!    left mid-run or mid-jump slows down and lands), and is left alone once
+//!    it has stopped: players who never joined stand where the scene put
+//!    them.
+//! 2. **Walking.** The wished horizontal velocity is `move · MAX_SPEED /
+//!    100`. The horizontal velocity closes on it at `(v_wished − v) · GAIN`,
+//!    the acceleration capped at [`MAX_ACCEL`] (in the air too: the demo
+//!    has full air control), where `v` is the velocity the body moved with
+//!    last tick. A player with no stick input below [`REST_SPEED`] stops.
+//! 3. **Jump.** A player on walkable ground (slopes up to 45°, [`STANDING_COS`])
+//!    who presses jump leaves it at `JUMP_SPEED`; in the air, jump does
+//!    nothing.
+//! 4. **The move.** The controller sweeps the capsule along the tick's
+//!    motion (gravity included) and gives the body the velocity that carries
+//!    it there during the step.
 //!
 //! Every number is a [`Scalar`]; nothing here can panic, whatever the bytes.
 
+use lockstep_core::character::{CharacterConfig, CharacterController, CharacterInput};
 use lockstep_core::math::{FaultScope, Faults};
 use lockstep_core::scene::{SceneError, load_world};
 use lockstep_core::shape::Shape;
@@ -51,24 +56,31 @@ pub const MAX_ACCEL: Scalar = Scalar::from_int(20);
 /// Vertical speed given by a jump, m/s (about 1.27 m high with g = 9.81).
 pub const JUMP_SPEED: Scalar = Scalar::from_int(5);
 
-/// Below this horizontal speed a player who left gets no more drive force,
-/// so it can come to rest and fall asleep: 2⁻⁷ ≈ 0.0078 m/s (a rolling
-/// ball of radius 0.5 m then spins at v/r = 0.016 rad/s: both are under
-/// the world's 0.05 sleep thresholds).
+/// Below this horizontal speed a player with no stick input stops:
+/// 2⁻⁷ ≈ 0.0078 m/s (the closing rule alone would shrink the speed by a
+/// sixth per tick and never reach zero).
 pub const REST_SPEED: Scalar = Scalar::from_bits(1 << 25);
 
-/// A contact supports a player when its normal, pointing from the support
-/// to the player, has an up component above this (cos 45°, rounded down):
-/// floors and crate tops, not walls.
+/// The steepest ground a player stands and jumps on: cos 45°, rounded down
+/// (floors, crate tops and gentle slopes, not walls).
 pub const STANDING_COS: Scalar = Scalar::from_bits(3_037_000_499);
 
+/// The most force a player puts on a crate it walks into, N: a 153.6 kg
+/// crate alone on the floor (friction 0.6) needs 904 N to slide, a bottom
+/// crate of a pyramid with the crates above it pressing and rubbing on it
+/// more than 2,000 N. 6,000 N lets a player shove into a pyramid and topple
+/// it, as the demo's knock-over game wants, while a crate still slows a
+/// player down.
+pub const PUSH_FORCE: Scalar = Scalar::from_int(6000);
+
 /// Where one player's centre can be: inside the arena, on or above the
-/// floor (the world's contacts keep it there).
+/// floor (the character controller keeps it there).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PlayerLimits {
     /// The body.
     pub body: BodyHandle,
-    /// Height of the centre when resting on the floor: floor top + radius.
+    /// Height of the centre when standing on the floor: floor top +
+    /// half-height + radius + the controller's skin.
     pub rest_y: Scalar,
     /// Lowest x of the centre: the inner face of the −x wall + radius.
     pub x_min: Scalar,
@@ -81,12 +93,14 @@ pub struct PlayerLimits {
 }
 
 /// The demo game's rules for one match (see the module docs for the
-/// rules). Holds only the player bodies and their limits, found once by
-/// [`DemoGame::new`], and the faults its own arithmetic raised.
+/// rules). Holds only the players' controllers and limits, found once by
+/// [`DemoGame::new`], and the faults its own arithmetic raised; everything
+/// that moves is in the world.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DemoGame {
     /// One per slot, `MAX_PLAYERS` of them.
     players: Vec<PlayerLimits>,
+    controllers: Vec<CharacterController>,
     faults: Faults,
 }
 
@@ -112,8 +126,8 @@ impl DemoGame {
     /// and works out where each player may be.
     ///
     /// The floor and walls must be static bodies with one unrotated box
-    /// each; each player a dynamic body with one sphere at its origin (so
-    /// its extent does not depend on how it is turned).
+    /// each; each player an upright kinematic body with one capsule at its
+    /// origin (what the character controller drives).
     ///
     /// # Errors
     /// [`GameError`] naming the body that is missing or not as expected.
@@ -124,12 +138,20 @@ impl DemoGame {
         let z_lo = static_box(world, "wall_z_neg")?.1.z;
         let z_hi = static_box(world, "wall_z_pos")?.0.z;
         let mut players = Vec::with_capacity(MAX_PLAYERS);
+        let mut controllers = Vec::with_capacity(MAX_PLAYERS);
+        let config = player_config();
         for slot in 0..MAX_PLAYERS {
             let name = format!("player{slot}");
-            let (body, radius) = player_ball(world, &name)?;
+            let body = world
+                .find_body(&name)
+                .ok_or_else(|| GameError::MissingBody(name.clone()))?;
+            let controller = CharacterController::attach(world, body, config)
+                .map_err(|e| bad_body(&name, &e.to_string()))?;
+            let capsule = controller.capsule();
+            let radius = capsule.radius;
             let limits = PlayerLimits {
                 body,
-                rest_y: floor_top + radius,
+                rest_y: floor_top + capsule.half_height + radius + config.skin,
                 x_min: x_lo + radius,
                 x_max: x_hi - radius,
                 z_min: z_lo + radius,
@@ -138,13 +160,15 @@ impl DemoGame {
             if limits.x_min > limits.x_max || limits.z_min > limits.z_max {
                 return Err(GameError::BadBody {
                     name,
-                    problem: "the ball does not fit between the walls".into(),
+                    problem: "the capsule does not fit between the walls".into(),
                 });
             }
             players.push(limits);
+            controllers.push(controller);
         }
         Ok(DemoGame {
             players,
+            controllers,
             faults: Faults::NONE,
         })
     }
@@ -164,7 +188,7 @@ impl DemoGame {
         self.faults
     }
 
-    fn apply(&self, world: &mut World, inputs: &[(u8, &[u8])]) {
+    fn apply(&self, world: &mut World, inputs: &[(u8, &[u8])]) -> Faults {
         // Determinism: the first entry of a slot wins and slots are visited
         // in ascending order, whatever order the entries came in.
         let mut entries: [Option<&[u8]>; MAX_PLAYERS] = [None; MAX_PLAYERS];
@@ -175,40 +199,31 @@ impl DemoGame {
                 *e = Some(bytes);
             }
         }
-        for (limits, entry) in self.players.iter().zip(entries) {
-            let Ok(body) = world.body(limits.body) else {
+        let dt = world.dt();
+        let mut faults = Faults::NONE;
+        for (controller, entry) in self.controllers.iter().zip(entries) {
+            let Ok(body) = world.body(controller.body()) else {
                 continue;
             };
-            if entry.is_none() && body.is_sleeping() {
-                continue;
-            }
-            if entry.is_some() && body.is_sleeping() {
-                // A player in the match is awake, so it has its floor
-                // contact (and can jump) even when it stands still.
-                let _ = world.wake_body(limits.body);
-            }
-            let Ok(body) = world.body(limits.body) else {
-                continue;
-            };
-            let mass = body.mass();
             let v = body.linear_velocity();
-            let input = entry.and_then(DemoInput::decode).unwrap_or_default();
-            // A player who left and has (almost) stopped gets no force: any
-            // force would wake it, and it must be able to rest and sleep.
-            let idle = entry.is_none() && horizontal_speed_below(v, REST_SPEED);
-            let force = drive_acceleration(v, input) * mass;
-            if !idle && !force.is_zero() {
-                let _ = world.apply_force(limits.body, force);
+            // A player who is not in the match and has stopped stays put.
+            if entry.is_none() && v.is_zero() {
+                continue;
             }
-            // Not while already rising: the contact that launched the jump
-            // is still listed until the next step's collision stage.
-            if input.jump && v.y < Scalar::ONE && standing(world, limits.body) {
-                // Sets the vertical speed to JUMP_SPEED, whatever it was (a
-                // jump on the landing tick must not just cancel the fall).
-                let impulse = Vec3::new(Scalar::ZERO, (JUMP_SPEED - v.y) * mass, Scalar::ZERO);
-                let _ = world.apply_impulse(limits.body, impulse);
+            let input = entry.and_then(DemoInput::decode).unwrap_or_default();
+            let mut walk = Vec3::new(v.x, Scalar::ZERO, v.z) + drive_acceleration(v, input) * dt;
+            if input.move_x == 0 && input.move_z == 0 && horizontal_speed_below(walk, REST_SPEED) {
+                walk = Vec3::ZERO;
+            }
+            let wish = CharacterInput {
+                velocity: walk,
+                jump_speed: if input.jump { JUMP_SPEED } else { Scalar::ZERO },
+            };
+            if let Ok(m) = controller.move_character(world, &wish) {
+                faults = faults.union(m.faults);
             }
         }
+        faults
     }
 }
 
@@ -216,36 +231,9 @@ impl GameRules for DemoGame {
     /// Applies the demo rules (see the module docs). `tick` is not used:
     /// the demo's rules are the same every tick.
     fn apply_inputs(&mut self, world: &mut World, _tick: u64, inputs: &[(u8, &[u8])]) {
-        let ((), faults) = FaultScope::run(|| self.apply(world, inputs));
-        self.faults = self.faults.union(faults);
+        let (own, faults) = FaultScope::run(|| self.apply(world, inputs));
+        self.faults = self.faults.union(faults).union(own);
     }
-}
-
-/// Whether a contact supports the player's body from below (rule 4): a
-/// touching solid pair whose normal, turned to point from the other shape
-/// to the player, has an up component above [`STANDING_COS`]. Scans the
-/// world's contact pairs (a few hundred in the demo).
-fn standing(world: &World, player: BodyHandle) -> bool {
-    let Ok(body) = world.body(player) else {
-        return false;
-    };
-    let [own] = body.colliders() else {
-        return false;
-    };
-    world.contact_pairs().iter().any(|p| {
-        if !p.touching || p.manifold.is_empty() {
-            return false;
-        }
-        // The normal points from A to B.
-        let up = if p.b == *own {
-            p.manifold.normal.y
-        } else if p.a == *own {
-            -p.manifold.normal.y
-        } else {
-            return false;
-        };
-        up > STANDING_COS
-    })
 }
 
 /// Whether the horizontal part of `v` is slower than `limit` (compared
@@ -321,17 +309,11 @@ fn static_box(world: &World, name: &str) -> Result<(Vec3, Vec3), GameError> {
     Ok((center - cuboid.half_extents, center + cuboid.half_extents))
 }
 
-/// A player body: dynamic, with one sphere at its origin. Returns the
-/// handle and the radius.
-fn player_ball(world: &World, name: &str) -> Result<(BodyHandle, Scalar), GameError> {
-    let (body, collider) = single_collider(world, name, BodyKind::Dynamic)?;
-    let h = body.handle();
-    let bad = |problem: &str| bad_body(name, problem);
-    let Shape::Sphere(sphere) = &collider.shape else {
-        return Err(bad("expected a sphere shape"));
-    };
-    if !collider.local_pose.translation.is_zero() {
-        return Err(bad("expected the sphere at the body origin"));
+/// The character controller settings of every player.
+fn player_config() -> CharacterConfig {
+    CharacterConfig {
+        max_slope_cos: STANDING_COS,
+        push_force: PUSH_FORCE,
+        ..CharacterConfig::default()
     }
-    Ok((h, sphere.radius))
 }

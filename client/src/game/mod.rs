@@ -16,7 +16,7 @@
 //! ([`crate::offline::verify_replay`]) all take one.
 //!
 //! The demo ([`Demo`], rules [`DemoGame`]) is one such game: each player
-//! drives a ball around a walled arena with piles of boxes
+//! walks a capsule (the character controller) around a walled arena with piles of boxes
 //! ([`DemoGame::SCENE`], from `scenes/demo.toml`), with the 3-byte input
 //! [`DemoInput`]; [`bot_input`] scripts a bot's input for any tick.
 
@@ -27,8 +27,8 @@ mod input;
 mod tests;
 
 pub use demo::{
-    DemoGame, GAIN, JUMP_SPEED, MAX_ACCEL, MAX_PLAYERS, MAX_SPEED, PlayerLimits, REST_SPEED,
-    STANDING_COS,
+    DemoGame, GAIN, JUMP_SPEED, MAX_ACCEL, MAX_PLAYERS, MAX_SPEED, PUSH_FORCE, PlayerLimits,
+    REST_SPEED, STANDING_COS,
 };
 pub use input::{DemoInput, INPUT_LEN, bot_input};
 
@@ -172,8 +172,9 @@ impl Demo {
     /// The demo's rules id.
     pub const ID: &'static str = "lockstep-demo";
     /// The demo rules' version: bump whenever [`DemoGame`] turns the same
-    /// inputs into different forces.
-    pub const VERSION: u32 = 1;
+    /// inputs into different motions. 2: players are kinematic capsules
+    /// moved by the character controller (1 drove dynamic balls by forces).
+    pub const VERSION: u32 = 2;
 }
 
 impl RulesFactory for Demo {
