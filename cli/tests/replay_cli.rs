@@ -177,7 +177,7 @@ fn a_version_1_replay_is_refused_with_a_clear_error() {
 }
 
 #[test]
-fn a_changed_input_is_named_with_its_tick_and_the_player_s_ball() {
+fn a_changed_input_is_named_with_its_tick_and_the_player_s_body() {
     let (code, out) = run("lie.replay", &record_lying(120, None, Some(50), |_| {}));
     assert_eq!(code, 1, "{out}");
     let mut lines = out.lines();
@@ -185,7 +185,7 @@ fn a_changed_input_is_named_with_its_tick_and_the_player_s_ball() {
         lines.next().unwrap().starts_with("MISMATCH at tick 50: "),
         "{out}"
     );
-    // Player 0's ball moved otherwise at once; nothing else yet.
+    // Player 0's body moved otherwise at once; nothing else yet.
     let bodies: Vec<_> = lines.collect();
     assert_eq!(bodies.len(), 1, "{out}");
     assert!(bodies[0].starts_with("  at tick 50: body #"), "{out}");
