@@ -442,10 +442,10 @@ impl CharacterController {
         };
         self.slide(world, &mut pos, motion, on_ground, &filter, &mut plan);
 
-        if on_ground
-            && cfg.snap_distance > Scalar::ZERO
-            && self.probe_ground(world, pos, &filter, cfg.skin).is_none()
-        {
+        // The ground is read before the carry, against the poses the
+        // ground body has now: the carry moves the character with it.
+        plan.ground = self.probe_ground(world, pos, &filter, cfg.skin);
+        if on_ground && cfg.snap_distance > Scalar::ZERO && plan.ground.is_none() {
             let down = Vec3::new(Scalar::ZERO, -cfg.snap_distance, Scalar::ZERO);
             if let Some(hit) = self.sweep(world, pos, down, &filter)
                 && !hit.initially_overlapping
@@ -453,12 +453,9 @@ impl CharacterController {
             {
                 pos += down * hit.fraction;
                 plan.snapped = true;
+                plan.ground = self.probe_ground(world, pos, &filter, cfg.skin);
             }
         }
-
-        // The ground is read before the carry, against the poses the
-        // ground body has now: the carry moves the character with it.
-        plan.ground = self.probe_ground(world, pos, &filter, cfg.skin);
         if let Some(g) = ground_before {
             pos = self.carry(world, pos, g.body, dt)?;
         }
