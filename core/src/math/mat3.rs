@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::faults::{self, Faults};
 use super::quat::Quat;
-use super::scalar::{Scalar, div_round_i128, narrow, wide_sum};
+use super::scalar::{Scalar, div_round_i128, narrow, round_shift, wide_sum};
 use super::vec3::Vec3;
 
 /// A 3×3 matrix stored as three columns.
@@ -304,6 +304,86 @@ impl SymMat3 {
             .map(|m| SymMat3::from_mat3_symmetric_part(&m))
     }
 
+    /// The inverse with one division: the adjugate times a 64-bit reciprocal
+    /// of the determinant. Each entry is within an ulp of the correctly
+    /// rounded `cofactor / det` that [`try_inverse`](Self::try_inverse) gives
+    /// at nine divisions' cost. `None` when the determinant is zero (or
+    /// within a few Q64.64 ulps of it) or an entry does not fit.
+    pub fn try_inverse_fast(&self) -> Option<SymMat3> {
+        let m = Scalar::mul_sub2;
+        let (xx, yy, zz, xy, xz, yz) = (self.xx, self.yy, self.zz, self.xy, self.xz, self.yz);
+        let a = m(yy, zz, yz, yz);
+        let b = m(xz, yz, xy, zz);
+        let c = m(xy, yz, xz, yy);
+        let d = m(xx, zz, xz, xz);
+        let e = m(xy, xz, xx, yz);
+        let f = m(xx, yy, xy, xy);
+        let det = wide_sum([xx.wide_mul(a), xy.wide_mul(b), xz.wide_mul(c)]);
+        let mag = det.unsigned_abs();
+        let bits = 128 - mag.leading_zeros();
+        if bits <= 2 {
+            return None;
+        }
+        // det ≈ n · 2^(bits − 64) with n in [2^63, 2^64) (the low bits cut
+        // off cost less than 2^−63 relatively); r = ⌊2^126 / n⌋ in
+        // (2^62, 2^63]. An entry's bits are cof · 2^64 / det
+        // = cof · r / 2^(bits − 2).
+        let n = if bits > 64 {
+            mag >> (bits - 64)
+        } else {
+            mag << (64 - bits)
+        };
+        let r = ((1u128 << 126) / n) as i128;
+        let shift = bits - 2;
+        let negative = det < 0;
+        let entry = |cof: Scalar| -> Option<Scalar> {
+            let q = round_shift(cof.to_bits() as i128 * r, shift);
+            let q = if negative { -q } else { q };
+            i64::try_from(q).ok().map(Scalar::from_bits)
+        };
+        Some(SymMat3 {
+            xx: entry(a)?,
+            yy: entry(d)?,
+            zz: entry(f)?,
+            xy: entry(b)?,
+            xz: entry(c)?,
+            yz: entry(e)?,
+        })
+    }
+
+    /// `[r]ₓ S [r]ₓᵀ` (`[r]ₓ` the cross-product matrix of `r`): the
+    /// angular part of the effective mass of a point at arm `r` on a body
+    /// with inverse inertia `S`. Entry `(j, k)` is `cⱼ · S cₖ` with
+    /// `cⱼ = r × eⱼ`; 30 products, each entry rounded twice.
+    pub fn skew_sandwich(&self, r: Vec3) -> SymMat3 {
+        let m = Scalar::mul_sub2;
+        let (xx, yy, zz, xy, xz, yz) = (self.xx, self.yy, self.zz, self.xy, self.xz, self.yz);
+        // S cₓ with cₓ = (0, r.z, −r.y), and so on.
+        let ux = Vec3::new(
+            m(xy, r.z, xz, r.y),
+            m(yy, r.z, yz, r.y),
+            m(yz, r.z, zz, r.y),
+        );
+        let uy = Vec3::new(
+            m(xz, r.x, xx, r.z),
+            m(yz, r.x, xy, r.z),
+            m(zz, r.x, xz, r.z),
+        );
+        let uz = Vec3::new(
+            m(xx, r.y, xy, r.x),
+            m(xy, r.y, yy, r.x),
+            m(xz, r.y, yz, r.x),
+        );
+        SymMat3 {
+            xx: m(r.z, ux.y, r.y, ux.z),
+            yy: m(r.x, uy.z, r.z, uy.x),
+            zz: m(r.y, uz.x, r.x, uz.y),
+            xy: m(r.z, uy.y, r.y, uy.z),
+            xz: m(r.z, uz.y, r.y, uz.z),
+            yz: m(r.x, uz.z, r.z, uz.x),
+        }
+    }
+
     /// `R S Rᵀ` for a rotation `R`: the tensor expressed in the rotated frame
     /// (body inertia to world inertia).
     pub fn rotate(&self, r: &Mat3) -> SymMat3 {
@@ -376,6 +456,95 @@ mod tests {
         let v = Vec3::new(s(3.0), s(-1.25), s(0.5));
         assert!((m * v - q.rotate(v)).abs().max_element() <= Scalar::from_bits(16));
         assert!(close(&(m * m.transpose()), &Mat3::IDENTITY, 16));
+    }
+
+    /// A small deterministic generator for the tests below.
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*state >> 11) as f64) / ((1u64 << 53) as f64)
+    }
+
+    #[test]
+    fn fast_symmetric_inverse_is_within_an_ulp_of_the_exact_one() {
+        let mut st = 7u64;
+        let mut checked = 0;
+        for case in 0..2000 {
+            // Scales from 1e-4 to 1e3, as effective masses of joints span.
+            let scale = 10f64.powf(-4.0 + 7.0 * lcg(&mut st));
+            let mut e = || s((lcg(&mut st) - 0.5) * scale);
+            let (xy, xz, yz) = (e(), e(), e());
+            // Diagonally dominant (positive definite) for most cases, and
+            // indefinite for every fifth.
+            let dom = |off: Scalar, st: &mut u64| {
+                let extra = s(lcg(st) * scale);
+                if case % 5 == 0 {
+                    -extra
+                } else {
+                    off.abs() * Scalar::TWO + extra
+                }
+            };
+            let m = SymMat3 {
+                xx: dom(xy + xz, &mut st),
+                yy: dom(xy + yz, &mut st),
+                zz: dom(xz + yz, &mut st),
+                xy,
+                xz,
+                yz,
+            };
+            let exact = m.to_mat3().try_inverse();
+            let fast = m.try_inverse_fast();
+            match (exact, fast) {
+                (Some(x), Some(f)) => {
+                    assert!(close(&x, &f.to_mat3(), 1), "case {case}: {x:?} vs {f:?}");
+                    checked += 1;
+                }
+                (None, None) => {}
+                (x, f) => {
+                    // Only at the edge of what fits may the two disagree.
+                    let big = |v: &Mat3| {
+                        (0..3).any(|c| v.cols[c].abs().max_element() > Scalar::from_int(1 << 30))
+                    };
+                    assert!(x.is_none_or(|x| big(&x)) && f.is_none_or(|f| big(&f.to_mat3())));
+                }
+            }
+        }
+        assert!(checked > 1900);
+        assert_eq!(SymMat3::ZERO.try_inverse_fast(), None);
+        let singular = SymMat3 {
+            xx: s(1.0),
+            yy: s(1.0),
+            zz: s(2.0),
+            xy: s(1.0),
+            xz: s(1.0),
+            yz: s(1.0),
+        };
+        assert_eq!(singular.try_inverse_fast(), None);
+    }
+
+    #[test]
+    fn skew_sandwich_matches_the_matrix_product() {
+        let mut st = 11u64;
+        for _ in 0..500 {
+            let mut e = || s((lcg(&mut st) - 0.5) * 4.0);
+            let sym = SymMat3 {
+                xx: e(),
+                yy: e(),
+                zz: e(),
+                xy: e(),
+                xz: e(),
+                yz: e(),
+            };
+            let r = Vec3::new(e(), e(), e());
+            let skew = Mat3::from_cols(
+                Vec3::new(Scalar::ZERO, r.z, -r.y),
+                Vec3::new(-r.z, Scalar::ZERO, r.x),
+                Vec3::new(r.y, -r.x, Scalar::ZERO),
+            );
+            let product = skew * sym.to_mat3() * skew.transpose();
+            assert!(close(&product, &sym.skew_sandwich(r).to_mat3(), 8));
+        }
     }
 
     #[test]

@@ -11,7 +11,11 @@
 //! (relax: the rows hold rigidly, so the bias adds no velocity that stays).
 //!
 //! Every row is built at the bodies' current poses (anchors rotated with the
-//! current rotations), so errors are measured, not extrapolated. A row's
+//! current rotations), so errors are measured, not extrapolated. Positions
+//! move only between the solve and the relax stages, so each of the two
+//! measures the joints once ([`JointSolver::pose`]: anchors, frames, and
+//! the anchor block's effective mass, inverted) and its passes read that;
+//! the warm start shares the solve's. A row's
 //! impulse is `λ = −m·s·(Ċ + b·C) − i·λ_acc` with the effective mass `m`,
 //! the softness's mass scale `s`, bias rate `b` and impulse scale `i`
 //! (without the bias: `s = 1`, `b = 0`, `i = 0`). Blocks of rows that share
@@ -83,6 +87,7 @@ struct Row {
 
 /// The state of both ends at the current substep, and the joint's geometry
 /// there.
+#[derive(Clone, Copy, Debug, Default)]
 struct Geometry {
     /// Anchors relative to the centres of mass, world axes.
     ra: Vec3,
@@ -107,10 +112,22 @@ struct Vels {
     lb: Vec3,
 }
 
+/// A joint at the current poses: its geometry and its anchor block's
+/// inverse effective mass (`None` for kinds without the block, or when the
+/// block is singular). Positions do not change within a stage, so this is
+/// computed once per stage and read by every pass of it.
+#[derive(Clone, Copy, Debug, Default)]
+struct Posed {
+    g: Geometry,
+    point_inv: Option<SymMat3>,
+}
+
 /// The joints' solver (scratch: rebuilt every tick).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct JointSolver {
     rows: Vec<Row>,
+    /// Per row, the joint at the poses of the stage being solved.
+    posed: Vec<Posed>,
 }
 
 impl JointSolver {
@@ -156,7 +173,30 @@ impl JointSolver {
                 frames,
             });
         }
-        self.rows.capacity() != cap
+        let posed_cap = self.posed.capacity();
+        self.posed.resize(self.rows.len(), Posed::default());
+        self.rows.capacity() != cap || self.posed.capacity() != posed_cap
+    }
+
+    /// Measures every listed joint at the bodies' current poses, for the
+    /// passes that follow until the positions move: the geometry, and the
+    /// anchor block's effective mass, inverted. (Keeping the solve's
+    /// inverse for the relax passes, one substep's rotation later, left
+    /// ragdolls jittering awake.)
+    pub(crate) fn pose(&mut self, joints: &Arena<Joint>, hot: &[BodyHot]) {
+        for (row, posed) in self.rows.iter().zip(self.posed.iter_mut()) {
+            let Some(j) = joints.get_by_index(row.joint) else {
+                continue;
+            };
+            let g = geometry(row, hot);
+            let point_inv = match j.desc.kind {
+                JointKind::Spherical { .. } | JointKind::Revolute { .. } | JointKind::Fixed => {
+                    point_mass(row, g.ra, g.rb).try_inverse_fast()
+                }
+                _ => None,
+            };
+            *posed = Posed { g, point_inv };
+        }
     }
 
     /// Whether there is a joint to solve this tick.
@@ -169,31 +209,32 @@ impl JointSolver {
         self.rows.len()
     }
 
-    /// Applies the accumulated impulses again.
+    /// Applies the accumulated impulses again (after [`pose`](Self::pose)
+    /// at the current poses).
     pub(crate) fn warm_start(&self, joints: &Arena<Joint>, hot: &mut [BodyHot]) {
-        for row in &self.rows {
+        for (row, posed) in self.rows.iter().zip(&self.posed) {
             let Some(j) = joints.get_by_index(row.joint) else {
                 continue;
             };
-            let g = geometry(row, hot);
+            let g = &posed.g;
             let mut vel = read(row, hot);
             let imp = j.impulses;
             match j.desc.kind {
                 JointKind::Spherical { .. } | JointKind::Revolute { .. } | JointKind::Fixed => {
-                    apply_point(row, &g, &mut vel, imp.linear);
+                    apply_point(row, g, &mut vel, imp.linear);
                 }
                 JointKind::Prismatic { .. } => {
                     let (p, q) = (g.fa.rotate(Vec3::Y), g.fa.rotate(Vec3::Z));
-                    apply_linear(row, &g, &mut vel, p, imp.linear.x);
-                    apply_linear(row, &g, &mut vel, q, imp.linear.y);
+                    apply_linear(row, g, &mut vel, p, imp.linear.x);
+                    apply_linear(row, g, &mut vel, q, imp.linear.y);
                     let axis = g.fa.rotate(Vec3::X);
                     let axial = imp.axial[0] - imp.axial[1] + imp.axial[2];
-                    apply_linear(row, &g, &mut vel, axis, axial);
+                    apply_linear(row, g, &mut vel, axis, axial);
                 }
                 JointKind::Distance { .. } => {
                     if let Some(u) = g.d.try_normalize() {
                         let total = imp.linear.x + imp.axial[0] - imp.axial[1] + imp.axial[3];
-                        apply_linear(row, &g, &mut vel, u, total);
+                        apply_linear(row, g, &mut vel, u, total);
                     }
                 }
             }
@@ -202,7 +243,7 @@ impl JointSolver {
                     apply_angular(row, &mut vel, imp.angular);
                 }
                 JointKind::Revolute { .. } => {
-                    let (j1, j2) = hinge_axes(&g);
+                    let (j1, j2) = hinge_axes(g);
                     apply_angular(row, &mut vel, j1 * imp.angular.x + j2 * imp.angular.y);
                     let axis = g.fa.rotate(Vec3::X);
                     let axial = imp.axial[0] - imp.axial[1] + imp.axial[2];
@@ -212,12 +253,12 @@ impl JointSolver {
                 // start (their impulses are zero): skip their axes.
                 JointKind::Spherical { cone, twist } => {
                     if cone.is_some()
-                        && let Some((n, _)) = cone_axis(&g)
+                        && let Some((n, _)) = cone_axis(g)
                     {
                         apply_angular(row, &mut vel, -n * imp.axial[0]);
                     }
                     if twist.is_some() {
-                        let t = twist_axis(&g);
+                        let t = twist_axis(g);
                         apply_angular(row, &mut vel, t * (imp.axial[1] - imp.axial[2]));
                     }
                 }
@@ -227,7 +268,8 @@ impl JointSolver {
         }
     }
 
-    /// One pass over every joint, soft with `use_bias`, rigid without.
+    /// One pass over every joint, soft with `use_bias`, rigid without (after
+    /// [`pose`](Self::pose) at the current poses).
     pub(crate) fn solve(
         &self,
         joints: &mut Arena<Joint>,
@@ -235,11 +277,11 @@ impl JointSolver {
         params: &JointParams,
         use_bias: bool,
     ) {
-        for row in &self.rows {
+        for (row, posed) in self.rows.iter().zip(&self.posed) {
             let Some(j) = joints.get_by_index_mut(row.joint) else {
                 continue;
             };
-            let g = geometry(row, hot);
+            let g = &posed.g;
             let mut vel = read(row, hot);
             let soft = if use_bias { params.softness } else { RIGID };
             let kind = j.desc.kind;
@@ -249,20 +291,20 @@ impl JointSolver {
             match kind {
                 JointKind::Spherical { cone, twist } => {
                     if let Some(cone) = cone {
-                        solve_cone(row, &g, &mut vel, cone, &mut imp.axial[0], params, use_bias);
+                        solve_cone(row, g, &mut vel, cone, &mut imp.axial[0], params, use_bias);
                     }
                     if let Some((lo, hi)) = twist {
-                        let t = twist_axis(&g);
-                        let angle = twist_angle(&g);
+                        let t = twist_axis(g);
+                        let angle = twist_angle(g);
                         let [_, lower, upper, _] = &mut imp.axial;
                         angular_limit(row, &mut vel, t, angle - lo, lower, params, use_bias);
                         angular_limit(row, &mut vel, -t, hi - angle, upper, params, use_bias);
                     }
-                    solve_point(row, &g, &mut vel, &mut imp.linear, &soft);
+                    solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
                 }
                 JointKind::Revolute { limits, motor } => {
                     let axis = g.fa.rotate(Vec3::X);
-                    let angle = twist_angle(&g);
+                    let angle = twist_angle(g);
                     if let Some(m) = motor {
                         let k = angular_mass(row, axis);
                         let cdot = (vel.wb - vel.wa).dot(axis);
@@ -275,28 +317,28 @@ impl JointSolver {
                         angular_limit(row, &mut vel, axis, angle - lo, lower, params, use_bias);
                         angular_limit(row, &mut vel, -axis, hi - angle, upper, params, use_bias);
                     }
-                    solve_hinge(row, &g, &mut vel, &mut imp.angular, &soft);
-                    solve_point(row, &g, &mut vel, &mut imp.linear, &soft);
+                    solve_hinge(row, g, &mut vel, &mut imp.angular, &soft);
+                    solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
                 }
                 JointKind::Prismatic { limits, motor } => {
                     let axis = g.fa.rotate(Vec3::X);
                     let x = axis.dot(g.d);
                     if let Some(m) = motor {
-                        let (k, cdot) = linear_row(row, &g, &vel, axis);
+                        let (k, cdot) = linear_row(row, g, &vel, axis);
                         let d = motor_impulse(m, cdot, x, k, &mut imp.axial[2], params, use_bias);
-                        apply_linear(row, &g, &mut vel, axis, d);
+                        apply_linear(row, g, &mut vel, axis, d);
                     }
                     if let Some((lo, hi)) = limits {
                         let [lower, upper, ..] = &mut imp.axial;
-                        linear_limit(row, &g, &mut vel, axis, x - lo, lower, params, use_bias);
-                        linear_limit(row, &g, &mut vel, -axis, hi - x, upper, params, use_bias);
+                        linear_limit(row, g, &mut vel, axis, x - lo, lower, params, use_bias);
+                        linear_limit(row, g, &mut vel, -axis, hi - x, upper, params, use_bias);
                     }
-                    solve_lock(row, &g, &mut vel, &mut imp.angular, &soft);
-                    solve_slide(row, &g, &mut vel, &mut imp.linear, &soft);
+                    solve_lock(row, g, &mut vel, &mut imp.angular, &soft);
+                    solve_slide(row, g, &mut vel, &mut imp.linear, &soft);
                 }
                 JointKind::Fixed => {
-                    solve_lock(row, &g, &mut vel, &mut imp.angular, &soft);
-                    solve_point(row, &g, &mut vel, &mut imp.linear, &soft);
+                    solve_lock(row, g, &mut vel, &mut imp.angular, &soft);
+                    solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
                 }
                 JointKind::Distance {
                     length,
@@ -307,7 +349,7 @@ impl JointSolver {
                     if let Some((u, len)) = g.d.normalize_and_length() {
                         solve_distance(
                             row,
-                            &g,
+                            g,
                             &mut vel,
                             u,
                             len,
@@ -388,23 +430,20 @@ fn geometry(row: &Row, hot: &[BodyHot]) -> Geometry {
 }
 
 /// The anchor block's `K` for anchors `ra`, `rb` (relative to the centres
-/// of mass, world axes), built at the current anchors on every visit.
+/// of mass, world axes), built at the current anchors in every stage.
 /// (Inverting it once per tick at the start anchors, as Box2D does, let a
 /// pendulum with a small bob gain energy: the bob's `K` is strongly
 /// anisotropic and turns with it.)
-fn point_mass(row: &Row, ra: Vec3, rb: Vec3) -> Mat3 {
+fn point_mass(row: &Row, ra: Vec3, rb: Vec3) -> SymMat3 {
     let ms = row.a.inv_mass + row.b.inv_mass;
-    let col = |e: Vec3| {
-        let mut c = e * ms;
-        if row.a.dynamic {
-            c += row.a.inv_inertia.mul_vec(ra.cross(e)).cross(ra);
-        }
-        if row.b.dynamic {
-            c += row.b.inv_inertia.mul_vec(rb.cross(e)).cross(rb);
-        }
-        c
-    };
-    Mat3::from_cols(col(Vec3::X), col(Vec3::Y), col(Vec3::Z))
+    let mut k = SymMat3::from_diagonal(Vec3::new(ms, ms, ms));
+    if row.a.dynamic {
+        k = k + row.a.inv_inertia.skew_sandwich(ra);
+    }
+    if row.b.dynamic {
+        k = k + row.b.inv_inertia.skew_sandwich(rb);
+    }
+    k
 }
 
 fn read(row: &Row, hot: &[BodyHot]) -> Vels {
@@ -621,10 +660,11 @@ fn motor_impulse(
 }
 
 /// The anchor block: three rows that bring the anchors together.
-fn solve_point(row: &Row, g: &Geometry, vel: &mut Vels, acc: &mut Vec3, soft: &Softness) {
-    let Some(inv) = point_mass(row, g.ra, g.rb).try_inverse() else {
+fn solve_point(row: &Row, posed: &Posed, vel: &mut Vels, acc: &mut Vec3, soft: &Softness) {
+    let Some(inv) = posed.point_inv else {
         return;
     };
+    let g = &posed.g;
     let cdot = vel.vb + vel.wb.cross(g.rb) - vel.va - vel.wa.cross(g.ra);
     let rhs = cdot + g.d * soft.bias_rate;
     let p = -(inv.mul_vec(rhs) * soft.mass_scale) - *acc * soft.impulse_scale;

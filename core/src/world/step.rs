@@ -419,6 +419,7 @@ impl Joints<'_> {
 #[inline(never)]
 fn stage_warm_start(solver: &mut ContactSolver, js: &mut Joints<'_>, hot: &mut [BodyHot]) {
     if !js.is_empty() {
+        js.solver.pose(js.arena, hot);
         js.solver.warm_start(js.arena, hot);
     }
     if solver.is_empty() {
@@ -476,6 +477,8 @@ fn stage_relax(
     hot: &mut [BodyHot],
 ) {
     if !js.is_empty() {
+        // The positions moved since the solve passes: measure again.
+        js.solver.pose(js.arena, hot);
         for _ in 0..iterations {
             js.solver.solve(js.arena, hot, &js.params, false);
         }
