@@ -384,6 +384,20 @@ impl SymMat3 {
         }
     }
 
+    /// [`skew_sandwich`](Self::skew_sandwich) of `s` times the identity, with
+    /// the same bits in 9 products: `s (|r|² 1 − r rᵀ)`.
+    pub fn skew_sandwich_scalar(s: Scalar, r: Vec3) -> SymMat3 {
+        let (sx, sy, sz) = (s * r.x, s * r.y, s * r.z);
+        SymMat3 {
+            xx: Scalar::mul_add2(r.z, sz, r.y, sy),
+            yy: Scalar::mul_add2(r.x, sx, r.z, sz),
+            zz: Scalar::mul_add2(r.y, sy, r.x, sx),
+            xy: -(r.y * sx),
+            xz: -(r.z * sx),
+            yz: -(r.z * sy),
+        }
+    }
+
     /// `R S Rᵀ` for a rotation `R`: the tensor expressed in the rotated frame
     /// (body inertia to world inertia).
     pub fn rotate(&self, r: &Mat3) -> SymMat3 {
@@ -544,6 +558,18 @@ mod tests {
             );
             let product = skew * sym.to_mat3() * skew.transpose();
             assert!(close(&product, &sym.skew_sandwich(r).to_mat3(), 8));
+        }
+    }
+
+    #[test]
+    fn scalar_skew_sandwich_has_the_general_bits() {
+        let mut st = 13u64;
+        for _ in 0..2000 {
+            let mut e = || Scalar::from_bits((lcg(&mut st) * 2f64.powi(40)) as i64 - (1 << 39));
+            let k = e().abs();
+            let r = Vec3::new(e(), e(), e());
+            let general = SymMat3::from_diagonal(Vec3::new(k, k, k)).skew_sandwich(r);
+            assert_eq!(SymMat3::skew_sandwich_scalar(k, r), general);
         }
     }
 

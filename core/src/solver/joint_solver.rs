@@ -12,10 +12,10 @@
 //!
 //! Every row is built at the bodies' current poses (anchors rotated with the
 //! current rotations), so errors are measured, not extrapolated. Positions
-//! move only between the solve and the relax stages, so each of the two
-//! measures the joints once ([`JointSolver::pose`]: anchors, frames, and
-//! the anchor block's effective mass, inverted) and its passes read that;
-//! the warm start shares the solve's. A row's
+//! move only between the solve and the relax stages, so each joint is
+//! measured once per stage (anchors, frames, and the anchor block's
+//! effective mass, inverted), on its first visit: by the warm start for the
+//! solve passes, by the first relax pass for the relax passes. A row's
 //! impulse is `λ = −m·s·(Ċ + b·C) − i·λ_acc` with the effective mass `m`,
 //! the softness's mass scale `s`, bias rate `b` and impulse scale `i`
 //! (without the bias: `s = 1`, `b = 0`, `i = 0`). Blocks of rows that share
@@ -67,6 +67,9 @@ struct End {
     inv_mass: Scalar,
     /// World inverse inertia at the start of the tick (0 unless dynamic).
     inv_inertia: SymMat3,
+    /// Whether `inv_inertia` is a multiple of the identity (a sphere, a
+    /// cube): the same in every frame, and products with it are one scale.
+    isotropic: bool,
     /// The joint frame's origin relative to the centre of mass, body axes.
     anchor: Vec3,
     /// The joint frame's rotation in body axes.
@@ -83,6 +86,29 @@ struct Row {
     /// Whether the rows read the joint frames' rotations (all but a
     /// spherical joint without limits and a distance joint).
     frames: bool,
+}
+
+impl End {
+    /// `I⁻¹ v`, world axes (the same bits as the full product).
+    #[inline]
+    fn inv_i(&self, v: Vec3) -> Vec3 {
+        if self.isotropic {
+            v * self.inv_inertia.xx
+        } else {
+            self.inv_inertia.mul_vec(v)
+        }
+    }
+
+    /// The angular part of the effective mass of a point at arm `r` (the
+    /// same bits as the full product).
+    #[inline]
+    fn arm_mass(&self, r: Vec3) -> SymMat3 {
+        if self.isotropic {
+            SymMat3::skew_sandwich_scalar(self.inv_inertia.xx, r)
+        } else {
+            self.inv_inertia.skew_sandwich(r)
+        }
+    }
 }
 
 /// The state of both ends at the current substep, and the joint's geometry
@@ -152,7 +178,10 @@ impl JointSolver {
                     slot: handle.index(),
                     dynamic,
                     inv_mass: if dynamic { b.inv_mass } else { Scalar::ZERO },
-                    inv_inertia: if dynamic {
+                    isotropic: b.isotropic,
+                    inv_inertia: if dynamic && b.isotropic {
+                        b.inv_inertia
+                    } else if dynamic {
                         b.inv_inertia.rotate(&Mat3::from_quat(b.rotation))
                     } else {
                         SymMat3::ZERO
@@ -178,27 +207,6 @@ impl JointSolver {
         self.rows.capacity() != cap || self.posed.capacity() != posed_cap
     }
 
-    /// Measures every listed joint at the bodies' current poses, for the
-    /// passes that follow until the positions move: the geometry, and the
-    /// anchor block's effective mass, inverted. (Keeping the solve's
-    /// inverse for the relax passes, one substep's rotation later, left
-    /// ragdolls jittering awake.)
-    pub(crate) fn pose(&mut self, joints: &Arena<Joint>, hot: &[BodyHot]) {
-        for (row, posed) in self.rows.iter().zip(self.posed.iter_mut()) {
-            let Some(j) = joints.get_by_index(row.joint) else {
-                continue;
-            };
-            let g = geometry(row, hot);
-            let point_inv = match j.desc.kind {
-                JointKind::Spherical { .. } | JointKind::Revolute { .. } | JointKind::Fixed => {
-                    point_mass(row, g.ra, g.rb).try_inverse_fast()
-                }
-                _ => None,
-            };
-            *posed = Posed { g, point_inv };
-        }
-    }
-
     /// Whether there is a joint to solve this tick.
     pub(crate) fn is_empty(&self) -> bool {
         self.rows.is_empty()
@@ -209,13 +217,14 @@ impl JointSolver {
         self.rows.len()
     }
 
-    /// Applies the accumulated impulses again (after [`pose`](Self::pose)
-    /// at the current poses).
-    pub(crate) fn warm_start(&self, joints: &Arena<Joint>, hot: &mut [BodyHot]) {
-        for (row, posed) in self.rows.iter().zip(&self.posed) {
+    /// Measures every joint at the current poses (for this pass and the
+    /// solve passes after it) and applies its accumulated impulses again.
+    pub(crate) fn warm_start(&mut self, joints: &Arena<Joint>, hot: &mut [BodyHot]) {
+        for (row, posed) in self.rows.iter().zip(self.posed.iter_mut()) {
             let Some(j) = joints.get_by_index(row.joint) else {
                 continue;
             };
+            *posed = pose(row, &j.desc.kind, hot);
             let g = &posed.g;
             let mut vel = read(row, hot);
             let imp = j.impulses;
@@ -268,19 +277,26 @@ impl JointSolver {
         }
     }
 
-    /// One pass over every joint, soft with `use_bias`, rigid without (after
-    /// [`pose`](Self::pose) at the current poses).
+    /// One pass over every joint, soft with `use_bias`, rigid without. With
+    /// `measure` (the first pass after the positions moved), each joint is
+    /// measured at the current poses first; without, the last measurement
+    /// is read.
     pub(crate) fn solve(
-        &self,
+        &mut self,
         joints: &mut Arena<Joint>,
         hot: &mut [BodyHot],
         params: &JointParams,
         use_bias: bool,
+        measure: bool,
     ) {
-        for (row, posed) in self.rows.iter().zip(&self.posed) {
+        for (row, posed) in self.rows.iter().zip(self.posed.iter_mut()) {
             let Some(j) = joints.get_by_index_mut(row.joint) else {
                 continue;
             };
+            if measure {
+                *posed = pose(row, &j.desc.kind, hot);
+            }
+            let posed = &*posed;
             let g = &posed.g;
             let mut vel = read(row, hot);
             let soft = if use_bias { params.softness } else { RIGID };
@@ -410,6 +426,21 @@ const RIGID: Softness = Softness {
     impulse_scale: Scalar::ZERO,
 };
 
+/// Measures a joint at the bodies' current poses, for the passes that
+/// follow until the positions move: the geometry, and the anchor block's
+/// effective mass, inverted. (Keeping the solve's inverse for the relax
+/// passes, one substep's rotation later, left ragdolls jittering awake.)
+fn pose(row: &Row, kind: &JointKind, hot: &[BodyHot]) -> Posed {
+    let g = geometry(row, hot);
+    let point_inv = match kind {
+        JointKind::Spherical { .. } | JointKind::Revolute { .. } | JointKind::Fixed => {
+            point_mass(row, g.ra, g.rb).try_inverse_fast()
+        }
+        _ => None,
+    };
+    Posed { g, point_inv }
+}
+
 fn geometry(row: &Row, hot: &[BodyHot]) -> Geometry {
     let a = &hot[row.a.slot as usize];
     let b = &hot[row.b.slot as usize];
@@ -438,10 +469,10 @@ fn point_mass(row: &Row, ra: Vec3, rb: Vec3) -> SymMat3 {
     let ms = row.a.inv_mass + row.b.inv_mass;
     let mut k = SymMat3::from_diagonal(Vec3::new(ms, ms, ms));
     if row.a.dynamic {
-        k = k + row.a.inv_inertia.skew_sandwich(ra);
+        k = k + row.a.arm_mass(ra);
     }
     if row.b.dynamic {
-        k = k + row.b.inv_inertia.skew_sandwich(rb);
+        k = k + row.b.arm_mass(rb);
     }
     k
 }
@@ -489,11 +520,11 @@ fn apply_angular(row: &Row, vel: &mut Vels, p: Vec3) {
     }
     if row.a.dynamic {
         vel.la -= p;
-        vel.wa -= row.a.inv_inertia.mul_vec(p);
+        vel.wa -= row.a.inv_i(p);
     }
     if row.b.dynamic {
         vel.lb += p;
-        vel.wb += row.b.inv_inertia.mul_vec(p);
+        vel.wb += row.b.inv_i(p);
     }
 }
 
@@ -506,13 +537,13 @@ fn apply_point(row: &Row, g: &Geometry, vel: &mut Vels, p: Vec3) {
         vel.va -= p * row.a.inv_mass;
         let l = g.ra.cross(p);
         vel.la -= l;
-        vel.wa -= row.a.inv_inertia.mul_vec(l);
+        vel.wa -= row.a.inv_i(l);
     }
     if row.b.dynamic {
         vel.vb += p * row.b.inv_mass;
         let l = g.rb.cross(p);
         vel.lb += l;
-        vel.wb += row.b.inv_inertia.mul_vec(l);
+        vel.wb += row.b.inv_i(l);
     }
 }
 
@@ -532,12 +563,12 @@ fn apply_linear(row: &Row, g: &Geometry, vel: &mut Vels, u: Vec3, lambda: Scalar
     if row.a.dynamic {
         vel.va -= u * (row.a.inv_mass * lambda);
         vel.la -= ca * lambda;
-        vel.wa -= row.a.inv_inertia.mul_vec(ca * lambda);
+        vel.wa -= row.a.inv_i(ca * lambda);
     }
     if row.b.dynamic {
         vel.vb += u * (row.b.inv_mass * lambda);
         vel.lb += cb * lambda;
-        vel.wb += row.b.inv_inertia.mul_vec(cb * lambda);
+        vel.wb += row.b.inv_i(cb * lambda);
     }
 }
 
@@ -545,17 +576,14 @@ fn apply_linear(row: &Row, g: &Geometry, vel: &mut Vels, u: Vec3, lambda: Scalar
 /// row along `u`.
 fn linear_row(row: &Row, g: &Geometry, vel: &Vels, u: Vec3) -> (Scalar, Scalar) {
     let (ca, cb) = arms(g, u);
-    let k = row.a.inv_mass
-        + row.b.inv_mass
-        + ca.dot(row.a.inv_inertia.mul_vec(ca))
-        + cb.dot(row.b.inv_inertia.mul_vec(cb));
+    let k = row.a.inv_mass + row.b.inv_mass + ca.dot(row.a.inv_i(ca)) + cb.dot(row.b.inv_i(cb));
     let cdot = u.dot(vel.vb - vel.va) + cb.dot(vel.wb) - ca.dot(vel.wa);
     (k, cdot)
 }
 
 /// `k` of an angular row about `j`.
 fn angular_mass(row: &Row, j: Vec3) -> Scalar {
-    j.dot(row.a.inv_inertia.mul_vec(j)) + j.dot(row.b.inv_inertia.mul_vec(j))
+    j.dot(row.a.inv_i(j)) + j.dot(row.b.inv_i(j))
 }
 
 /// The impulse of a soft equality row: `−(Ċ + b·C)·s/k − i·λ`.
@@ -700,7 +728,7 @@ fn solve_hinge(row: &Row, g: &Geometry, vel: &mut Vels, acc: &mut Vec3, soft: &S
     let hb = g.fb.rotate(Vec3::X);
     let (p, q) = (g.fa.rotate(Vec3::Y), g.fa.rotate(Vec3::Z));
     let (j1, j2) = (hb.cross(p), hb.cross(q));
-    let i = |v: Vec3| row.a.inv_inertia.mul_vec(v) + row.b.inv_inertia.mul_vec(v);
+    let i = |v: Vec3| row.a.inv_i(v) + row.b.inv_i(v);
     let (i1, i2) = (i(j1), i(j2));
     let (k11, k12, k22) = (j1.dot(i1), j1.dot(i2), j2.dot(i2));
     let det = k11 * k22 - k12 * k12;
@@ -743,8 +771,8 @@ fn solve_slide(row: &Row, g: &Geometry, vel: &mut Vels, acc: &mut Vec3, soft: &S
     let (pa, pb) = arms(g, p);
     let (qa, qb) = (arms(g, q).0, arms(g, q).1);
     let ms = row.a.inv_mass + row.b.inv_mass;
-    let ia = |v: Vec3| row.a.inv_inertia.mul_vec(v);
-    let ib = |v: Vec3| row.b.inv_inertia.mul_vec(v);
+    let ia = |v: Vec3| row.a.inv_i(v);
+    let ib = |v: Vec3| row.b.inv_i(v);
     let k11 = ms + pa.dot(ia(pa)) + pb.dot(ib(pb));
     let k22 = ms + qa.dot(ia(qa)) + qb.dot(ib(qb));
     let k12 = pa.dot(ia(qa)) + pb.dot(ib(qb));

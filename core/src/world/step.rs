@@ -419,7 +419,6 @@ impl Joints<'_> {
 #[inline(never)]
 fn stage_warm_start(solver: &mut ContactSolver, js: &mut Joints<'_>, hot: &mut [BodyHot]) {
     if !js.is_empty() {
-        js.solver.pose(js.arena, hot);
         js.solver.warm_start(js.arena, hot);
     }
     if solver.is_empty() {
@@ -444,7 +443,8 @@ fn stage_solve(
 ) {
     if !js.is_empty() {
         for _ in 0..iterations {
-            js.solver.solve(js.arena, hot, &js.params, true);
+            // The warm start measured the joints at these poses.
+            js.solver.solve(js.arena, hot, &js.params, true, false);
         }
     }
     if solver.is_empty() {
@@ -477,10 +477,10 @@ fn stage_relax(
     hot: &mut [BodyHot],
 ) {
     if !js.is_empty() {
-        // The positions moved since the solve passes: measure again.
-        js.solver.pose(js.arena, hot);
-        for _ in 0..iterations {
-            js.solver.solve(js.arena, hot, &js.params, false);
+        // The positions moved since the solve passes: the first relax pass
+        // measures the joints again.
+        for i in 0..iterations {
+            js.solver.solve(js.arena, hot, &js.params, false, i == 0);
         }
     }
     if solver.is_empty() {
