@@ -178,7 +178,8 @@ impl JointSolver {
                     slot: handle.index(),
                     dynamic,
                     inv_mass: if dynamic { b.inv_mass } else { Scalar::ZERO },
-                    isotropic: b.isotropic,
+                    // The zero of an end that does not move is isotropic too.
+                    isotropic: !dynamic || b.isotropic,
                     inv_inertia: if dynamic && b.isotropic {
                         b.inv_inertia
                     } else if dynamic {

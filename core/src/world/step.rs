@@ -413,9 +413,10 @@ impl Joints<'_> {
 }
 
 /// The previous substep's (or tick's) impulses applied again: the joints'
-/// to the bodies, the contacts' to the contact solver's velocities (which
-/// go back to the bodies at once when joints will solve next, so they see
-/// them).
+/// to the bodies (each joint measured at these poses on the way, for the
+/// solve passes too), the contacts' to the contact solver's velocities
+/// (which go back to the bodies at once when joints will solve next, so
+/// they see them).
 #[inline(never)]
 fn stage_warm_start(solver: &mut ContactSolver, js: &mut Joints<'_>, hot: &mut [BodyHot]) {
     if !js.is_empty() {
