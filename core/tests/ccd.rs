@@ -713,3 +713,53 @@ fn two_thousand_shots_at_a_triangle_mesh_wall_never_cross_it() {
     assert_eq!(through, 0);
     assert!(hits > 1_000, "{hits}");
 }
+
+/// A limb pressed 41 mm into a step (a capsule of radius 6 cm, as a
+/// ragdoll's shin under a pile) while it spins fast enough to be swept: its
+/// core starts 4 mm from the step, within the sweep's reach. The core is
+/// left to the contact solver; it used to report a hit at fraction 0 and
+/// hold the body where it started, tick after tick, while the joints and
+/// contacts kept adding velocity that never moved it (until it exploded).
+#[test]
+fn a_deeply_pressed_spinning_limb_is_not_frozen_by_its_core() {
+    let mut w = zero_g();
+    let floor = w
+        .create_body(&BodyDesc::fixed().position(v3(0.0, -0.5, 0.0)))
+        .unwrap();
+    w.add_collider(
+        floor,
+        ColliderDesc::new(Shape::Cuboid(Cuboid::new(v3(5.0, 0.5, 5.0)).unwrap())),
+    )
+    .unwrap();
+    let lying = Quat::from_axis_angle(Vec3::Z, Scalar::PI.half()).normalize();
+    let shin = w
+        .create_body(
+            &BodyDesc::dynamic()
+                .position(v3(0.0, 0.019, 0.0))
+                .rotation(lying)
+                .angular_velocity(v3(0.0, 20.0, 0.0))
+                .linear_velocity(v3(0.0, -0.3, 0.0)),
+        )
+        .unwrap();
+    w.add_collider(
+        shin,
+        ColliderDesc::new(Shape::Capsule(Capsule::new(s(0.15), s(0.06)).unwrap())),
+    )
+    .unwrap();
+    let r = w.step();
+    assert!(r.faults.is_empty(), "{}", r.faults);
+    assert_eq!(r.ccd_bodies, 1, "it spins fast enough to be swept");
+    assert_eq!(r.ccd_hits, 0, "the core already within reach is not a hit");
+    let b = w.body(shin).unwrap();
+    let turned = (b.rotation().conjugate() * lying)
+        .w
+        .to_f64()
+        .abs()
+        .min(1.0)
+        .acos()
+        * 2.0;
+    // 20 rad/s for a tick is 0.33 rad; friction on the step takes some.
+    assert!(turned > 0.1, "turned {turned} rad in a tick");
+    let y = b.center_of_mass().y.to_f64();
+    assert!(y > 0.019, "the contact pushed it up: y {y}");
+}

@@ -36,8 +36,11 @@
 //! a wall) would report a hit at once and freeze the body; instead the pair
 //! is swept again with a *core* sphere: the collider's centre with a quarter
 //! of its smallest extent as radius (as Box2D v3 does). The core hits only
-//! when the body is really going through; a core that already touches is
-//! left to the contact solver.
+//! when the body is really going through; a core that already starts within
+//! reach of the target gap (the body is pressed in by three quarters of its
+//! extent) is left to the contact solver. Stopping it there would hold the
+//! body at its start pose, tick after tick, while the solver kept adding
+//! velocity that never moved it.
 //!
 //! **The response.** On a hit at fraction `t`, the body is moved to its
 //! pose at `t` (a gap of about [`CCD_TARGET_GAP`] from the surface) and
@@ -191,15 +194,17 @@ enum Outcome {
     Hit(Scalar),
     /// No contact up to the limit.
     Miss,
-    /// Already within `touch` at the start (or overlapping), and
+    /// Already within reach of the target gap at the start (or overlapping), and
     /// approaching.
     Touching,
 }
 
 /// The shared time-of-impact routine, read for CCD: a pair that starts
-/// within `touch` while approaching (or overlapping) is
+/// within reach of the target gap while approaching (or overlapping) is
 /// [`Outcome::Touching`]; a converged or exhausted sweep stops the body at
-/// the last fraction verified apart.
+/// the last fraction verified apart. (A hit at fraction 0 would stop the
+/// body where it started, tick after tick, while the solver keeps adding
+/// velocity that never moves it.)
 #[allow(clippy::too_many_arguments)]
 fn sweep<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
     a: &A,
@@ -209,7 +214,6 @@ fn sweep<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
     b: &B,
     pose_b: &Transform,
     limit: Scalar,
-    touch: Scalar,
 ) -> Outcome {
     match time_of_impact(
         a,
@@ -222,7 +226,7 @@ fn sweep<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
         &SETTINGS,
     ) {
         Toi::Overlapping => Outcome::Touching,
-        Toi::Hit { at, at_start: true } if at.gap <= touch => Outcome::Touching,
+        Toi::Hit { at_start: true, .. } => Outcome::Touching,
         Toi::Hit { at, .. } | Toi::Exhausted(at) => Outcome::Hit(at.fraction),
         Toi::Miss => Outcome::Miss,
     }
@@ -253,35 +257,34 @@ fn sweep_pair<B: SupportShape + ?Sized>(
     let mover = part.collider;
     let a = convex_support(&mover.shape)?;
     let local = &mover.local_pose;
-    let first = CCD_TARGET_GAP + CCD_TOLERANCE;
-    let toi = match sweep(a, local, part.rho, m, b, pose_b, limit, first) {
+    let toi = match sweep(a, local, part.rho, m, b, pose_b, limit) {
         Outcome::Touching => {
             let quarter = part.ext.min.half().half();
             let inset = part.ext.min - quarter;
-            // A core that itself touches is deep in: the solver's job.
-            let touch = CCD_TOLERANCE.half();
+            // A core that itself starts within reach is deep in: the
+            // solver's job.
             match &mover.shape {
                 Shape::Sphere(_) => {
                     let core = Sphere { radius: quarter };
-                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
+                    sweep(&core, local, part.rho, m, b, pose_b, limit)
                 }
                 Shape::Capsule(c) => {
                     let core = Capsule {
                         half_height: c.half_height,
                         radius: quarter,
                     };
-                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
+                    sweep(&core, local, part.rho, m, b, pose_b, limit)
                 }
                 Shape::Cuboid(c) => {
                     let core = Cuboid {
                         half_extents: c.half_extents - Vec3::splat(inset),
                     };
-                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
+                    sweep(&core, local, part.rho, m, b, pose_b, limit)
                 }
                 _ => {
                     let core = Sphere { radius: quarter };
                     let at = Transform::new(local.transform_point(part.ext.center), Quat::IDENTITY);
-                    sweep(&core, &at, part.rho, m, b, pose_b, limit, touch)
+                    sweep(&core, &at, part.rho, m, b, pose_b, limit)
                 }
             }
         }
