@@ -312,7 +312,7 @@ impl JointSolver {
                     }
                     if let Some((lo, hi)) = twist {
                         let t = twist_axis(g);
-                        let angle = twist_angle(g);
+                        let angle = angle_near(twist_angle(g), lo, hi);
                         let [_, lower, upper, _] = &mut imp.axial;
                         angular_limit(row, &mut vel, t, angle - lo, lower, params, use_bias);
                         angular_limit(row, &mut vel, -t, hi - angle, upper, params, use_bias);
@@ -325,11 +325,15 @@ impl JointSolver {
                     if let Some(m) = motor {
                         let k = angular_mass(row, axis);
                         let cdot = (vel.wb - vel.wa).dot(axis);
-                        let d =
-                            motor_impulse(m, cdot, angle, k, &mut imp.axial[2], params, use_bias);
+                        let x = match m {
+                            Motor::Position { target, .. } => angle_near(angle, target, target),
+                            Motor::Speed { .. } => angle,
+                        };
+                        let d = motor_impulse(m, cdot, x, k, &mut imp.axial[2], params, use_bias);
                         apply_angular(row, &mut vel, axis * d);
                     }
                     if let Some((lo, hi)) = limits {
+                        let angle = angle_near(angle, lo, hi);
                         let [lower, upper, ..] = &mut imp.axial;
                         angular_limit(row, &mut vel, axis, angle - lo, lower, params, use_bias);
                         angular_limit(row, &mut vel, -axis, hi - angle, upper, params, use_bias);
@@ -801,6 +805,25 @@ fn twist_axis(g: &Geometry) -> Vec3 {
 /// split of B's frame relative to A's, in (−π, π].
 fn twist_angle(g: &Geometry) -> Scalar {
     twist_between(g.fa, g.fb)
+}
+
+/// `angle` (in (−π, π]) moved by a whole turn, if need be, to within half a
+/// turn of the middle of `[lo, hi]`. A limited angle is then always judged
+/// against the nearer end of its range: a knee limited to [0°, 140°] that a
+/// hit bends to 185° is 45° past its upper limit, not 175° short of its
+/// lower one (which would drive it on round the wrong way, turn after turn).
+/// The cut is at the middle of the range's complement, the farthest point
+/// from both limits.
+pub(crate) fn angle_near(angle: Scalar, lo: Scalar, hi: Scalar) -> Scalar {
+    let mid = lo + (hi - lo).half();
+    let offset = angle - mid;
+    if offset > Scalar::PI {
+        angle - Scalar::TAU
+    } else if offset <= -Scalar::PI {
+        angle + Scalar::TAU
+    } else {
+        angle
+    }
 }
 
 /// The twist about A's x axis of frame `fb` relative to frame `fa` (world
