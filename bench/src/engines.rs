@@ -27,7 +27,7 @@ use rapier3d::prelude::{
 
 use crate::scenes::{self, BodyShape, Scene};
 use crate::{Options, SuiteOutput};
-use crate::{alloc, stages};
+use crate::{alloc, scene_file, stages};
 
 /// Steps per second in both engines.
 const TICK_RATE: u32 = 60;
@@ -57,7 +57,8 @@ fn settings_text() -> String {
          num_solver_iterations {} (= substeps), num_internal_pgs_iterations {}, \
          num_internal_stabilization_iterations {}, warmstart_coefficient {}, contact_clustering {}, \
          contact_recycling {}, prediction distance {} m, CCD off, can_sleep(false)\n\
-         both: gravity (0, -10, 0), friction 0.6, restitution 0; bodies = dynamic bodies (plus one static ground)",
+         both: gravity (0, -10, 0), friction 0.6, restitution 0; bodies = dynamic bodies (plus one static ground)
+         ragdolls: the scene file's own world (gravity -9.81, 60 Hz, 4 substeps), shapes, statics and joints in both;          Rapier's cone limits are +/- the cone about the frame's y and z axes (docs/engines.md)",
         p.num_solver_iterations,
         p.num_internal_pgs_iterations,
         p.num_internal_stabilization_iterations,
@@ -94,6 +95,9 @@ fn v3(p: [f64; 3]) -> Vec3 {
 
 /// Our world for a scene (sleep as given: off for `engines`).
 pub fn build_ours(scene: &Scene, sleep: SleepConfig) -> (World, Vec<BodyHandle>) {
+    if let BodyShape::File(desc) = &scene.shape {
+        return scene_file::build_ours(desc, sleep);
+    }
     let mut world = World::new(WorldConfig {
         gravity: Vec3::new(Scalar::ZERO, Scalar::from_int(-10), Scalar::ZERO),
         tick_rate: TICK_RATE,
@@ -126,6 +130,7 @@ pub fn build_ours(scene: &Scene, sleep: SleepConfig) -> (World, Vec<BodyHandle>)
             ))
         }
         BodyShape::Sphere(radius) => Shape::Sphere(Sphere::new(s(*radius)).expect("radius")),
+        BodyShape::File(_) => unreachable!("built above"),
     };
     let filter = if scene.collide {
         CollisionFilter::default()
@@ -230,6 +235,10 @@ fn rv(p: [f64; 3]) -> Vector {
 impl Rapier {
     /// The scene built in Rapier with the suite's settings.
     pub(crate) fn new(scene: &Scene) -> Rapier {
+        if let BodyShape::File(desc) = &scene.shape {
+            let (world, bodies) = scene_file::build_rapier(desc);
+            return Rapier { world, bodies };
+        }
         let mut world = PhysicsWorld {
             gravity: Vector::new(0.0, -10.0, 0.0),
             integration_parameters: rapier_parameters(),
@@ -249,6 +258,7 @@ impl Rapier {
                 SharedShape::convex_hull(&pts).expect("hull of points on a sphere")
             }
             BodyShape::Sphere(radius) => SharedShape::ball(r(*radius)),
+            BodyShape::File(_) => unreachable!("built above"),
         };
         let groups = if scene.collide {
             InteractionGroups::all()
@@ -529,6 +539,14 @@ pub(crate) fn scene_list(quick: bool) -> Vec<(&'static str, Option<Scene>)> {
             ("joint_grid", Some(scenes::joint_grid(4, 5))),
             ("convex_pile", Some(scenes::convex_pile(2, 2, 2, 5))),
             ("jolt_pyramid", Some(scenes::jolt_pyramid(4, 5))),
+            (
+                "ragdolls",
+                Some(scenes::from_file(
+                    "ragdolls",
+                    &scenes::ragdolls_toml(2, 1),
+                    5,
+                )),
+            ),
         ]
     } else {
         vec![
@@ -540,6 +558,14 @@ pub(crate) fn scene_list(quick: bool) -> Vec<(&'static str, Option<Scene>)> {
             ("joint_grid", Some(scenes::joint_grid(100, 100))),
             ("convex_pile", Some(scenes::convex_pile(8, 8, 80, 500))),
             ("jolt_pyramid", Some(scenes::jolt_pyramid(15, 500))),
+            (
+                "ragdolls",
+                Some(scenes::from_file(
+                    "ragdolls",
+                    include_str!("../../scenes/ragdolls_100.toml"),
+                    RAGDOLL_STEPS,
+                )),
+            ),
         ]
     }
 }
@@ -551,7 +577,12 @@ pub const SCENE_NAMES: &[&str] = &[
     "joint_grid",
     "convex_pile",
     "jolt_pyramid",
+    "ragdolls",
 ];
+
+/// Steps of the ragdoll scene: 10 s, time for the 100 ragdolls to tumble
+/// down the stairs and come to rest.
+const RAGDOLL_STEPS: usize = 600;
 
 fn kib_per_body(bytes: usize, bodies: usize) -> f64 {
     bytes as f64 / 1024.0 / bodies.max(1) as f64
@@ -759,6 +790,44 @@ pub fn run(opts: &Options) -> SuiteOutput {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_scene_file_builds_the_same_bodies_and_joints_in_both_engines() {
+        let scene = scenes::from_file("ragdolls", &scenes::ragdolls_toml(2, 1), 1);
+        let mut ours = Ours::new(&scene);
+        let mut theirs = Rapier::new(&scene);
+        assert_eq!(scene.positions.len(), 22);
+        assert_eq!(ours.positions(), scene.positions);
+        let apart = theirs
+            .positions()
+            .iter()
+            .zip(&scene.positions)
+            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        assert!(apart < 1e-6, "Rapier's bodies are {apart} m off");
+        assert_eq!(ours.world.joint_count(), 20);
+        assert_eq!(theirs.world.impulse_joints.len(), 20);
+        // 9 steps + floor + 22 capsules in each.
+        assert_eq!(theirs.world.colliders.len(), 32);
+        let mass = |i: usize| {
+            let m = ours.world.body(ours.bodies[i]).unwrap().mass().to_f64();
+            let rm = theirs.world.bodies[theirs.bodies[i]].mass() as f64;
+            (m, rm)
+        };
+        for i in 0..22 {
+            let (m, rm) = mass(i);
+            assert!((m - rm).abs() < 1e-4 * m, "body {i}: {m} kg against {rm}");
+        }
+        // Both tumble down the stairs without flying apart.
+        for _ in 0..120 {
+            ours.step();
+            theirs.step();
+        }
+        assert!(!ours.faulted);
+        for p in ours.positions().iter().chain(&theirs.positions()) {
+            assert!(p[1] < 2.5 && p[1] > -6.0 && p[0].abs() < 6.0, "{p:?}");
+        }
+    }
 
     #[test]
     fn both_engines_build_the_same_bodies_at_the_same_places() {

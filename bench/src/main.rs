@@ -24,6 +24,7 @@ mod harness;
 mod math;
 mod net;
 mod profile;
+mod scene_file;
 mod scenes;
 mod sleep;
 mod stages;

@@ -6,6 +6,8 @@
 //! except the hull points, which are rounded to Q32.32 first and handed to
 //! Rapier as the `f32` nearest to that value.
 
+use std::fmt::Write as _;
+
 /// The one shape all dynamic bodies of a scene share.
 #[derive(Clone, Debug)]
 pub enum BodyShape {
@@ -15,6 +17,10 @@ pub enum BodyShape {
     Hull(Vec<[f64; 3]>),
     /// A sphere of this radius, m.
     Sphere(f64),
+    /// Every body as this scene file describes it: its own shapes, the
+    /// static bodies, the joints and the world settings (the `Scene`'s
+    /// ground, density, friction, statics and joints are not used).
+    File(std::sync::Arc<lockstep_core::scene::SceneDesc>),
 }
 
 /// A scene: a static ground box plus dynamic bodies of one shape.
@@ -261,6 +267,298 @@ pub fn joint_grid(n: usize, steps: usize) -> Scene {
     }
 }
 
+/// One ragdoll part: name, centre relative to the pelvis (m), capsule half
+/// height and radius (m). Capsules lie along y: the ragdoll stands upright.
+const RAGDOLL_PARTS: [(&str, [f64; 3], f64, f64); 11] = [
+    ("pelvis", [0.0, 0.0, 0.0], 0.05, 0.14),
+    ("torso", [0.0, 0.35, 0.0], 0.15, 0.15),
+    ("head", [0.0, 0.85, 0.0], 0.02, 0.12),
+    ("upper_arm_l", [-0.25, 0.45, 0.0], 0.1, 0.06),
+    ("lower_arm_l", [-0.25, 0.05, 0.0], 0.1, 0.05),
+    ("upper_arm_r", [0.25, 0.45, 0.0], 0.1, 0.06),
+    ("lower_arm_r", [0.25, 0.05, 0.0], 0.1, 0.05),
+    ("thigh_l", [-0.1, -0.35, 0.0], 0.15, 0.07),
+    ("shin_l", [-0.1, -0.75, 0.0], 0.15, 0.06),
+    ("thigh_r", [0.1, -0.35, 0.0], 0.15, 0.07),
+    ("shin_r", [0.1, -0.75, 0.0], 0.15, 0.06),
+];
+
+/// How a ragdoll joint bends: a ball with a swing cone and twist limits
+/// about the bone (degrees), or a hinge about x with angle limits.
+enum Bend {
+    Ball { cone: f64, twist: f64 },
+    Hinge { lo: f64, hi: f64 },
+}
+
+/// One ragdoll joint: the two parts, the anchor in each part's frame, and
+/// how it bends.
+type RagdollJoint = (&'static str, &'static str, [f64; 3], [f64; 3], Bend);
+
+/// The joints of one ragdoll.
+const RAGDOLL_JOINTS: [RagdollJoint; 10] = [
+    (
+        "pelvis",
+        "torso",
+        [0.0, 0.15, 0.0],
+        [0.0, -0.2, 0.0],
+        Bend::Ball {
+            cone: 30.0,
+            twist: 20.0,
+        },
+    ),
+    (
+        "torso",
+        "head",
+        [0.0, 0.35, 0.0],
+        [0.0, -0.15, 0.0],
+        Bend::Ball {
+            cone: 40.0,
+            twist: 45.0,
+        },
+    ),
+    (
+        "torso",
+        "upper_arm_l",
+        [-0.25, 0.25, 0.0],
+        [0.0, 0.15, 0.0],
+        Bend::Ball {
+            cone: 80.0,
+            twist: 45.0,
+        },
+    ),
+    (
+        "upper_arm_l",
+        "lower_arm_l",
+        [0.0, -0.2, 0.0],
+        [0.0, 0.2, 0.0],
+        Bend::Hinge {
+            lo: -140.0,
+            hi: 0.0,
+        },
+    ),
+    (
+        "torso",
+        "upper_arm_r",
+        [0.25, 0.25, 0.0],
+        [0.0, 0.15, 0.0],
+        Bend::Ball {
+            cone: 80.0,
+            twist: 45.0,
+        },
+    ),
+    (
+        "upper_arm_r",
+        "lower_arm_r",
+        [0.0, -0.2, 0.0],
+        [0.0, 0.2, 0.0],
+        Bend::Hinge {
+            lo: -140.0,
+            hi: 0.0,
+        },
+    ),
+    (
+        "pelvis",
+        "thigh_l",
+        [-0.1, -0.15, 0.0],
+        [0.0, 0.2, 0.0],
+        Bend::Ball {
+            cone: 60.0,
+            twist: 30.0,
+        },
+    ),
+    (
+        "thigh_l",
+        "shin_l",
+        [0.0, -0.2, 0.0],
+        [0.0, 0.2, 0.0],
+        Bend::Hinge { lo: 0.0, hi: 140.0 },
+    ),
+    (
+        "pelvis",
+        "thigh_r",
+        [0.1, -0.15, 0.0],
+        [0.0, 0.2, 0.0],
+        Bend::Ball {
+            cone: 60.0,
+            twist: 30.0,
+        },
+    ),
+    (
+        "thigh_r",
+        "shin_r",
+        [0.0, -0.2, 0.0],
+        [0.0, 0.2, 0.0],
+        Bend::Hinge { lo: 0.0, hi: 140.0 },
+    ),
+];
+
+/// A number as a scene file writes it: at most four decimals, no trailing
+/// zeros (every value the generator writes is a multiple of 1/10,000).
+fn num(v: f64) -> String {
+    let text = format!("{:.4}", v + 0.0);
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".to_owned()
+    } else {
+        text.to_owned()
+    }
+}
+
+fn vec_text(v: [f64; 3]) -> String {
+    format!("[{}, {}, {}]", num(v[0]), num(v[1]), num(v[2]))
+}
+
+/// The ragdoll scene as a scene file: `cols` × `rows` ragdolls (11 capsules
+/// and 10 joints each: cone-twist balls at the spine, neck, shoulders and
+/// hips, limited hinges at the elbows and knees) standing on a staircase of
+/// `rows + 8` steps (1 m deep, 0.5 m high), row `j` on step `j`, columns 2 m
+/// apart, each pushed off its step with 2.5 m/s forward and a tumble. The
+/// stairs end on a wide floor. Joined parts do not collide with each other;
+/// all other pairs do. `scenes/ragdolls_100.toml` is `ragdolls_toml(10, 10)`.
+pub fn ragdolls_toml(cols: usize, rows: usize) -> String {
+    let steps = rows + 8;
+    let half_width = cols as f64 + 2.0;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# Generated by lockstep-bench (scenes::ragdolls_toml({cols}, {rows})); edit the generator,\n\
+         # not this file: `LOCKSTEP_BLESS=1 cargo test -p lockstep-bench ragdoll` rewrites it.\n\
+         #\n\
+         # {n} ragdolls of eleven capsules each, joined by spherical joints with cone\n\
+         # and twist limits (spine, neck, shoulders, hips) and hinges with limits\n\
+         # (elbows, knees), stand in {rows} rows of {cols} on a staircase of {steps} steps\n\
+         # and are pushed off. They tumble down onto each other and pile up on the\n\
+         # stairs, come to rest and fall asleep. Joined parts do not collide with\n\
+         # each other. The limbs are damped (linear 0.2/s, angular 2/s), as game\n\
+         # ragdolls usually are: without it, limbs pressed between ragdolls and\n\
+         # steps keep moving at a few cm/s and part of the pile stays awake.\n\
+         \n\
+         [world]\n\
+         gravity = [0, -9.81, 0]\n\
+         tick_rate = 60\n\
+         substeps = 4\n\
+         \n\
+         [materials.stone]\n\
+         friction = 0.8\n\
+         \n\
+         [materials.cloth]\n\
+         friction = 0.6\n\
+         density = 985",
+        n = cols * rows
+    );
+    for k in 0..steps {
+        let _ = write!(
+            out,
+            "\n[[bodies]]\nname = \"step_{k}\"\nkind = \"static\"\nposition = {}\n\
+             shapes = [{{ kind = \"box\", half_extents = [{}, 0.25, 0.5], material = \"stone\" }}]\n",
+            vec_text([0.0, -0.25 - 0.5 * k as f64, 0.5 + k as f64]),
+            num(half_width),
+        );
+    }
+    let _ = write!(
+        out,
+        "\n[[bodies]]\nname = \"floor\"\nkind = \"static\"\nposition = {}\n\
+         shapes = [{{ kind = \"box\", half_extents = [{}, 0.5, 15], material = \"stone\" }}]\n",
+        vec_text([0.0, -0.5 * steps as f64 - 0.5, steps as f64 + 15.0]),
+        num(half_width + 12.0),
+    );
+    for row in 0..rows {
+        for col in 0..cols {
+            let r = row * cols + col;
+            let pelvis = [
+                2.0 * col as f64 - (cols as f64 - 1.0),
+                1.02 - 0.5 * row as f64,
+                0.5 + row as f64,
+            ];
+            // A different tumble per ragdoll, from a fixed pattern.
+            let spin = ((3 * col + 7 * row) % 9) as f64 * 0.1 - 0.4;
+            for (part, at, half_height, radius) in RAGDOLL_PARTS {
+                let p = [pelvis[0] + at[0], pelvis[1] + at[1], pelvis[2] + at[2]];
+                let _ = write!(
+                    out,
+                    "\n[[bodies]]\nname = \"r{r}_{part}\"\nkind = \"dynamic\"\nposition = {}\n\
+                     linear_velocity = [0, 0.5, 2.5]\nangular_velocity = [2, {}, 0]\n\
+                     linear_damping = 0.2\nangular_damping = 2\n\
+                     shapes = [{{ kind = \"capsule\", half_height = {}, radius = {}, material = \"cloth\" }}]\n",
+                    vec_text(p),
+                    num(spin),
+                    num(half_height),
+                    num(radius),
+                );
+            }
+        }
+    }
+    for r in 0..rows * cols {
+        for (a, b, anchor_a, anchor_b, bend) in &RAGDOLL_JOINTS {
+            let _ = write!(
+                out,
+                "\n[[joints]]\nname = \"r{r}_{a}_{b}\"\nbody_a = \"r{r}_{a}\"\nbody_b = \"r{r}_{b}\"\n\
+                 anchor_a = {}\nanchor_b = {}\n",
+                vec_text(*anchor_a),
+                vec_text(*anchor_b),
+            );
+            match bend {
+                // The joint's x axis along the bone (body y): the cone is
+                // around the bone and the twist is about it.
+                Bend::Ball { cone, twist } => {
+                    let _ = write!(
+                        out,
+                        "kind = \"spherical\"\n\
+                         rotation_a = {{ axis = [0, 0, 1], angle_deg = 90 }}\n\
+                         rotation_b = {{ axis = [0, 0, 1], angle_deg = 90 }}\n\
+                         cone_deg = {}\ntwist_deg = [{}, {}]\n",
+                        num(*cone),
+                        num(-twist),
+                        num(*twist),
+                    );
+                }
+                Bend::Hinge { lo, hi } => {
+                    let _ = write!(
+                        out,
+                        "kind = \"revolute\"\nlimits_deg = [{}, {}]\n",
+                        num(*lo),
+                        num(*hi)
+                    );
+                }
+            }
+        }
+    }
+    out
+}
+
+/// ragdolls: a scene file's bodies (the ragdoll file, or any other) as a
+/// benchmark scene; `positions` are its dynamic bodies' starting positions
+/// in file order.
+pub fn from_file(name: &'static str, text: &str, steps: usize) -> Scene {
+    let desc = lockstep_core::scene::parse_scene(text, name).unwrap_or_else(|e| panic!("{e}"));
+    let positions = desc
+        .bodies
+        .iter()
+        .filter(|b| b.kind == lockstep_core::BodyKind::Dynamic)
+        .map(|b| {
+            [
+                b.position.x.to_f64(),
+                b.position.y.to_f64(),
+                b.position.z.to_f64(),
+            ]
+        })
+        .collect();
+    Scene {
+        name,
+        ground_half: [0.0; 3],
+        ground_y: 0.0,
+        shape: BodyShape::File(std::sync::Arc::new(desc)),
+        density: 0.0,
+        friction: 0.0,
+        positions,
+        tops: Vec::new(),
+        steps,
+        statics: Vec::new(),
+        joints: Vec::new(),
+        collide: true,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -283,6 +581,30 @@ mod tests {
         assert_eq!(max_x + 0.5, 76.5, "every pyramid is on the ground");
         assert_eq!(convex_pile(8, 8, 80, 500).positions.len(), 5_120);
         assert_eq!(jolt_pyramid(15, 500).positions.len(), 1_240);
+    }
+
+    #[test]
+    fn the_ragdoll_scene_file_is_the_generators_output() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/ragdolls_100.toml");
+        let text = ragdolls_toml(10, 10);
+        if std::env::var_os("LOCKSTEP_BLESS").is_some() {
+            std::fs::write(path, &text).expect("write the scene file");
+        }
+        let on_disk = std::fs::read_to_string(path).expect("scenes/ragdolls_100.toml");
+        assert!(
+            on_disk == text,
+            "scenes/ragdolls_100.toml differs from ragdolls_toml(10, 10): \
+             run with LOCKSTEP_BLESS=1 to rewrite it"
+        );
+        let desc = lockstep_core::scene::parse_scene(&text, "ragdolls_100.toml").expect("parses");
+        let dynamic = desc
+            .bodies
+            .iter()
+            .filter(|b| b.kind == lockstep_core::BodyKind::Dynamic)
+            .count();
+        assert_eq!(dynamic, 1_100);
+        assert_eq!(desc.bodies.len(), 1_100 + 18 + 1);
+        assert_eq!(desc.joints.len(), 1_000);
     }
 
     #[test]
