@@ -57,8 +57,9 @@ fn settings_text() -> String {
          num_solver_iterations {} (= substeps), num_internal_pgs_iterations {}, \
          num_internal_stabilization_iterations {}, warmstart_coefficient {}, contact_clustering {}, \
          contact_recycling {}, prediction distance {} m, CCD off, can_sleep(false)\n\
-         both: gravity (0, -10, 0), friction 0.6, restitution 0; bodies = dynamic bodies (plus one static ground)
-         ragdolls: the scene file's own world (gravity -9.81, 60 Hz, 4 substeps), shapes, statics and joints in both;          Rapier's cone limits are +/- the cone about the frame's y and z axes (docs/engines.md)",
+         both: gravity (0, -10, 0), friction 0.6, restitution 0; bodies = dynamic bodies (plus one static ground)\n\
+         ragdolls: the scene file's own world (gravity -9.81, 60 Hz, 4 substeps), shapes, statics and joints in both; \
+         Rapier's cone limits are +/- the cone about the frame's y and z axes (docs/engines.md)",
         p.num_solver_iterations,
         p.num_internal_pgs_iterations,
         p.num_internal_stabilization_iterations,
