@@ -716,10 +716,11 @@ fn two_thousand_shots_at_a_triangle_mesh_wall_never_cross_it() {
 
 /// A limb pressed 41 mm into a step (a capsule of radius 6 cm, as a
 /// ragdoll's shin under a pile) while it spins fast enough to be swept: its
-/// core starts 4 mm from the step, within the sweep's reach. The core is
-/// left to the contact solver; it used to report a hit at fraction 0 and
-/// hold the body where it started, tick after tick, while the joints and
-/// contacts kept adding velocity that never moved it (until it exploded).
+/// core starts 4 mm from the step, within the sweep's reach, and is still
+/// apart on the same side at the end of the tick. It is left to the contact
+/// solver; it used to report a hit at fraction 0 and hold the body where it
+/// started, tick after tick, while the joints and contacts kept adding
+/// velocity that never moved it (until it exploded).
 #[test]
 fn a_deeply_pressed_spinning_limb_is_not_frozen_by_its_core() {
     let mut w = zero_g();

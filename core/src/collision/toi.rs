@@ -130,7 +130,7 @@ pub enum Toi {
 }
 
 /// The pose of the moving shape at fraction `t`.
-fn shape_pose(m: &Motion, local: &Transform, t: Scalar) -> Transform {
+pub(crate) fn shape_pose(m: &Motion, local: &Transform, t: Scalar) -> Transform {
     let frame = m.origin_at(t);
     if *local == Transform::IDENTITY {
         frame

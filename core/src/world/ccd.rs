@@ -36,11 +36,15 @@
 //! a wall) would report a hit at once and freeze the body; instead the pair
 //! is swept again with a *core* sphere: the collider's centre with a quarter
 //! of its smallest extent as radius (as Box2D v3 does). The core hits only
-//! when the body is really going through; a core that already starts within
-//! reach of the target gap (the body is pressed in by three quarters of its
-//! extent) is left to the contact solver. Stopping it there would hold the
-//! body at its start pose, tick after tick, while the solver kept adding
-//! velocity that never moved it.
+//! when the body is really going through; a core that already touches is
+//! left to the contact solver. A core that starts within reach of the
+//! target gap but not touching (the body is pressed in by nearly three
+//! quarters of its extent) stops the body at fraction 0, unless the core is
+//! still apart, on the same side, at the end of the motion: then it cannot
+//! be going through, and a stop would only hold the body at its start pose,
+//! tick after tick, while the solver kept adding velocity that never moved
+//! it (a ragdoll's shin pressed into a step under a pile did exactly that,
+//! and the pile exploded).
 //!
 //! **The response.** On a hit at fraction `t`, the body is moved to its
 //! pose at `t` (a gap of about [`CCD_TARGET_GAP`] from the surface) and
@@ -59,7 +63,8 @@
 use crate::body::{BodyHandle, BodyHot, BodyKind};
 use crate::collider::Collider;
 use crate::collision::narrow::gjk::SupportShape;
-use crate::collision::toi::{Motion, Toi, ToiSettings, time_of_impact};
+use crate::collision::narrow::gjk::{DistanceResult, distance};
+use crate::collision::toi::{Motion, Toi, ToiSettings, shape_pose, time_of_impact};
 use crate::collision::{ProxyId, ProxyKey};
 use crate::math::elem::isqrt_u128;
 use crate::math::{Aabb, Quat, Scalar, Transform, Vec3};
@@ -194,17 +199,17 @@ enum Outcome {
     Hit(Scalar),
     /// No contact up to the limit.
     Miss,
-    /// Already within reach of the target gap at the start (or overlapping), and
+    /// Already within `touch` at the start (or overlapping), and
     /// approaching.
     Touching,
 }
 
 /// The shared time-of-impact routine, read for CCD: a pair that starts
-/// within reach of the target gap while approaching (or overlapping) is
-/// [`Outcome::Touching`]; a converged or exhausted sweep stops the body at
-/// the last fraction verified apart. (A hit at fraction 0 would stop the
-/// body where it started, tick after tick, while the solver keeps adding
-/// velocity that never moves it.)
+/// within `touch` while approaching (or overlapping) is
+/// [`Outcome::Touching`]; one that starts within reach but not within
+/// `touch` (only a core) is too if the motion leaves it apart on the same
+/// side, else it stops at fraction 0; a converged or exhausted sweep stops
+/// the body at the last fraction verified apart.
 #[allow(clippy::too_many_arguments)]
 fn sweep<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
     a: &A,
@@ -214,19 +219,29 @@ fn sweep<A: SupportShape + ?Sized, B: SupportShape + ?Sized>(
     b: &B,
     pose_b: &Transform,
     limit: Scalar,
+    touch: Scalar,
 ) -> Outcome {
-    match time_of_impact(
-        a,
-        local,
-        rho,
-        m,
-        b,
-        pose_b,
-        limit.min(Scalar::ONE),
-        &SETTINGS,
-    ) {
+    let limit = limit.min(Scalar::ONE);
+    match time_of_impact(a, local, rho, m, b, pose_b, limit, &SETTINGS) {
         Toi::Overlapping => Outcome::Touching,
-        Toi::Hit { at_start: true, .. } => Outcome::Touching,
+        Toi::Hit { at, at_start: true } if at.gap <= touch => Outcome::Touching,
+        Toi::Hit { at, at_start: true } => {
+            // Within reach at the start but not touching (only a core gets
+            // here). Stopping at fraction 0 keeps it from going through a
+            // thin wall; but if the motion leaves it apart on the same side
+            // at the end, it cannot go through, and a stop would only hold
+            // the body at its start pose, tick after tick, while the solver
+            // kept adding velocity that never moved it. That is left to the
+            // solver.
+            match distance(a, &shape_pose(m, local, limit), b, pose_b) {
+                DistanceResult::Separated { normal, .. }
+                    if (-normal).dot(at.normal).is_positive() =>
+                {
+                    Outcome::Touching
+                }
+                _ => Outcome::Hit(at.fraction),
+            }
+        }
         Toi::Hit { at, .. } | Toi::Exhausted(at) => Outcome::Hit(at.fraction),
         Toi::Miss => Outcome::Miss,
     }
@@ -257,34 +272,35 @@ fn sweep_pair<B: SupportShape + ?Sized>(
     let mover = part.collider;
     let a = convex_support(&mover.shape)?;
     let local = &mover.local_pose;
-    let toi = match sweep(a, local, part.rho, m, b, pose_b, limit) {
+    let first = CCD_TARGET_GAP + CCD_TOLERANCE;
+    let toi = match sweep(a, local, part.rho, m, b, pose_b, limit, first) {
         Outcome::Touching => {
             let quarter = part.ext.min.half().half();
             let inset = part.ext.min - quarter;
-            // A core that itself starts within reach is deep in: the
-            // solver's job.
+            // A core that itself touches is deep in: the solver's job.
+            let touch = CCD_TOLERANCE.half();
             match &mover.shape {
                 Shape::Sphere(_) => {
                     let core = Sphere { radius: quarter };
-                    sweep(&core, local, part.rho, m, b, pose_b, limit)
+                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
                 }
                 Shape::Capsule(c) => {
                     let core = Capsule {
                         half_height: c.half_height,
                         radius: quarter,
                     };
-                    sweep(&core, local, part.rho, m, b, pose_b, limit)
+                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
                 }
                 Shape::Cuboid(c) => {
                     let core = Cuboid {
                         half_extents: c.half_extents - Vec3::splat(inset),
                     };
-                    sweep(&core, local, part.rho, m, b, pose_b, limit)
+                    sweep(&core, local, part.rho, m, b, pose_b, limit, touch)
                 }
                 _ => {
                     let core = Sphere { radius: quarter };
                     let at = Transform::new(local.transform_point(part.ext.center), Quat::IDENTITY);
-                    sweep(&core, &at, part.rho, m, b, pose_b, limit)
+                    sweep(&core, &at, part.rho, m, b, pose_b, limit, touch)
                 }
             }
         }
