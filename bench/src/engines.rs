@@ -38,9 +38,15 @@ pub(crate) const SUBSTEPS: u32 = 4;
 /// "solver iteration" is a substep of its TGS-soft solver (integrate, one
 /// PGS pass with bias, one relax pass without), like Box2D v3's soft step.
 fn rapier_parameters() -> IntegrationParameters {
+    rapier_parameters_for(TICK_RATE, SUBSTEPS)
+}
+
+/// Rapier's settings for a tick rate and a substep count: one Rapier solver
+/// iteration per substep (see [`rapier_parameters`]).
+pub(crate) fn rapier_parameters_for(tick_rate: u32, substeps: u32) -> IntegrationParameters {
     IntegrationParameters {
-        dt: 1.0 / TICK_RATE as f32,
-        num_solver_iterations: SUBSTEPS as usize,
+        dt: 1.0 / tick_rate.max(1) as f32,
+        num_solver_iterations: substeps.max(1) as usize,
         num_internal_pgs_iterations: 1,
         num_internal_stabilization_iterations: 1,
         ..IntegrationParameters::default()

@@ -5,6 +5,8 @@
 //! (the ragdolls) and still be the same scene in both.
 //!
 //! What the translation cannot carry over exactly:
+//! - a position motor: Rapier's is a spring of its own stiffness (see
+//!   [`MOTOR_STIFFNESS`]);
 //! - a cone limit: Rapier limits each swing axis on its own, so a cone of
 //!   angle θ becomes ±θ about the joint frame's y and z axes (a square that
 //!   the cone fits inside: Rapier allows the corners, up to θ·√2);
@@ -16,15 +18,24 @@
 //!   them is refused, as are height fields and distance joints.
 
 use lockstep_core::collider::MassSpec;
+use std::collections::BTreeMap;
+
 use lockstep_core::joint::{JointKind, Motor};
 use lockstep_core::scene::{GeometryDesc, SceneDesc, build_world_with_config};
 use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{BodyHandle, BodyKind, Quat, Scalar, Vec3, World, WorldConfig};
 use rapier3d::prelude::{
-    CoefficientCombineRule, ColliderBuilder, GenericJointBuilder, Group, IntegrationParameters,
-    InteractionGroups, InteractionTestMode, JointAxesMask, JointAxis, PhysicsWorld, Pose,
-    RigidBodyBuilder, RigidBodyHandle, Rotation, SharedShape, Vector,
+    CoefficientCombineRule, ColliderBuilder, GenericJointBuilder, Group, InteractionGroups,
+    InteractionTestMode, JointAxesMask, JointAxis, PhysicsWorld, Pose, RigidBodyBuilder,
+    RigidBodyHandle, Rotation, SharedShape, Vector,
 };
+
+/// Rapier's position motor is a spring with its own stiffness and damping;
+/// ours is a stiff spring at the joint softness. These make Rapier's stiff
+/// too (no benchmark scene has a position motor yet).
+const MOTOR_STIFFNESS: f32 = 1e4;
+/// See [`MOTOR_STIFFNESS`].
+const MOTOR_DAMPING: f32 = 1e2;
 
 /// The name errors and our builder report the scene under.
 const FILE_NAME: &str = "bench scene";
@@ -41,14 +52,6 @@ fn rotation(q: Quat) -> Rotation {
     Rotation::from_xyzw(f(q.x), f(q.y), f(q.z), f(q.w))
 }
 
-/// The dynamic bodies, in file order: the bodies a benchmark follows.
-fn dynamic_names(desc: &SceneDesc) -> impl Iterator<Item = &str> {
-    desc.bodies
-        .iter()
-        .filter(|b| b.kind == BodyKind::Dynamic)
-        .map(|b| b.name.as_str())
-}
-
 /// Our world for the scene, with the file's own settings except `sleep`;
 /// and the dynamic bodies' handles in file order.
 pub fn build_ours(desc: &SceneDesc, sleep: SleepConfig) -> (World, Vec<BodyHandle>) {
@@ -57,22 +60,18 @@ pub fn build_ours(desc: &SceneDesc, sleep: SleepConfig) -> (World, Vec<BodyHandl
         ..desc.world.config()
     };
     let world = build_world_with_config(desc, config, FILE_NAME).unwrap_or_else(|e| panic!("{e}"));
-    let bodies = dynamic_names(desc)
-        .map(|name| world.find_body(name).expect("every scene body is built"))
+    // The builder creates the bodies in file order.
+    let bodies = desc
+        .bodies
+        .iter()
+        .zip(world.body_handles())
+        .filter(|(b, _)| b.kind == BodyKind::Dynamic)
+        .map(|(b, h)| {
+            assert_eq!(world.body(h).expect("live body").name(), b.name);
+            h
+        })
         .collect();
     (world, bodies)
-}
-
-/// Rapier's settings for the scene's tick rate and substeps (see
-/// `engines::rapier_parameters`: one Rapier solver iteration per substep).
-pub fn rapier_parameters(desc: &SceneDesc) -> IntegrationParameters {
-    IntegrationParameters {
-        dt: 1.0 / desc.world.tick_rate.max(1) as f32,
-        num_solver_iterations: desc.world.substeps.max(1) as usize,
-        num_internal_pgs_iterations: 1,
-        num_internal_stabilization_iterations: 1,
-        ..IntegrationParameters::default()
-    }
 }
 
 /// Whether Rapier can take the scene (see the module docs); the reason if
@@ -131,10 +130,15 @@ pub fn build_rapier(desc: &SceneDesc) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
     }
     let mut world = PhysicsWorld {
         gravity: vector(desc.world.gravity),
-        integration_parameters: rapier_parameters(desc),
+        integration_parameters: crate::engines::rapier_parameters_for(
+            desc.world.tick_rate,
+            desc.world.substeps,
+        ),
         ..PhysicsWorld::default()
     };
-    let mut handles: Vec<(&str, RigidBodyHandle)> = Vec::with_capacity(desc.bodies.len());
+    // By name, for the joints; and the dynamic bodies in file order.
+    let mut handles: BTreeMap<&str, RigidBodyHandle> = BTreeMap::new();
+    let mut dynamic = Vec::new();
     for body in &desc.bodies {
         let builder = match body.kind {
             BodyKind::Static => RigidBodyBuilder::fixed(),
@@ -173,15 +177,12 @@ pub fn build_rapier(desc: &SceneDesc) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
                 .colliders
                 .insert_with_parent(collider, handle, &mut world.bodies);
         }
-        handles.push((body.name.as_str(), handle));
+        handles.insert(body.name.as_str(), handle);
+        if body.kind == BodyKind::Dynamic {
+            dynamic.push(handle);
+        }
     }
-    let handle_of = |name: &str| {
-        handles
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map(|&(_, h)| h)
-            .expect("joint bodies exist")
-    };
+    let handle_of = |name: &str| *handles.get(name).expect("joint bodies exist");
     for joint in &desc.joints {
         let (mask, limits, motor): (JointAxesMask, Vec<(JointAxis, f32, f32)>, Option<Motor>) =
             match joint.kind {
@@ -234,7 +235,9 @@ pub fn build_rapier(desc: &SceneDesc) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
             };
             builder = match motor {
                 Motor::Speed { speed, .. } => builder.motor_velocity(axis, f(speed), 1.0),
-                Motor::Position { target, .. } => builder.motor_position(axis, f(target), 1e4, 1e2),
+                Motor::Position { target, .. } => {
+                    builder.motor_position(axis, f(target), MOTOR_STIFFNESS, MOTOR_DAMPING)
+                }
             }
             .motor_max_force(axis, f(motor.max_force()));
         }
@@ -244,6 +247,5 @@ pub fn build_rapier(desc: &SceneDesc) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
             builder.build(),
         );
     }
-    let dynamic = dynamic_names(desc).map(handle_of).collect();
     (world, dynamic)
 }

@@ -62,8 +62,7 @@
 
 use crate::body::{BodyHandle, BodyHot, BodyKind};
 use crate::collider::Collider;
-use crate::collision::narrow::gjk::SupportShape;
-use crate::collision::narrow::gjk::{DistanceResult, distance};
+use crate::collision::narrow::gjk::{DistanceResult, SupportShape, distance};
 use crate::collision::toi::{Motion, Toi, ToiSettings, shape_pose, time_of_impact};
 use crate::collision::{ProxyId, ProxyKey};
 use crate::math::elem::isqrt_u128;
