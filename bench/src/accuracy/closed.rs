@@ -93,6 +93,23 @@ pub fn fall_time(h: f64) -> f64 {
     (2.0 * h / G).sqrt()
 }
 
+/// The period of a physical pendulum: a rigid body of mass `m` and
+/// moment of inertia `i_pivot` about its pivot, its centre of mass `l`
+/// below the pivot, released from rest at `theta0` rad. Exact at any
+/// amplitude: `4·√(I/(m g l))·K(sin(θ₀/2))`, with the complete elliptic
+/// integral of the first kind `K(k) = π / (2·AGM(1, √(1 − k²)))`.
+pub fn pendulum_period(i_pivot: f64, m: f64, l: f64, theta0: f64) -> f64 {
+    let k = (theta0 / 2.0).sin();
+    let (mut a, mut b) = (1.0f64, (1.0 - k * k).sqrt());
+    // The AGM converges quadratically: a dozen rounds reach f64's last bit
+    // (a tolerance test could miss by an ulp and loop for ever).
+    for _ in 0..12 {
+        (a, b) = ((a + b) / 2.0, (a * b).sqrt());
+    }
+    let elliptic_k = std::f64::consts::PI / (2.0 * a);
+    4.0 * (i_pivot / (m * G * l)).sqrt() * elliptic_k
+}
+
 /// Velocities after a 1-D collision of masses `m1`, `m2` at `u1`, `u2` with
 /// restitution `e` (momentum conserved, relative speed scaled by `e`).
 pub fn collision_1d(m1: f64, u1: f64, m2: f64, u2: f64, e: f64) -> (f64, f64) {
@@ -251,6 +268,24 @@ mod tests {
         // A 0.2 × 0.8 × 1.8 box: I_x = m/12 (0.8² + 1.8²).
         let i = inertia(ShapeSpec::Cuboid([0.1, 0.4, 0.9]), 12.0);
         assert!(close(i[0], 0.64 + 3.24, 1e-12) && close(i[2], 0.04 + 0.64, 1e-12));
+    }
+
+    #[test]
+    fn pendulum_period_is_the_small_angle_one_grown_by_the_series() {
+        // A point mass on 1 m: I = m l², so T₀ = 2π√(l/g).
+        let t0 = 2.0 * std::f64::consts::PI * (1.0 / G).sqrt();
+        assert!(close(pendulum_period(1.0, 1.0, 1.0, 1e-9), t0, 1e-15));
+        // T = T₀ (1 + θ²/16 + 11θ⁴/3072 + ...): within θ⁶ at 0.2 rad.
+        let th: f64 = 0.2;
+        let series = t0 * (1.0 + th * th / 16.0 + 11.0 * th.powi(4) / 3072.0);
+        assert!(close(pendulum_period(1.0, 1.0, 1.0, th), series, 1e-6));
+        // At 90°: K(sin 45°) = 1.854 074 677 301 372.
+        let quarter = 4.0 * (1.0 / G).sqrt() * 1.854_074_677_301_372;
+        assert!(close(
+            pendulum_period(1.0, 1.0, 1.0, std::f64::consts::FRAC_PI_2),
+            quarter,
+            1e-14
+        ));
     }
 
     #[test]

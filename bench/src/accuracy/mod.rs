@@ -331,6 +331,46 @@ mod tests {
         }
     }
 
+    /// The joint cases build the same joints in every engine: the
+    /// pendulum swings at the exact period with its anchors together, the
+    /// door stops at its limit about the vertical axis, the motor turns
+    /// the rod forwards near its target, and the chains hold. (Checks of
+    /// the harness's joint frames, anchors and signs; the bars are loose
+    /// enough for every engine at 60 Hz and 4 substeps.)
+    #[test]
+    fn the_joint_cases_build_the_same_joints_in_every_engine() {
+        let settings = Settings {
+            tick_rate: 60,
+            substeps: 4,
+            iterations: 1,
+        };
+        let detail_number = |detail: &str, before: &str| -> f64 {
+            let at = detail.find(before).expect(before) + before.len();
+            let rest = detail[at..].trim_start();
+            let end = rest.find(' ').unwrap_or(rest.len());
+            rest[..end].parse().expect("number")
+        };
+        for engine in Engine::ALL {
+            let (o, _, _) = run_once(find("pendulum_period"), engine, settings, true);
+            assert!(o.failure.is_none() && o.error < 1e-4, "{engine:?}: {o:?}");
+            assert!(detail_number(&o.detail, "joint gap") < 1e-3, "{o:?}");
+            let (o, _, _) = run_once(find("hinge_limit"), engine, settings, true);
+            assert!(o.failure.is_none() && o.error < 0.01, "{engine:?}: {o:?}");
+            let end = detail_number(&o.detail, "ends at");
+            assert!((end - 0.5).abs() < 0.01, "{engine:?}: {o:?}");
+            let (o, _, _) = run_once(find("hinge_motor"), engine, settings, true);
+            let mean = detail_number(&o.detail, "mean speed");
+            assert!((mean - 2.0).abs() < 0.2, "{engine:?}: {o:?}");
+            for case in ["chain_20", "heavy_chain"] {
+                let (o, _, _) = run_once(find(case), engine, settings, true);
+                assert!(
+                    o.failure.is_none() && o.error < 0.5,
+                    "{engine:?} {case}: {o:?}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn a_point_is_measured_in_every_engine_and_timed_as_asked() {
         let sweep = Sweep {

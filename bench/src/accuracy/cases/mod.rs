@@ -6,6 +6,7 @@
 
 mod contact;
 mod free;
+mod joints;
 mod piles;
 
 use super::closed::G;
@@ -52,6 +53,12 @@ pub const CASES: &[Case] = &[
     piles::MASS_RATIO,
     piles::OVERLAP,
     free::TUNNELLING,
+    joints::PENDULUM_PERIOD,
+    joints::PENDULUM_ENERGY,
+    joints::CHAIN,
+    joints::HINGE_MOTOR,
+    joints::HINGE_LIMIT,
+    joints::HEAVY_CHAIN,
 ];
 
 /// A static ground box whose top face is `y = 0`, centred at `(x, z)`,
@@ -103,7 +110,7 @@ mod tests {
                 c.name
             );
         }
-        assert!(CASES.len() >= 21);
+        assert!(CASES.len() >= 27);
     }
 
     #[test]
