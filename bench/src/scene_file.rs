@@ -20,6 +20,7 @@
 use lockstep_core::collider::MassSpec;
 use std::collections::BTreeMap;
 
+use crate::accuracy::sim::RAPIER_MOTOR_FACTOR;
 use lockstep_core::joint::{JointKind, Motor};
 use lockstep_core::scene::{GeometryDesc, SceneDesc, build_world_with_config};
 use lockstep_core::solver::sleep::SleepConfig;
@@ -234,7 +235,9 @@ pub fn build_rapier(desc: &SceneDesc) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
                 JointAxis::AngX
             };
             builder = match motor {
-                Motor::Speed { speed, .. } => builder.motor_velocity(axis, f(speed), 1.0),
+                Motor::Speed { speed, .. } => {
+                    builder.motor_velocity(axis, f(speed), RAPIER_MOTOR_FACTOR as f32)
+                }
                 Motor::Position { target, .. } => {
                     builder.motor_position(axis, f(target), MOTOR_STIFFNESS, MOTOR_DAMPING)
                 }

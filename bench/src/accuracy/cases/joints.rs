@@ -3,7 +3,7 @@
 //! links.
 
 use super::Case;
-use crate::accuracy::closed::{G, inertia, norm, pendulum_period, relative, rotate, sub};
+use crate::accuracy::closed::{G, inertia, norm, pendulum_period, relative, rotate, sub, volume};
 use crate::accuracy::run::{Failure, Outcome};
 use crate::accuracy::sim::{BodySpec, JointSpec, JointSpecKind, ShapeSpec, Sim, Spec, State};
 
@@ -61,12 +61,11 @@ fn pendulum_spec() -> Spec {
     spec
 }
 
-/// The bob's mass and its moment of inertia about the pivot.
-fn pendulum_mass_inertia() -> (f64, f64) {
-    let bob = pendulum_spec().bodies[1];
+/// The bob's mass and its moment of inertia about its centre.
+fn bob_mass_inertia(spec: &Spec) -> (f64, f64) {
+    let bob = spec.bodies[1];
     let m = bob.mass();
-    let i_cm = inertia(bob.shape, m)[0];
-    (m, i_cm + m * PENDULUM_L * PENDULUM_L)
+    (m, inertia(bob.shape, m)[0])
 }
 
 /// Simulated seconds of the pendulum period case.
@@ -83,7 +82,8 @@ pub const PENDULUM_PERIOD: Case = Case {
     zero_floor: None,
     run: |r, quick| {
         let spec = pendulum_spec();
-        let (m, i_pivot) = pendulum_mass_inertia();
+        let (m, i_cm) = bob_mass_inertia(&spec);
+        let i_pivot = i_cm + m * PENDULUM_L * PENDULUM_L;
         let expected = pendulum_period(i_pivot, m, PENDULUM_L, PENDULUM_THETA0_DEG.to_radians());
         let mut sim = r.build(&spec);
         let dt = r.dt();
@@ -134,8 +134,7 @@ pub const PENDULUM_ENERGY: Case = Case {
     zero_floor: None,
     run: |r, quick| {
         let spec = pendulum_spec();
-        let (m, _) = pendulum_mass_inertia();
-        let i_cm = inertia(spec.bodies[1].shape, m)[0];
+        let (m, i_cm) = bob_mass_inertia(&spec);
         let energy = |st: &State| {
             let v2 = st.vel.iter().map(|c| c * c).sum::<f64>();
             let w2 = st.omega.iter().map(|c| c * c).sum::<f64>();
@@ -362,15 +361,15 @@ pub const HEAVY_CHAIN: Case = Case {
     reference: "rigid joints: 0 m",
     zero_floor: None,
     run: |r, quick| {
-        let r_ball: f64 = 0.2;
-        let volume = 4.0 / 3.0 * std::f64::consts::PI * r_ball.powi(3);
+        let ball_shape = ShapeSpec::Sphere(0.2);
+        let volume = volume(ball_shape);
         let top = [0.0, 30.0, 0.0];
         let mut bodies = vec![pivot(top)];
         let mut joints = Vec::new();
         for i in 0..=LIGHT_LINKS {
             let kg = if i == LIGHT_LINKS { WEIGHT_KG } else { LINK_KG };
             let pos = [0.0, top[1] - (i as f64 + 0.5), 0.0];
-            bodies.push(BodySpec::dynamic(ShapeSpec::Sphere(r_ball), pos).density(kg / volume));
+            bodies.push(BodySpec::dynamic(ball_shape, pos).density(kg / volume));
             let at_prev = if i == 0 { [0.0; 3] } else { [0.0, -0.5, 0.0] };
             joints.push(ball(i, i + 1, at_prev, [0.0, 0.5, 0.0]));
         }
