@@ -326,6 +326,13 @@ pub(crate) struct Softness {
 }
 
 impl Softness {
+    /// Whether this is no softness at all: no bias, the whole effective
+    /// mass, nothing relaxed.
+    #[inline]
+    pub(crate) fn is_rigid(&self) -> bool {
+        self.bias_rate.is_zero() && self.mass_scale == Scalar::ONE && self.impulse_scale.is_zero()
+    }
+
     /// The spring of a contact whose lighter body has inverse mass `hi` and
     /// touches (through it or its partner) a body of inverse mass `lo`, and
     /// whether that ratio counts as high. See [`RATIO_KEPT`].

@@ -13,9 +13,12 @@
 //! Every row is built at the bodies' current poses (anchors rotated with the
 //! current rotations), so errors are measured, not extrapolated. Positions
 //! move only between the solve and the relax stages, so each joint is
-//! measured once per stage (anchors, frames, and the anchor block's
-//! effective mass, inverted), on its first visit: by the warm start for the
-//! solve passes, by the first relax pass for the relax passes. A row's
+//! measured once each time they move (anchors, frames, and the anchor
+//! block's effective mass, inverted): by the first relax pass of a substep,
+//! for the relax passes and for the next substep's warm start and solve
+//! passes (which start from those poses), and by the warm start of a tick's
+//! first substep. That is `substeps + 1` measurements per tick, not twice
+//! the substeps. A row's
 //! impulse is `λ = −m·s·(Ċ + b·C) − i·λ_acc` with the effective mass `m`,
 //! the softness's mass scale `s`, bias rate `b` and impulse scale `i`
 //! (without the bias: `s = 1`, `b = 0`, `i = 0`). Blocks of rows that share
@@ -218,14 +221,19 @@ impl JointSolver {
         self.rows.len()
     }
 
-    /// Measures every joint at the current poses (for this pass and the
-    /// solve passes after it) and applies its accumulated impulses again.
-    pub(crate) fn warm_start(&mut self, joints: &Arena<Joint>, hot: &mut [BodyHot]) {
+    /// Applies every joint's accumulated impulses again. With `measure`,
+    /// each joint is measured at the current poses first (for this pass and
+    /// the solve passes after it); without, the last measurement is read:
+    /// the caller's promise that no position moved since it (the previous
+    /// substep's relax measured at the poses this substep starts from).
+    pub(crate) fn warm_start(&mut self, joints: &Arena<Joint>, hot: &mut [BodyHot], measure: bool) {
         for (row, posed) in self.rows.iter().zip(self.posed.iter_mut()) {
             let Some(j) = joints.get_by_index(row.joint) else {
                 continue;
             };
-            *posed = pose(row, &j.desc.kind, hot);
+            if measure {
+                *posed = pose(row, &j.desc.kind, hot);
+            }
             let g = &posed.g;
             let mut vel = read(row, hot);
             let imp = j.impulses;
@@ -699,8 +707,14 @@ fn solve_point(row: &Row, posed: &Posed, vel: &mut Vels, acc: &mut Vec3, soft: &
     };
     let g = &posed.g;
     let cdot = vel.vb + vel.wb.cross(g.rb) - vel.va - vel.wa.cross(g.ra);
-    let rhs = cdot + g.d * soft.bias_rate;
-    let p = -(inv.mul_vec(rhs) * soft.mass_scale) - *acc * soft.impulse_scale;
+    let p = if soft.is_rigid() {
+        // The same bits as the general form (`x · 1 = x`, `λ · 0 = 0`),
+        // without its nine products.
+        -inv.mul_vec(cdot)
+    } else {
+        let rhs = cdot + g.d * soft.bias_rate;
+        -(inv.mul_vec(rhs) * soft.mass_scale) - *acc * soft.impulse_scale
+    };
     *acc += p;
     apply_point(row, g, vel, p);
 }

@@ -133,14 +133,18 @@ impl World {
             arena: &mut joints.arena,
             params: jparams,
         };
-        for _ in 0..cfg.substeps {
+        for substep in 0..cfg.substeps {
             let c = stage_integrate_velocities(hot, awake, cfg.gravity, h);
             n.finished(Stage::IntegrateVelocities);
             report.awake_bodies = c.integrated;
             report.gyroscopic_solves += c.gyroscopic;
             report.spin_capped += c.clamped;
             // Poses are as the last full gather (or `prepare`) saw them.
-            stage_warm_start(solver, &mut js, hot);
+            // After the first substep, the joints' last measurement (the
+            // relax's, after the positions moved) is still at these poses:
+            // only the velocities changed since.
+            let measured = substep > 0 && cfg.relax_iterations > 0;
+            stage_warm_start(solver, &mut js, hot, !measured);
             n.finished(Stage::WarmStart);
             stage_solve(solver, &mut js, &params, cfg.solver_iterations, hot);
             n.finished(Stage::Solve);
@@ -418,9 +422,14 @@ impl Joints<'_> {
 /// (which go back to the bodies at once when joints will solve next, so
 /// they see them).
 #[inline(never)]
-fn stage_warm_start(solver: &mut ContactSolver, js: &mut Joints<'_>, hot: &mut [BodyHot]) {
+fn stage_warm_start(
+    solver: &mut ContactSolver,
+    js: &mut Joints<'_>,
+    hot: &mut [BodyHot],
+    measure_joints: bool,
+) {
     if !js.is_empty() {
-        js.solver.warm_start(js.arena, hot);
+        js.solver.warm_start(js.arena, hot, measure_joints);
     }
     if solver.is_empty() {
         return;
