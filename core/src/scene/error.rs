@@ -71,12 +71,14 @@ pub struct SceneError {
 pub(super) struct Source<'a> {
     pub(super) text: &'a str,
     pub(super) file: &'a str,
+    /// The byte offset at which each line starts (see [`line_starts`]).
+    pub(super) line_starts: &'a [usize],
 }
 
 impl<'a> Source<'a> {
     /// An error at byte `offset` of the text.
     pub(super) fn error(&self, offset: usize, kind: SceneErrorKind, message: String) -> SceneError {
-        let (line, column) = line_column(self.text, offset);
+        let (line, column) = self.line_column(offset);
         SceneError {
             file: self.file.to_owned(),
             line,
@@ -90,25 +92,92 @@ impl<'a> Source<'a> {
     pub(super) fn slice(&self, span: Option<Range<usize>>) -> Option<&'a str> {
         span.and_then(|s| self.text.get(s))
     }
+
+    /// The 1-based line and character column of byte `offset`.
+    ///
+    /// Offsets past the end (TOML's "unexpected end of file") point just
+    /// after the last character; an offset inside a multi-byte character
+    /// points at that character. A binary search in the line index, then a
+    /// count of the characters on that line only: every body, shape and
+    /// joint records its line, so a scan from the top of the file for each
+    /// would make parsing quadratic in the file's size.
+    pub(super) fn line_column(&self, offset: usize) -> (u32, u32) {
+        let text = self.text;
+        let mut offset = offset.min(text.len());
+        while !text.is_char_boundary(offset) {
+            offset -= 1;
+        }
+        // The last line starting at or before `offset` (line 0 starts at 0).
+        let line = self.line_starts.partition_point(|&s| s <= offset).max(1);
+        let start = self.line_starts.get(line - 1).copied().unwrap_or(0);
+        let column = text[start..offset].chars().count() + 1;
+        (saturate_u32(line), saturate_u32(column))
+    }
+
+    /// The 1-based line of byte `offset`.
+    pub(super) fn line(&self, offset: usize) -> u32 {
+        self.line_column(offset).0
+    }
 }
 
-/// The 1-based line and character column of byte `offset` in `text`.
-///
-/// Offsets past the end (TOML's "unexpected end of file") point just after
-/// the last character; an offset inside a multi-byte character points at
-/// that character.
-pub(super) fn line_column(text: &str, offset: usize) -> (u32, u32) {
-    let mut offset = offset.min(text.len());
-    while !text.is_char_boundary(offset) {
-        offset -= 1;
-    }
-    let before = &text[..offset];
-    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    let line = before.bytes().filter(|&b| b == b'\n').count() + 1;
-    let column = before[line_start..].chars().count() + 1;
-    (saturate_u32(line), saturate_u32(column))
+/// The byte offset at which each line of `text` starts: 0, then one past
+/// every `\n`.
+pub(super) fn line_starts(text: &str) -> Vec<usize> {
+    std::iter::once(0)
+        .chain(
+            text.bytes()
+                .enumerate()
+                .filter(|&(_, b)| b == b'\n')
+                .map(|(i, _)| i + 1),
+        )
+        .collect()
 }
 
 fn saturate_u32(v: usize) -> u32 {
     u32::try_from(v).unwrap_or(u32::MAX)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Line and column by a scan from the top, the obvious way.
+    fn scanned(text: &str, offset: usize) -> (u32, u32) {
+        let mut offset = offset.min(text.len());
+        while !text.is_char_boundary(offset) {
+            offset -= 1;
+        }
+        let before = &text[..offset];
+        let start = before.rfind('\n').map_or(0, |i| i + 1);
+        let line = before.bytes().filter(|&b| b == b'\n').count() + 1;
+        let column = before[start..].chars().count() + 1;
+        (line as u32, column as u32)
+    }
+
+    #[test]
+    fn the_line_index_agrees_with_a_scan_at_every_offset() {
+        for text in [
+            "",
+            "\n",
+            "a",
+            "[world]\ngravity = [0, -9.81, 0]\n\n[[body]]\nname = \"été\"\n",
+            "x = \"→ ∞\"\r\n\n\ny = 1",
+            "no newline at the end",
+        ] {
+            let starts = line_starts(text);
+            let src = Source {
+                text,
+                file: "t.toml",
+                line_starts: &starts,
+            };
+            for offset in 0..=text.len() + 3 {
+                assert_eq!(
+                    src.line_column(offset),
+                    scanned(text, offset),
+                    "{text:?} @ {offset}"
+                );
+                assert_eq!(src.line(offset), scanned(text, offset).0);
+            }
+        }
+    }
 }

@@ -9,7 +9,7 @@
 use toml_edit::Document;
 
 use super::desc::{BodyDesc, BodyKindDesc, JointSceneDesc, MaterialDesc, SceneDesc, WorldDesc};
-use super::error::{SceneError, SceneErrorKind, Source, line_column};
+use super::error::{SceneError, SceneErrorKind, Source, line_starts};
 use super::reader::{Result, TableView};
 use super::rotation::read_rotation;
 use super::shape::read_shape;
@@ -105,9 +105,11 @@ pub(super) const MAX_SHAPES_PER_BODY: usize = 256;
 /// line and column, what is wrong and what was expected. Never panics,
 /// whatever the input.
 pub fn parse_scene(text: &str, file_name: &str) -> std::result::Result<SceneDesc, SceneError> {
+    let lines = line_starts(text);
     let src = Source {
         text,
         file: file_name,
+        line_starts: &lines,
     };
     let doc = Document::parse(text).map_err(|e| syntax_error(&src, &e))?;
     let root = TableView::root(src, doc.as_table());
@@ -175,7 +177,7 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
     if !name.is_empty() {
         t.set_context(format!("joint \"{name}\""));
     }
-    let line = line_column(t.src.text, t.at).0;
+    let line = t.src.line(t.at);
     let body = |key: &str| -> Result<(String, BodyKindDesc)> {
         let f = t.require(key, "the name of a body in this scene")?;
         let n = t.string(&f)?;
@@ -616,7 +618,7 @@ fn read_body(
         }
     };
 
-    let line = line_column(t.src.text, t.at).0;
+    let line = t.src.line(t.at);
     let mut body = BodyDesc {
         name: name.to_owned(),
         kind,

@@ -5,7 +5,7 @@ use super::desc::{
     BodyDesc, BodyKindDesc, DEFAULT_DENSITY, DEFAULT_FRICTION, DEFAULT_RESTITUTION, GeometryDesc,
     MassSpec, MaterialDesc, ShapeDesc,
 };
-use super::error::{SceneErrorKind, line_column};
+use super::error::SceneErrorKind;
 use super::parse::{read_friction, read_positive, read_restitution};
 use super::reader::{Field, Result, TableView};
 use super::rotation::read_rotation;
@@ -107,7 +107,7 @@ pub(super) fn read_shape(
         mask: u32::MAX,
         collision_group: 0,
         trigger: false,
-        line: line_column(t.src.text, t.at).0,
+        line: t.src.line(t.at),
     };
     if let Some(f) = t.get("offset") {
         shape.offset = t.vec3(&f)?;
