@@ -205,3 +205,49 @@ fn a_replay_edited_by_one_input_byte_fails_at_that_tick_naming_the_paddle() {
     assert!(text.contains(&format!("tick {tick}:")), "{text}");
     assert!(text.contains("\"paddle0\""), "{text}");
 }
+
+#[test]
+fn a_cut_replay_fails_the_kit_though_what_it_holds_matches() {
+    let bytes = std::fs::read(replays_dir().join("three-players.replay")).expect("recorded replay");
+    let whole = Replay::parse(&bytes).expect("parses");
+    assert!(whole.end.is_some(), "the recorded replay is a whole match");
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("example-game-cut");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // Cut at a record boundary (the end record dropped) and in the middle
+    // of a record.
+    let mut at = 10;
+    let mut boundaries = Vec::new();
+    while at + 4 <= bytes.len() {
+        boundaries.push(at);
+        at += 4 + u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    }
+    let last = *boundaries.last().unwrap();
+    std::fs::write(dir.join("a-no-end.replay"), &bytes[..last]).unwrap();
+    std::fs::write(dir.join("b-half.replay"), &bytes[..bytes.len() / 2]).unwrap();
+    std::fs::copy(
+        replays_dir().join("three-players.replay"),
+        dir.join("c-whole.replay"),
+    )
+    .unwrap();
+    let failure = lockstep_testkit::check_replays(&dir, &PaddleGame).unwrap_err();
+    let text = failure.to_string();
+    assert!(text.starts_with("2 of 3 replays failed:"), "{text}");
+    assert!(text.contains("a-no-end.replay: cut at tick"), "{text}");
+    assert!(!text.contains("a-no-end.replay: cut at tick 0"), "{text}");
+    assert!(text.contains("b-half.replay: cut at tick"), "{text}");
+    assert!(text.contains("last record is incomplete"), "{text}");
+    assert!(!text.contains("c-whole.replay"), "{text}");
+    let lockstep_testkit::KitFailure::Replays {
+        cut,
+        passed,
+        failed,
+    } = failure
+    else {
+        panic!("{text}");
+    };
+    assert!(failed.is_empty());
+    assert_eq!(cut.len(), 2);
+    assert_eq!(passed.len(), 1);
+    assert!(cut.iter().all(|(_, c)| c.checked > 0 && c.is_cut()));
+}

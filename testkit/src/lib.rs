@@ -16,7 +16,8 @@
 //! Every `*.replay` file of the folder is checked (in name order): its
 //! header must name the same rules (id and version) and state-hash layout,
 //! and every tick's re-simulated hash must equal the one the players agreed
-//! on. A failure names the replay, the first tick that differs, and the
+//! on, to the file's end record. A failure names the replay, the first tick
+//! that differs, and the
 //! bodies that differ (where the replay recorded body hashes: record with
 //! `ClientOptions::body_hashes_every` set). `docs/own-game.md` says how to
 //! record a replay from a real match and drop it into the folder.
@@ -54,6 +55,11 @@ pub enum KitFailure {
     Replays {
         /// Each failing replay with its error, in name order.
         failed: Vec<(PathBuf, ReplayVerifyError)>,
+        /// Each cut replay (no end record, or its last record incomplete:
+        /// the server stopped while recording, or the file was copied
+        /// before the match ended), in name order. What it holds matched,
+        /// but the rest of the match is checked by nobody, so it fails.
+        cut: Vec<(PathBuf, ReplayCheck)>,
         /// The replays that passed.
         passed: Vec<(PathBuf, ReplayCheck)>,
     },
@@ -64,13 +70,30 @@ impl fmt::Display for KitFailure {
         match self {
             KitFailure::Folder(p, e) => write!(f, "{}: {e}", p.display()),
             KitFailure::Empty(p) => write!(f, "{}: no *.replay file to check", p.display()),
-            KitFailure::Replays { failed, passed } => {
-                writeln!(
-                    f,
-                    "{} of {} replays failed:",
-                    failed.len(),
-                    failed.len() + passed.len()
-                )?;
+            KitFailure::Replays {
+                failed,
+                cut,
+                passed,
+            } => {
+                let bad = failed.len() + cut.len();
+                writeln!(f, "{bad} of {} replays failed:", bad + passed.len())?;
+                for (path, c) in cut {
+                    writeln!(
+                        f,
+                        "{}: cut at tick {}: the file has no end record{} (the server stopped \
+                         while recording, or the file was copied before the match ended); the \
+                         {} hashes it holds match, but the rest of the match is not checked: \
+                         keep whole matches in a regression folder",
+                        path.display(),
+                        c.ticks,
+                        if c.truncated {
+                            " and its last record is incomplete"
+                        } else {
+                            ""
+                        },
+                        c.checked,
+                    )?;
+                }
                 for (path, e) in failed {
                     write!(f, "{}: {e}", path.display())?;
                     match e {
@@ -147,7 +170,8 @@ pub fn replay_files(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
 ///
 /// # Errors
 /// [`KitFailure`]: the folder is unreadable or empty, or replays failed
-/// (each named with its first differing tick and bodies).
+/// (each named with its first differing tick and bodies), or a replay is
+/// cut (it ends without the match's end record).
 pub fn check_replays(
     dir: impl AsRef<Path>,
     game: &dyn RulesFactory,
@@ -159,16 +183,22 @@ pub fn check_replays(
     }
     let mut passed = Vec::new();
     let mut failed = Vec::new();
+    let mut cut = Vec::new();
     for path in files {
         match verify_replay_file(&path, game) {
+            Ok(c) if c.is_cut() => cut.push((path, c)),
             Ok(c) => passed.push((path, c)),
             Err(e) => failed.push((path, e)),
         }
     }
-    if failed.is_empty() {
+    if failed.is_empty() && cut.is_empty() {
         Ok(KitReport { replays: passed })
     } else {
-        Err(KitFailure::Replays { failed, passed })
+        Err(KitFailure::Replays {
+            failed,
+            cut,
+            passed,
+        })
     }
 }
 
@@ -219,7 +249,7 @@ mod tests {
         std::fs::write(d.join("a.replay"), "LSREPLAY\x01\x00").unwrap();
         let e = check_replays(&d, &Demo).unwrap_err();
         let text = e.to_string();
-        let KitFailure::Replays { failed, passed } = e else {
+        let KitFailure::Replays { failed, passed, .. } = e else {
             panic!("{text}");
         };
         assert!(passed.is_empty());
