@@ -80,17 +80,13 @@ impl fmt::Display for KitFailure {
                 for (path, c) in cut {
                     writeln!(
                         f,
-                        "{}: cut at tick {}: the file has no end record{} (the server stopped \
-                         while recording, or the file was copied before the match ended); the \
-                         {} hashes it holds match, but the rest of the match is not checked: \
-                         keep whole matches in a regression folder",
+                        "{}: cut at tick {}: {} (the server stopped while recording, or the file \
+                         was copied before the match ended); the {} hashes it holds match, but \
+                         the rest of the match is not checked: keep whole matches in a \
+                         regression folder",
                         path.display(),
                         c.ticks,
-                        if c.truncated {
-                            " and its last record is incomplete"
-                        } else {
-                            ""
-                        },
+                        c.cut_description().unwrap_or_default(),
                         c.checked,
                     )?;
                 }

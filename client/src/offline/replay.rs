@@ -96,6 +96,23 @@ impl ReplayCheck {
     pub fn is_cut(&self) -> bool {
         self.truncated || self.end.is_none()
     }
+
+    /// For a cut file (it stops at tick [`ReplayCheck::ticks`]), how it is
+    /// cut: `the file has no end record[ and its last record is
+    /// incomplete]`; `None` for a whole one. The CLI and the regression kit
+    /// both say it this way.
+    pub fn cut_description(&self) -> Option<String> {
+        self.is_cut().then(|| {
+            format!(
+                "the file has no end record{}",
+                if self.truncated {
+                    " and its last record is incomplete"
+                } else {
+                    ""
+                },
+            )
+        })
+    }
 }
 
 /// Why a replay does not verify.
@@ -408,16 +425,11 @@ pub fn check_replay_command(path: &Path, game: &dyn RulesFactory) -> u8 {
                  {} players, {} desync notices recorded, final hash {:016x}",
                 c.ticks, c.checked, c.unchecked, c.players, c.desyncs_recorded, c.final_hash,
             );
-            if c.is_cut() {
+            if let Some(cut) = c.cut_description() {
                 println!(
-                    "CUT at tick {}: the file has no end record{} (the server stopped while \
-                     recording); what it holds matches: {figures}",
+                    "CUT at tick {}: {cut} (the server stopped while recording); what it holds \
+                     matches: {figures}",
                     c.ticks,
-                    if c.truncated {
-                        " and its last record is incomplete"
-                    } else {
-                        ""
-                    },
                 );
                 exit_status::CUT
             } else {
