@@ -9,6 +9,7 @@
 //! the same values are fed to ours and to the references.
 
 use fixed::types::I32F32;
+use lockstep_core::math::lanes;
 use lockstep_core::math::{Scalar, Vec3, elem};
 
 use crate::harness::{Budget, Rng, Row, ns_per_op};
@@ -72,6 +73,30 @@ pub fn run(budget: Budget) -> Vec<Row> {
         ours,
         "I32F32 *",
         ns_per_op(budget, &zip(&ax, &bx), |(x, y)| x * y),
+    ));
+    // The contact solver's product (ties toward +∞) over arrays, eight at
+    // once on the IFMA lanes against their scalar twin: ns per product.
+    // Chunks of 512 products per call, as a wide kernel would take a run
+    // of constraints of one colour.
+    const CHUNK: usize = 512;
+    let starts: Vec<usize> = (0..N / CHUNK).map(|k| k * CHUNK).collect();
+    let mut out = vec![Scalar::ZERO; N];
+    let mut per_product = |lanes: bool| {
+        ns_per_op(budget, &starts, |i| {
+            let r = i..i + CHUNK;
+            lanes::mul_slice(&a[r.clone()], &b[r.clone()], &mut out[r], lanes)
+        }) / CHUNK as f64
+    };
+    let (wide, twin) = (per_product(true), per_product(false));
+    rows.push(Row::new(
+        if lanes::ifma_available() {
+            "mul on IFMA lanes"
+        } else {
+            "mul lanes (no IFMA)"
+        },
+        wide,
+        "scalar twin",
+        twin,
     ));
     let ours = ns_per_op(budget, &zip(&a, &d), |(x, y)| x / y);
     rows.push(Row::new(
@@ -235,7 +260,12 @@ mod tests {
         ] {
             assert!(ops.contains(&op), "missing {op}");
         }
-        assert_eq!(rows.len(), 15);
+        assert!(
+            ops.iter()
+                .any(|op| op.starts_with("mul on IFMA lanes") || op.starts_with("mul lanes")),
+            "missing the lanes row"
+        );
+        assert_eq!(rows.len(), 16);
         assert!(
             rows.iter()
                 .all(|r| r.ours_ns.is_finite() && r.reference_ns.is_finite())

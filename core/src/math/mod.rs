@@ -6,6 +6,7 @@ pub mod aabb;
 pub mod decimal;
 pub mod elem;
 pub mod faults;
+pub mod lanes;
 pub mod mat3;
 pub mod quat;
 pub mod scalar;

@@ -144,7 +144,7 @@ pub(super) fn angular_along(a: &BodyVel, b: &BodyVel, ra_d: Vec3, rb_d: Vec3) ->
 /// the half cannot overflow and only the final narrowing needs a check.
 #[inline(always)]
 pub(super) fn mul(a: Scalar, b: Scalar) -> Scalar {
-    narrow((a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32)
+    crate::math::lanes::mul_round_up(a, b)
 }
 
 /// A Q64.64 accumulator rounded to Q32.32, to nearest with ties toward +∞
