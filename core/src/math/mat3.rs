@@ -333,11 +333,13 @@ impl SymMat3 {
         } else {
             mag << (64 - bits)
         };
-        let r = ((1u128 << 126) / n) as i128;
+        // r fits 64 bits: as a `u64` each entry below is one 64×64-bit
+        // multiply, not a full 128-bit one.
+        let r = ((1u128 << 126) / n) as u64;
         let shift = bits - 2;
         let negative = det < 0;
         let entry = |cof: Scalar| -> Option<Scalar> {
-            let q = round_shift(cof.to_bits() as i128 * r, shift);
+            let q = round_shift(cof.to_bits() as i128 * r as i128, shift);
             let q = if negative { -q } else { q };
             i64::try_from(q).ok().map(Scalar::from_bits)
         };
