@@ -37,7 +37,13 @@ pub const LANES: usize = 8;
 /// one lane of [`mul8`].
 #[inline(always)]
 pub fn mul_round_up(a: Scalar, b: Scalar) -> Scalar {
-    let r = (a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32;
+    narrow((a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32)
+}
+
+/// An already rounded Q32.32 value in an `i128`, saturated with the
+/// overflow fault when it does not fit (the solver's roundings end here).
+#[inline(always)]
+pub(crate) fn narrow(r: i128) -> Scalar {
     let lo = r as i64;
     if lo as i128 == r {
         Scalar::from_bits(lo)
@@ -371,6 +377,11 @@ mod tests {
             .collect();
         let mut out = vec![Scalar::ZERO; n];
         let counts = mul_slice(&a, &b, &mut out, true);
+        let all_scalar = LaneCounts {
+            ifma: 0,
+            guarded: 0,
+            scalar: n as u32,
+        };
         assert_eq!(out, twin);
         if ifma_available() {
             assert_eq!(
@@ -382,26 +393,12 @@ mod tests {
                 }
             );
         } else {
-            assert_eq!(
-                counts,
-                LaneCounts {
-                    ifma: 0,
-                    guarded: 0,
-                    scalar: n as u32
-                }
-            );
+            assert_eq!(counts, all_scalar);
         }
         let mut off = vec![Scalar::ZERO; n];
         let counts = mul_slice(&a, &b, &mut off, false);
         assert_eq!(off, twin);
-        assert_eq!(
-            counts,
-            LaneCounts {
-                ifma: 0,
-                guarded: 0,
-                scalar: n as u32
-            }
-        );
+        assert_eq!(counts, all_scalar);
     }
 
     #[test]

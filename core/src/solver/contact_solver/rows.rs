@@ -4,8 +4,9 @@
 //! read as the algorithm.
 
 use super::{BodyVel, Constraint, NONE, SolverBody};
+use crate::math::lanes::narrow;
 use crate::math::scalar::wide_sum;
-use crate::math::{Faults, Scalar, Vec3, faults};
+use crate::math::{Scalar, Vec3};
 
 /// A unit tangent for normal `n`, continuous for normals within about 54°
 /// of the y or z axis and of the x axis: the switch between the two
@@ -157,19 +158,6 @@ pub(super) fn round_wide(acc: i128) -> Scalar {
         Some(x) => x >> 32,
         None => i128::MAX >> 32,
     })
-}
-
-/// An already rounded Q32.32 value in an `i128`, saturated with the
-/// overflow fault when it does not fit.
-#[inline(always)]
-fn narrow(r: i128) -> Scalar {
-    let lo = r as i64;
-    if lo as i128 == r {
-        Scalar::from_bits(lo)
-    } else {
-        faults::raise(Faults::OVERFLOW);
-        if r < 0 { Scalar::MIN } else { Scalar::MAX }
-    }
 }
 
 /// `a × b`, each component rounded once by [`round_wide`].
