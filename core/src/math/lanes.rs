@@ -2,7 +2,8 @@
 //!
 //! The contact solver rounds a product to nearest with ties toward +∞
 //! ([`mul_round_up`]): `(a·b + 2³¹) >> 32` on the 128-bit product, narrowed
-//! to 64 bits with the overflow fault. [`mul8`] computes eight of them.
+//! to 64 bits with the overflow fault. [`mul_slice`] computes a slice of
+//! them, eight at a time.
 //!
 //! - On an x86_64 CPU with AVX-512 IFMA (`vpmadd52luq`/`vpmadd52huq`: exact
 //!   52×52-bit products in eight 64-bit lanes), found at run time, the
@@ -18,51 +19,33 @@
 //! - Everywhere else (i686, aarch64, x86_64 without IFMA, or with the lanes
 //!   turned off) the scalar twin runs: [`mul_round_up`] eight times.
 //!
-//! The result says which path ran, so a caller can count the batches the
-//! guard sent to the scalar twin.
+//! It counts the batches each path computed ([`LaneCounts`]), so a caller
+//! can report those the guard sent to the scalar twin.
 //!
 //! Not yet on the simulation path: the solver's wide kernels that will use
 //! it need the constraints grouped into batches that share no body. Tests
 //! compare the lanes with the scalar twin on random, tie, extreme and
 //! guard-boundary inputs; the `math` benchmark measures both.
 
-use super::faults::{self, Faults};
-use super::scalar::Scalar;
+use super::scalar::{self, Scalar};
 
 /// Lanes per batch.
 pub const LANES: usize = 8;
 
 /// `a·b` rounded to nearest with ties toward +∞ and saturated with the
 /// overflow fault: the contact solver's product, and the scalar twin of
-/// one lane of [`mul8`].
+/// one lane of [`mul_slice`].
 #[inline(always)]
 pub fn mul_round_up(a: Scalar, b: Scalar) -> Scalar {
     narrow((a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32)
 }
 
 /// An already rounded Q32.32 value in an `i128`, saturated with the
-/// overflow fault when it does not fit (the solver's roundings end here).
+/// overflow fault when it does not fit ([`scalar::narrow`]'s check; the
+/// solver's roundings end here).
 #[inline(always)]
 pub(crate) fn narrow(r: i128) -> Scalar {
-    let lo = r as i64;
-    if lo as i128 == r {
-        Scalar::from_bits(lo)
-    } else {
-        faults::raise(Faults::OVERFLOW);
-        if r < 0 { Scalar::MIN } else { Scalar::MAX }
-    }
-}
-
-/// Which code computed a batch.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LanePath {
-    /// The eight IFMA lanes.
-    Ifma,
-    /// The scalar twin, because the CPU has no IFMA or the lanes are off.
-    Scalar,
-    /// The scalar twin, because the range guard found a lane that would
-    /// not be exact.
-    Guarded,
+    Scalar::from_bits(scalar::narrow(r))
 }
 
 /// Whether this CPU has the IFMA lanes (AVX-512 F and IFMA), found once.
@@ -76,31 +59,6 @@ pub fn ifma_available() -> bool {
     {
         false
     }
-}
-
-/// The eight products `a[i]·b[i]`, each with the bits of
-/// [`mul_round_up`], on the IFMA lanes when `lanes` is set and the CPU has
-/// them, and the path that computed them.
-pub fn mul8(
-    a: &[Scalar; LANES],
-    b: &[Scalar; LANES],
-    out: &mut [Scalar; LANES],
-    lanes: bool,
-) -> LanePath {
-    let path = if lanes && ifma_available() {
-        #[cfg(target_arch = "x86_64")]
-        {
-            // SAFETY: the CPU has AVX-512 F and IFMA (checked above).
-            if unsafe { ifma::mul8(a, b, out) } {
-                return LanePath::Ifma;
-            }
-        }
-        LanePath::Guarded
-    } else {
-        LanePath::Scalar
-    };
-    mul8_scalar(a, b, out);
-    path
 }
 
 /// Batches of a slice computed on each path (see [`mul_slice`]).
@@ -127,38 +85,37 @@ pub fn mul_slice(a: &[Scalar], b: &[Scalar], out: &mut [Scalar], lanes: bool) ->
         a.len() == b.len() && b.len() == out.len(),
         "slices of one length"
     );
-    let mut counts = LaneCounts::default();
-    let whole = a.len() / LANES * LANES;
-    if lanes && ifma_available() {
-        #[cfg(target_arch = "x86_64")]
-        {
-            // SAFETY: the CPU has AVX-512 F and IFMA (checked above).
-            counts = unsafe { ifma::mul_batches(&a[..whole], &b[..whole], &mut out[..whole]) };
-        }
+    let (done, mut counts) = if lanes && ifma_available() {
+        whole_batches_on_lanes(a, b, out)
     } else {
-        for i in 0..whole {
-            out[i] = mul_round_up(a[i], b[i]);
-        }
-        counts.scalar += whole as u32;
-    }
-    for i in whole..a.len() {
+        (0, LaneCounts::default())
+    };
+    for i in done..a.len() {
         out[i] = mul_round_up(a[i], b[i]);
     }
-    counts.scalar += (a.len() - whole) as u32;
+    counts.scalar = (a.len() - done) as u32;
     counts
 }
 
-/// The scalar twin of [`mul8`]: [`mul_round_up`] on each lane.
-#[inline]
-pub fn mul8_scalar(a: &[Scalar; LANES], b: &[Scalar; LANES], out: &mut [Scalar; LANES]) {
-    for i in 0..LANES {
-        out[i] = mul_round_up(a[i], b[i]);
-    }
+/// The whole batches of eight of the slices on the IFMA lanes (the CPU has
+/// them): how many products that covered, and the counts.
+#[cfg(target_arch = "x86_64")]
+fn whole_batches_on_lanes(a: &[Scalar], b: &[Scalar], out: &mut [Scalar]) -> (usize, LaneCounts) {
+    let done = a.len() / LANES * LANES;
+    // SAFETY: the callers check `ifma_available` first.
+    let counts = unsafe { ifma::mul_batches(&a[..done], &b[..done], &mut out[..done]) };
+    (done, counts)
+}
+
+/// No IFMA lanes on this architecture: nothing done on them.
+#[cfg(not(target_arch = "x86_64"))]
+fn whole_batches_on_lanes(_: &[Scalar], _: &[Scalar], _: &mut [Scalar]) -> (usize, LaneCounts) {
+    (0, LaneCounts::default())
 }
 
 #[cfg(target_arch = "x86_64")]
 mod ifma {
-    use super::{LANES, Scalar};
+    use super::{LANES, LaneCounts, Scalar};
     use core::arch::x86_64::*;
 
     /// Largest operand magnitude the 52-bit multiplier takes.
@@ -167,11 +124,11 @@ mod ifma {
     /// that the rounded product, `hi·2²⁰ + (lo + half)/2³²`, fits 63 bits.
     const HIGH_LIMIT: i64 = 1 << 43;
 
-    /// [`mul8`] over whole batches (the slices' lengths are multiples of
-    /// [`LANES`]), the twin for each batch the guard refuses.
+    /// Whole batches (the slices' lengths are multiples of [`LANES`]) on
+    /// the lanes, the scalar twin for each batch the guard refuses.
     #[target_feature(enable = "avx512f,avx512ifma")]
-    pub(super) fn mul_batches(a: &[Scalar], b: &[Scalar], out: &mut [Scalar]) -> super::LaneCounts {
-        let mut counts = super::LaneCounts::default();
+    pub(super) fn mul_batches(a: &[Scalar], b: &[Scalar], out: &mut [Scalar]) -> LaneCounts {
+        let mut counts = LaneCounts::default();
         for ((x, y), o) in a
             .chunks_exact(LANES)
             .zip(b.chunks_exact(LANES))
@@ -184,7 +141,9 @@ mod ifma {
                 counts.ifma += 1;
             } else {
                 counts.guarded += 1;
-                super::mul8_scalar(x, y, o);
+                for i in 0..LANES {
+                    o[i] = super::mul_round_up(x[i], y[i]);
+                }
             }
         }
         counts
@@ -238,32 +197,66 @@ mod ifma {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Faults;
 
     fn batch(v: [i64; LANES]) -> [Scalar; LANES] {
         v.map(Scalar::from_bits)
     }
 
+    /// Which path a batch of eight should take on an IFMA machine.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    enum Path {
+        Ifma,
+        Guarded,
+    }
+
+    /// The path one batch took, from its counts.
+    fn path_of(counts: LaneCounts) -> Option<Path> {
+        match counts {
+            LaneCounts {
+                ifma: 1,
+                guarded: 0,
+                scalar: 0,
+            } => Some(Path::Ifma),
+            LaneCounts {
+                ifma: 0,
+                guarded: 1,
+                scalar: 0,
+            } => Some(Path::Guarded),
+            LaneCounts {
+                ifma: 0,
+                guarded: 0,
+                scalar: 8,
+            } => None,
+            other => panic!("one batch counted as {other:?}"),
+        }
+    }
+
+    /// The scalar twin on each lane.
+    fn twin_of(a: &[Scalar; LANES], b: &[Scalar; LANES]) -> [Scalar; LANES] {
+        std::array::from_fn(|i| mul_round_up(a[i], b[i]))
+    }
+
     /// Runs one batch both ways; the lanes must agree with the twin bit for
     /// bit, and the path must be the expected one on an IFMA machine.
-    fn check(a: [i64; LANES], b: [i64; LANES], expect: LanePath) -> [Scalar; LANES] {
+    fn check(a: [i64; LANES], b: [i64; LANES], expect: Path) -> [Scalar; LANES] {
         let (a, b) = (batch(a), batch(b));
-        let mut twin = [Scalar::ZERO; LANES];
         let scope = crate::math::FaultScope::enter();
-        mul8_scalar(&a, &b, &mut twin);
+        let twin = twin_of(&a, &b);
         let twin_faults = scope.finish();
         let mut lanes = [Scalar::ZERO; LANES];
         let scope = crate::math::FaultScope::enter();
-        let path = mul8(&a, &b, &mut lanes, true);
+        let path = path_of(mul_slice(&a, &b, &mut lanes, true));
         let lane_faults = scope.finish();
         assert_eq!(lanes, twin, "a {a:?} b {b:?} ({path:?})");
         assert_eq!(lane_faults, twin_faults);
         if ifma_available() {
-            assert_eq!(path, expect, "a {a:?} b {b:?}");
+            assert_eq!(path, Some(expect), "a {a:?} b {b:?}");
         } else {
-            assert_eq!(path, LanePath::Scalar);
+            assert_eq!(path, None);
         }
         let mut off = [Scalar::ZERO; LANES];
-        assert_eq!(mul8(&a, &b, &mut off, false), LanePath::Scalar);
+        assert_eq!(path_of(mul_slice(&a, &b, &mut off, false)), None);
         assert_eq!(off, twin);
         twin
     }
@@ -290,7 +283,7 @@ mod tests {
         let r = check(
             [t, -t, 3 * t, -3 * t, t - 1, -t - 1, 0, -5],
             [1, 1, 1, 1, 1, 1, -7, 0],
-            LanePath::Ifma,
+            Path::Ifma,
         );
         assert_eq!(r.map(Scalar::to_bits), [1, 0, 2, -1, 0, -1, 0, 0]);
         // Ties with larger operands: a·b = (2k + 1)·2³¹.
@@ -306,7 +299,7 @@ mod tests {
                 1 << 31,
                 -(1 << 31),
             ],
-            LanePath::Ifma,
+            Path::Ifma,
         );
     }
 
@@ -340,14 +333,12 @@ mod tests {
             }
             let (sa, sb) = (batch(a), batch(b));
             let mut out = [Scalar::ZERO; LANES];
-            let path = mul8(&sa, &sb, &mut out, true);
-            let mut twin = [Scalar::ZERO; LANES];
-            mul8_scalar(&sa, &sb, &mut twin);
-            assert_eq!(out, twin, "a {a:?} b {b:?}");
+            let path = path_of(mul_slice(&sa, &sb, &mut out, true));
+            assert_eq!(out, twin_of(&sa, &sb), "a {a:?} b {b:?}");
             match path {
-                LanePath::Ifma => ifma += 1,
-                LanePath::Guarded => guarded += 1,
-                LanePath::Scalar => {}
+                Some(Path::Ifma) => ifma += 1,
+                Some(Path::Guarded) => guarded += 1,
+                None => {}
             }
         }
         if ifma_available() {
@@ -406,18 +397,18 @@ mod tests {
         let max = (1i64 << 52) - 1;
         let ones = [1i64; LANES];
         // Operands at the largest magnitude the lanes take, times 1.
-        check([max, -max, max, -max, 1, 2, 3, 4], ones, LanePath::Ifma);
+        check([max, -max, max, -max, 1, 2, 3, 4], ones, Path::Ifma);
         // One operand past it: the whole batch goes to the twin.
-        check([max + 1, 0, 0, 0, 0, 0, 0, 0], ones, LanePath::Guarded);
-        check([0, 0, 0, 0, 0, 0, 0, -(max + 1)], ones, LanePath::Guarded);
-        check([i64::MIN, 0, 0, 0, 0, 0, 0, 0], ones, LanePath::Guarded);
-        check(ones, [i64::MIN, 0, 0, 0, 0, 0, 0, 0], LanePath::Guarded);
+        check([max + 1, 0, 0, 0, 0, 0, 0, 0], ones, Path::Guarded);
+        check([0, 0, 0, 0, 0, 0, 0, -(max + 1)], ones, Path::Guarded);
+        check([i64::MIN, 0, 0, 0, 0, 0, 0, 0], ones, Path::Guarded);
+        check(ones, [i64::MIN, 0, 0, 0, 0, 0, 0, 0], Path::Guarded);
         // The high half just below 2⁴³: P = 2⁹⁵ − 2⁵² (a = 2⁴⁴ − 1, b = 2⁵¹).
         let a = (1i64 << 44) - 1;
         check(
             [a, -a, 0, 0, 0, 0, 0, 0],
             [1 << 51, 1 << 51, 0, 0, 0, 0, 0, 0],
-            LanePath::Ifma,
+            Path::Ifma,
         );
         // At 2⁴³: P = 2⁹⁵, whose rounded value 2⁶³ does not fit a positive
         // i64 (the twin saturates with the fault) but does fit a negative
@@ -425,7 +416,7 @@ mod tests {
         let r = check(
             [1 << 44, -(1 << 44), 0, 0, 0, 0, 0, 0],
             [1 << 51, 1 << 51, 0, 0, 0, 0, 0, 0],
-            LanePath::Guarded,
+            Path::Guarded,
         );
         assert_eq!(r[0], Scalar::MAX);
         assert_eq!(r[1].to_bits(), i64::MIN);
