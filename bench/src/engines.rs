@@ -17,8 +17,8 @@ use std::time::Instant;
 use lockstep_core::shape::{ConvexHull, Cuboid, Shape, Sphere};
 use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{
-    BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, JointDesc, Material, Scalar, Vec3, World,
-    WorldConfig,
+    BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, ContactOrder, JointDesc, Material, Scalar,
+    Vec3, World, WorldConfig,
 };
 use rapier3d::prelude::{
     ColliderBuilder, IntegrationParameters, InteractionGroups, PhysicsWorld, RigidBodyBuilder,
@@ -100,16 +100,27 @@ fn v3(p: [f64; 3]) -> Vec3 {
     Vec3::new(s(p[0]), s(p[1]), s(p[2]))
 }
 
-/// Our world for a scene (sleep as given: off for `engines`).
+/// Our world for a scene (sleep as given: off for `engines`), in pair
+/// order.
 pub fn build_ours(scene: &Scene, sleep: SleepConfig) -> (World, Vec<BodyHandle>) {
+    build_ours_in(scene, sleep, ContactOrder::Pairs)
+}
+
+/// Our world for a scene with the contact solver's order given.
+pub fn build_ours_in(
+    scene: &Scene,
+    sleep: SleepConfig,
+    order: ContactOrder,
+) -> (World, Vec<BodyHandle>) {
     if let BodyShape::File(desc) = &scene.shape {
-        return scene_file::build_ours(desc, sleep);
+        return scene_file::build_ours(desc, sleep, order);
     }
     let mut world = World::new(WorldConfig {
         gravity: Vec3::new(Scalar::ZERO, Scalar::from_int(-10), Scalar::ZERO),
         tick_rate: TICK_RATE,
         substeps: SUBSTEPS,
         sleep,
+        contact_order: order,
         ..WorldConfig::default()
     })
     .expect("valid world config");
@@ -190,7 +201,13 @@ pub(crate) fn sleep_off() -> SleepConfig {
 
 impl Ours {
     fn new(scene: &Scene) -> Ours {
-        let (world, bodies) = build_ours(scene, sleep_off());
+        Ours::in_order(scene, ContactOrder::Pairs, 1)
+    }
+
+    /// Ours in the given order with `workers` solver threads.
+    fn in_order(scene: &Scene, order: ContactOrder, workers: usize) -> Ours {
+        let (mut world, bodies) = build_ours_in(scene, sleep_off(), order);
+        world.set_workers(workers);
         Ours {
             world,
             bodies,
@@ -508,14 +525,31 @@ pub struct SceneResult {
     pub runs: usize,
     /// lockstep-core.
     pub ours: EngineResult,
+    /// With `--threads N`: ours in colour order with one worker, then
+    /// with N.
+    pub threaded: Option<Threaded>,
     /// Rapier.
     pub rapier: EngineResult,
 }
 
-/// Runs one scene `runs` times per engine, alternating.
-pub fn run_scene(scene: &Scene, runs: usize) -> SceneResult {
+/// Ours in colour order on one worker and on N (`engines --threads N`).
+#[derive(Clone, Debug)]
+pub struct Threaded {
+    /// N.
+    pub workers: usize,
+    /// Colour order, one worker.
+    pub one: EngineResult,
+    /// Colour order, N workers (the same bits as `one`).
+    pub many: EngineResult,
+}
+
+/// Runs one scene `runs` times per engine, alternating; with `threads`,
+/// each run also steps ours in colour order on one worker and on that
+/// many.
+pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneResult {
     let mut ours = Vec::new();
     let mut theirs = Vec::new();
+    let (mut one, mut many) = (Vec::new(), Vec::new());
     let mut faulted = false;
     for _ in 0..runs.max(1) {
         let (run, sim) = measure(scene, Ours::new);
@@ -525,9 +559,24 @@ pub fn run_scene(scene: &Scene, runs: usize) -> SceneResult {
         let (run, sim) = measure(scene, Rapier::new);
         drop(sim);
         theirs.push(run);
+        if let Some(n) = threads {
+            for (workers, out) in [(1, &mut one), (n, &mut many)] {
+                let (run, sim) =
+                    measure(scene, |s| Ours::in_order(s, ContactOrder::Colors, workers));
+                faulted |= sim.faulted;
+                drop(sim);
+                out.push(run);
+            }
+        }
     }
     let has_tops = !scene.tops.is_empty();
+    let threaded = threads.map(|workers| Threaded {
+        workers,
+        one: EngineResult::from_runs(&one, has_tops, faulted),
+        many: EngineResult::from_runs(&many, has_tops, faulted),
+    });
     SceneResult {
+        threaded,
         name: scene.name,
         bodies: scene.positions.len(),
         steps: scene.steps,
@@ -708,6 +757,58 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
     out
 }
 
+/// With `--threads N`: ours in colour order on 1 and N workers beside
+/// pair order and Rapier (one thread), from the same runs.
+pub fn threads_table(results: &[SceneResult]) -> String {
+    let mut out = String::new();
+    if results.iter().all(|r| r.threaded.is_none()) {
+        return out;
+    }
+    let _ = writeln!(
+        out,
+        "\nthreads: ours in colour order (the contact solver's colours split over N workers; the same bits for any N)"
+    );
+    let _ = writeln!(
+        out,
+        "{:<14} {:>3}  {:>10} {:>10} {:>10}  {:>8}  {:>10}  {:>8} {:>8}  {:>9} {:>9}",
+        "scene",
+        "N",
+        "pairs 1",
+        "colours 1",
+        "colours N",
+        "1→N",
+        "rapier 1",
+        "N/rapier",
+        "1/rapier",
+        "top dy N",
+        "max xz N"
+    );
+    for r in results {
+        let Some(t) = &r.threaded else { continue };
+        let _ = writeln!(
+            out,
+            "{:<14} {:>3}  {:>10.3} {:>10.3} {:>10.3}  {:>7.2}×  {:>10.3}  {:>8.2} {:>8.2}  {:>9.4} {:>9.4}",
+            r.name,
+            t.workers,
+            r.ours.median_ms,
+            t.one.median_ms,
+            t.many.median_ms,
+            t.one.median_ms / t.many.median_ms,
+            r.rapier.median_ms,
+            t.many.median_ms / r.rapier.median_ms,
+            r.ours.median_ms / r.rapier.median_ms,
+            t.many.top_dy,
+            t.many.max_horizontal
+        );
+    }
+    let _ = writeln!(
+        out,
+        "(median ms/step; 1→N = colours on 1 worker / on N; N/rapier = colours on N workers / Rapier on one thread \
+         (Rapier's parallel build is not in this bench); 1/rapier = pair order / Rapier, as above)"
+    );
+    out
+}
+
 /// The results as CSV, one line per scene and engine.
 pub fn csv(results: &[SceneResult]) -> String {
     let mut out = String::from(
@@ -763,7 +864,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
                     scene.positions.len(),
                     scene.steps
                 );
-                let result = run_scene(&scene, runs);
+                let result = run_scene(&scene, runs, opts.threads);
                 if opts.stages {
                     eprintln!("engines --stages: {name}: stage runs, then instruction counts...");
                     let headline = (result.ours.median_ms, result.rapier.median_ms);
@@ -782,6 +883,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
     }
     let mut text = format!("{}\n\n", settings_text());
     text.push_str(&table(&results, &skipped));
+    text.push_str(&threads_table(&results));
     let mut csv = csv(&results);
     if opts.stages {
         let _ = writeln!(text, "\n{}\n", stages::RAPIER_MAPPING);

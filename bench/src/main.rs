@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release -p lockstep-bench -- math [--csv FILE] [--quick]
-//! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N] [--steps N] [--stages [--callgrind-dir DIR]]
+//! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N] [--steps N] [--threads N] [--stages [--callgrind-dir DIR]]
 //! cargo run --release -p lockstep-bench -- sleep [--quick] [--csv FILE]
 //! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N]
 //! cargo run --release -p lockstep-bench -- accuracy [--quick] [--csv FILE] [--scenes a,b] [--runs N]
@@ -57,6 +57,8 @@ pub struct Options {
     pub stages: bool,
     /// Where `engines --stages` keeps its callgrind files, if anywhere.
     pub callgrind_dir: Option<PathBuf>,
+    /// `engines`: also ours in colour order on 1 and this many workers.
+    pub threads: Option<usize>,
 }
 
 /// What a suite produced: the printed table and the CSV text.
@@ -197,6 +199,10 @@ struct Cli {
     /// DIR/SCENE.callgrind (for `callgrind_annotate`).
     #[arg(long, value_name = "DIR")]
     callgrind_dir: Option<PathBuf>,
+    /// `engines` suite: also step ours in colour order on 1 and on N
+    /// solver workers (N in 1..=64), in the same runs.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
+    threads: Option<u16>,
     /// Internal: the callgrind child of `engines --stages` (restore this
     /// snapshot, step once, then count `--steps` steps).
     #[arg(long, value_name = "FILE", hide = true)]
@@ -247,6 +253,7 @@ fn main() -> ExitCode {
         steps: cli.steps,
         stages: cli.stages,
         callgrind_dir: cli.callgrind_dir.clone(),
+        threads: cli.threads.map(usize::from),
     };
     let out = (suite.run)(&opts);
     println!(

@@ -9,8 +9,8 @@ use std::cell::Cell;
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
 use lockstep_core::world::{Stage, StepObserver};
 use lockstep_core::{
-    BodyDesc, BodyHandle, ColliderDesc, Quat, Scalar, StepReport, Transform, Vec3, World,
-    WorldConfig,
+    BodyDesc, BodyHandle, ColliderDesc, ContactOrder, Quat, Scalar, StepReport, Transform, Vec3,
+    World, WorldConfig,
 };
 
 struct Counting;
@@ -53,8 +53,13 @@ fn s(v: f64) -> Scalar {
 /// Fifty spinning boxes and spheres dropped just onto a floor, and a
 /// kinematic body.
 fn scene(sleep: bool) -> (World, BodyHandle) {
+    scene_in(sleep, ContactOrder::Pairs)
+}
+
+fn scene_in(sleep: bool, order: ContactOrder) -> (World, BodyHandle) {
     let mut cfg = WorldConfig::default();
     cfg.sleep.enabled = sleep;
+    cfg.contact_order = order;
     let mut w = World::new(cfg).unwrap();
     for i in 0..50 {
         let f = i as f64;
@@ -163,6 +168,31 @@ fn step_does_not_allocate_once_warm() {
         };
         assert_eq!(counts.0[st.index()], 50 * per_step, "{st:?}");
     }
+}
+
+/// Colour order with its colours split over two workers: the worker
+/// threads start in `set_workers`, and a warm step allocates nothing (on
+/// this thread, which does the colouring and its share of every pass; the
+/// helpers run the same visits).
+#[test]
+fn colour_order_on_two_workers_does_not_allocate_once_warm() {
+    let (mut w, k) = scene_in(false, ContactOrder::Colors);
+    w.set_workers(2);
+    for t in 0..60 {
+        checked_step(&mut w, t);
+    }
+    let before = allocations();
+    for t in 0..200 {
+        let target = Transform::new(
+            Vec3::new(Scalar::from_ratio(t, 60), s(1.0), Scalar::ZERO),
+            Quat::IDENTITY,
+        );
+        w.set_kinematic_target(k, target).unwrap();
+        let r = w.step();
+        assert!(r.faults.is_empty());
+        assert!(r.contact_colors > 1, "step {t} coloured nothing");
+    }
+    assert_eq!(allocations() - before, 0, "step() allocated");
 }
 
 /// Counts the calls per stage.

@@ -14,7 +14,7 @@ use super::reader::{Result, TableView};
 use super::rotation::read_rotation;
 use super::shape::read_shape;
 use crate::math::{Quat, Scalar, Transform, Vec3};
-use crate::world::MAX_SOLVER_ITERATIONS;
+use crate::world::{ContactOrder, MAX_SOLVER_ITERATIONS};
 
 /// Keys of the root table.
 const ROOT_KEYS: &[&str] = &["world", "materials", "bodies", "joints"];
@@ -63,6 +63,7 @@ const WORLD_KEYS: &[&str] = &[
     "broad_phase_margin",
     "max_push_out",
     "restitution_threshold",
+    "contact_order",
     "sleep",
     "sleep_linear_threshold",
     "sleep_angular_threshold",
@@ -525,6 +526,19 @@ fn read_world(t: &TableView<'_>) -> Result<WorldDesc> {
     }
     if let Some(f) = t.get("sleep") {
         settings.sleep.enabled = t.boolean(&f)?;
+    }
+    if let Some(f) = t.get("contact_order") {
+        settings.contact_order = match t.string(&f)? {
+            "pairs" => ContactOrder::Pairs,
+            "colors" => ContactOrder::Colors,
+            other => {
+                return Err(t.error(
+                    f.at,
+                    SceneErrorKind::WrongType,
+                    format!("unknown contact order \"{other}\" (expected \"pairs\" or \"colors\")"),
+                ));
+            }
+        };
     }
     Ok(world)
 }

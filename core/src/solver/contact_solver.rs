@@ -4,7 +4,8 @@
 //! Per tick, `prepare` builds a compact array of solver bodies (awake dynamic
 //! and kinematic bodies that appear in a solid contact, in slot order;
 //! static and sleeping bodies are an implicit zero-velocity, infinite-mass
-//! body) and one constraint per solid pair with points, in pair order. Anchors
+//! body) and one constraint per solid pair with points, in colour order (see
+//! [`color`]: no two constraints of a colour share a dynamic body). Anchors
 //! are taken relative to the body centres at the start of the tick, and the
 //! effective masses are computed there once (the iteration loops never
 //! divide). Then, per substep:
@@ -65,18 +66,25 @@
 //! toward +∞ by the solver's own [`mul`] and [`round_wide`] (cheaper than
 //! `Scalar`'s ties-away rounding; the same overflow faults).
 //!
-//! Determinism: bodies in slot (handle) order, constraints in pair order
-//! (ascending collider handles), points in manifold order starting at point
-//! `k mod count` in substep `k` of the tick.
+//! Determinism: bodies in slot (handle) order; constraints colour by colour,
+//! each colour in pair order (ascending collider handles), the colours
+//! recomputed each tick from the pairs in that order; points in manifold
+//! order starting at point `k mod count` in substep `k` of the tick.
 
+mod color;
 mod patch;
 mod rows;
 mod shock;
 
+use color::{COLORS, Coloring, OVERFLOW};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use super::workers::{SpinBarrier, Workers};
+
 use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
-    along, angular_along, apply_linear, combine3, cross, effective, inverse_or_zero, linear_basis,
-    load, mul, prefetch, push_angular, round_wide, scale, store, tangent_of, vel_or_zero,
+    BodyArrays, along, angular_along, apply_linear, combine3, cross, effective, inverse_or_zero,
+    linear_basis, mul, prefetch, push_angular, round_wide, scale, tangent_of, vel_or_zero,
 };
 
 use crate::body::{BodyHot, BodyKind};
@@ -102,6 +110,107 @@ fn for_each_prefetched(cs: &mut [Constraint], mut f: impl FnMut(&mut Constraint)
         }
         f(&mut cs[i]);
     }
+}
+
+/// Constraints a worker claims at a time within a colour: enough that
+/// claiming (one atomic add) costs little beside the visits, few enough
+/// that two workers end a colour of a few hundred constraints together.
+const BLOCK: usize = 16;
+
+/// A constraint array shared by the workers of one pass.
+#[derive(Clone, Copy)]
+struct ConstraintsPtr(*mut Constraint);
+
+// SAFETY: each block of the array is claimed by exactly one worker (an
+// atomic counter per colour), so no two threads touch one constraint.
+unsafe impl Sync for ConstraintsPtr {}
+// SAFETY: as above.
+unsafe impl Send for ConstraintsPtr {}
+
+impl ConstraintsPtr {
+    /// The address of constraint `i` (a method, so a closure captures the
+    /// whole `Sync` wrapper rather than its raw pointer field).
+    fn at(self, i: usize) -> *mut Constraint {
+        self.0.wrapping_add(i)
+    }
+}
+
+/// Visits every constraint once, in colour order: each colour's
+/// constraints split in blocks over the workers (they share no moving
+/// body, so each one's result is the same whoever visits it and in any
+/// order), a barrier between colours, then the overflow in order on this
+/// thread. With one worker, or no colours (pair order), one thread visits
+/// the array from first to last: the same results.
+fn for_each_colored<F>(
+    constraints: &mut [Constraint],
+    starts: &[u32; COLORS + 2],
+    workers: &Workers,
+    visit: F,
+) where
+    F: Fn(&mut Constraint) + Sync,
+{
+    let colored = (starts[COLORS] as usize).min(constraints.len());
+    let n = workers.count();
+    if n == 1 || colored == 0 {
+        for_each_prefetched(constraints, &visit);
+        return;
+    }
+    let last = (0..COLORS).rev().find(|&c| starts[c + 1] > starts[c]);
+    let claimed: [AtomicUsize; COLORS] = std::array::from_fn(|_| AtomicUsize::new(0));
+    let barrier = SpinBarrier::new(n);
+    let base = ConstraintsPtr(constraints.as_mut_ptr());
+    workers.run(&|_| {
+        for c in 0..COLORS {
+            let (lo, hi) = (starts[c] as usize, (starts[c + 1] as usize).min(colored));
+            if lo >= hi {
+                continue;
+            }
+            loop {
+                let first = lo + claimed[c].fetch_add(1, Ordering::Relaxed) * BLOCK;
+                if first >= hi {
+                    break;
+                }
+                let end = (first + BLOCK).min(hi);
+                // SAFETY: `first..end` lies in the array and this worker
+                // alone claimed it.
+                let block = unsafe { std::slice::from_raw_parts_mut(base.at(first), end - first) };
+                for_each_prefetched(block, &visit);
+            }
+            if Some(c) != last {
+                barrier.wait();
+            }
+        }
+    });
+    for_each_prefetched(&mut constraints[colored..], &visit);
+}
+
+/// Visits every constraint once, in blocks shared out over the workers in
+/// any order: only for work where each constraint's result depends on
+/// nothing another visit writes.
+fn for_each_block<F>(constraints: &mut [Constraint], workers: &Workers, visit: F)
+where
+    F: Fn(&mut Constraint) + Sync,
+{
+    let len = constraints.len();
+    if workers.count() == 1 || len <= BLOCK {
+        for_each_prefetched(constraints, &visit);
+        return;
+    }
+    let claimed = AtomicUsize::new(0);
+    let base = ConstraintsPtr(constraints.as_mut_ptr());
+    workers.run(&|_| {
+        loop {
+            let first = claimed.fetch_add(1, Ordering::Relaxed) * BLOCK;
+            if first >= len {
+                break;
+            }
+            let end = (first + BLOCK).min(len);
+            // SAFETY: `first..end` lies in the array and this worker alone
+            // claimed it.
+            let block = unsafe { std::slice::from_raw_parts_mut(base.at(first), end - first) };
+            for_each_prefetched(block, &visit);
+        }
+    });
 }
 
 /// Marks "no solver body": a static or sleeping body.
@@ -250,6 +359,11 @@ struct Constraint {
     /// Solver body indices (or `NONE`).
     a: u32,
     b: u32,
+    /// The same for the bodies the passes write: `a` and `b` if dynamic,
+    /// `NONE` for a kinematic body (whose velocity no impulse changes, and
+    /// which two constraints of one colour may share).
+    wa: u32,
+    wb: u32,
     normal: Vec3,
     tangent: [Vec3; 2],
     /// `1/mass` of A and of B (zero for none, static or kinematic).
@@ -282,8 +396,8 @@ impl Constraint {
     /// patch, all from stored products) to the write-back sums `dls` of A
     /// (negated) and B, and moves the marks.
     #[inline(always)]
-    fn collect_angular(&mut self, dls: &mut [Vec3]) {
-        let (a, b) = (self.a, self.b);
+    fn collect_angular(&mut self, arrays: &BodyArrays) {
+        let (a, b) = (self.wa, self.wb);
         for cp in &mut self.points[..self.count] {
             let dn = cp.normal_impulse - cp.mark;
             if dn.is_zero() {
@@ -291,10 +405,10 @@ impl Constraint {
             }
             cp.mark = cp.normal_impulse;
             if a != NONE {
-                dls[a as usize] -= scale(cp.ra_n, dn);
+                arrays.add_dl(a, -scale(cp.ra_n, dn));
             }
             if b != NONE {
-                dls[b as usize] += scale(cp.rb_n, dn);
+                arrays.add_dl(b, scale(cp.rb_n, dn));
             }
         }
         let f = &mut self.patch;
@@ -306,10 +420,10 @@ impl Constraint {
         f.mark = now;
         let n = self.normal;
         if a != NONE {
-            dls[a as usize] -= combine3(f.ra_t[0], d0, f.ra_t[1], d1, n, dw);
+            arrays.add_dl(a, -combine3(f.ra_t[0], d0, f.ra_t[1], d1, n, dw));
         }
         if b != NONE {
-            dls[b as usize] += combine3(f.rb_t[0], d0, f.rb_t[1], d1, n, dw);
+            arrays.add_dl(b, combine3(f.rb_t[0], d0, f.rb_t[1], d1, n, dw));
         }
     }
 }
@@ -412,6 +526,9 @@ pub(crate) struct SolverParams {
     pub max_push_out: Scalar,
     /// Normal approach speed below which there is no bounce, m/s.
     pub restitution_threshold: Scalar,
+    /// Whether the constraints are solved in colour order (see [`color`])
+    /// rather than pair order.
+    pub colored: bool,
 }
 
 /// Counters from one tick's solve.
@@ -419,6 +536,10 @@ pub(crate) struct SolverParams {
 pub(crate) struct SolverStats {
     /// Constraints (solid pairs with points).
     pub constraints: u32,
+    /// Colours with at least one constraint (see [`color`]).
+    pub colors: u32,
+    /// Constraints that found no free colour (solved after the colours).
+    pub overflow: u32,
     /// Times a buffer grew.
     pub growths: u32,
 }
@@ -437,7 +558,19 @@ pub(crate) struct ContactSolver {
     /// The slots this tick's constraints touch, sorted into solver body
     /// order in `prepare`.
     touched: Vec<u32>,
+    /// This tick's constraints in colour order (see [`color`]).
     constraints: Vec<Constraint>,
+    /// The colouring's buffers.
+    coloring: Coloring,
+    /// The candidate constraints in pair order, before they are placed in
+    /// colour order (`prepare` only).
+    pending: Vec<Pending>,
+    /// Where each colour's constraints start in `constraints` (colour `c`
+    /// is `starts[c]..starts[c + 1]`, the overflow last).
+    starts: [u32; COLORS + 2],
+    /// The threads the colour passes are split over (not simulation state:
+    /// any count gives the same bits).
+    workers: Workers,
     /// Per solver body, the smallest inverse mass among it and the dynamic
     /// bodies it touches (`prepare` only).
     heaviest: Vec<Scalar>,
@@ -452,6 +585,19 @@ pub(crate) struct ContactSolver {
     /// Warm starts (substeps) since `prepare`: the point each manifold's
     /// solve starts from.
     substeps: u32,
+}
+
+/// A constraint found in `prepare`'s first scan, before its place in colour
+/// order is known.
+#[derive(Clone, Copy, Debug)]
+struct Pending {
+    pair: u32,
+    /// Slots of the moving bodies (`NONE` for a static or sleeping one).
+    a: u32,
+    b: u32,
+    friction: Scalar,
+    restitution: Scalar,
+    rounding: [Scalar; 2],
 }
 
 /// What `prepare` needs to know about one pair: the body slots of its two
@@ -499,6 +645,8 @@ impl ContactSolver {
             self.heavy.capacity(),
             self.level.capacity(),
             self.shock.capacity(),
+            self.pending.capacity(),
+            self.coloring.capacities(),
         );
         self.substeps = 0;
         for sb in &self.bodies {
@@ -511,18 +659,16 @@ impl ContactSolver {
         self.bodies.clear();
         self.vels.clear();
         self.dls.clear();
-        // Constraints are overwritten in place and the rest cut off at the
-        // end: a fresh push would build each (over a kilobyte) on the stack
-        // and copy it.
-        let mut used = 0;
         let moves = |slot: u32| {
             let b = &hot[slot as usize];
             b.kind != BodyKind::Static && !b.sleeping
         };
-        // 1. Constraints (body indices filled in below) and the set of
-        //    bodies they touch.
+        // 1. The constraints in pair order, each with its colour, and the
+        //    set of bodies they touch.
         let candidates = active.map_or(pairs.len(), <[u32]>::len);
         self.reserve_constraints(pairs, active, candidates);
+        self.pending.clear();
+        self.coloring.begin(hot.len(), params.colored);
         for k in 0..candidates {
             let i = active.map_or(k, |a| a[k] as usize);
             let Some(p) = pairs.get(i) else { continue };
@@ -547,21 +693,44 @@ impl ContactSolver {
                     self.touched.push(slot);
                 }
             }
-            if used == self.constraints.len() {
-                self.constraints.push(Constraint::default());
-            }
-            // Every other field is set in step 3 (`points` up to `count`,
-            // which is all any pass reads).
-            let c = &mut self.constraints[used];
-            c.pair = i as u32;
-            c.a = if ma { pi.slot_a } else { NONE };
-            c.b = if mb { pi.slot_b } else { NONE };
-            c.friction = pi.friction;
-            c.restitution = pi.restitution;
-            c.rounding = pi.rounding;
-            used += 1;
+            self.coloring.assign(
+                if dyn_a { pi.slot_a } else { NONE },
+                if dyn_b { pi.slot_b } else { NONE },
+            );
+            self.pending.push(Pending {
+                pair: i as u32,
+                a: if ma { pi.slot_a } else { NONE },
+                b: if mb { pi.slot_b } else { NONE },
+                friction: pi.friction,
+                restitution: pi.restitution,
+                rounding: pi.rounding,
+            });
+        }
+        // Each constraint goes to the next place of its colour's range.
+        // Constraints are overwritten in place and the rest cut off: a
+        // fresh push would build each (over a kilobyte) on the stack and
+        // copy it.
+        self.starts = self.coloring.finish();
+        let used = self.pending.len();
+        while self.constraints.len() < used {
+            self.constraints.push(Constraint::default());
         }
         self.constraints.truncate(used);
+        let mut next = self.starts;
+        for (k, pc) in self.pending.iter().enumerate() {
+            let color = self.coloring.color_of(k);
+            let at = next[color] as usize;
+            next[color] += 1;
+            // Every other field is set in step 3 (`points` up to `count`,
+            // which is all any pass reads).
+            let c = &mut self.constraints[at];
+            c.pair = pc.pair;
+            c.a = pc.a;
+            c.b = pc.b;
+            c.friction = pc.friction;
+            c.restitution = pc.restitution;
+            c.rounding = pc.rounding;
+        }
         // 2. Solver bodies in slot order, and the range of their inverse
         //    masses (for step 4).
         self.touched.sort_unstable();
@@ -601,31 +770,35 @@ impl ContactSolver {
             });
             self.dls.push(Vec3::ZERO);
         }
-        // 3. Constant terms of each point.
+        // 3. Constant terms of each point: each constraint from its own pair
+        //    and bodies alone, so the workers share them out in any order.
         let zero = SolverBody::default();
-        for c in &mut self.constraints {
+        let (bodies, vels, body_of_slot) = (&self.bodies, &self.vels, &self.body_of_slot);
+        let constants = |c: &mut Constraint| {
             let p = &pairs[c.pair as usize];
             c.a = if c.a == NONE {
                 NONE
             } else {
-                self.body_of_slot[c.a as usize]
+                body_of_slot[c.a as usize]
             };
             c.b = if c.b == NONE {
                 NONE
             } else {
-                self.body_of_slot[c.b as usize]
+                body_of_slot[c.b as usize]
             };
             let ba = if c.a == NONE {
                 &zero
             } else {
-                &self.bodies[c.a as usize]
+                &bodies[c.a as usize]
             };
             let bb = if c.b == NONE {
                 &zero
             } else {
-                &self.bodies[c.b as usize]
+                &bodies[c.b as usize]
             };
-            let (va, vb) = (vel_or_zero(&self.vels, c.a), vel_or_zero(&self.vels, c.b));
+            c.wa = if ba.dynamic { c.a } else { NONE };
+            c.wb = if bb.dynamic { c.b } else { NONE };
+            let (va, vb) = (vel_or_zero(vels, c.a), vel_or_zero(vels, c.b));
             let n = p.manifold.normal;
             let t0 = tangent_of(n);
             let t1 = n.cross(t0);
@@ -684,7 +857,8 @@ impl ContactSolver {
             }
             let patch = prepare_patch(p, c, ba, bb);
             c.patch = patch;
-        }
+        };
+        for_each_block(&mut self.constraints, &self.workers, constants);
         // 4. The heaviest body each solver body touches (smallest inverse
         //    mass, its own included), then each contact's spring from the
         //    ratio of that to its lighter body, and the high-ratio list.
@@ -713,11 +887,29 @@ impl ContactSolver {
             self.heavy.capacity(),
             self.level.capacity(),
             self.shock.capacity(),
+            self.pending.capacity(),
+            self.coloring.capacities(),
         ) != caps;
+        let s = &self.starts;
         SolverStats {
             constraints: self.constraints.len() as u32,
+            colors: (0..COLORS).filter(|&c| s[c + 1] > s[c]).count() as u32,
+            overflow: s[OVERFLOW + 1] - s[OVERFLOW],
             growths: grew as u32,
         }
+    }
+
+    /// Sets the number of threads the colour passes use (1: this thread
+    /// only). Starts or stops threads only when the count changes.
+    pub(crate) fn set_workers(&mut self, count: usize) {
+        if count.clamp(1, super::workers::MAX_WORKERS) != self.workers.count() {
+            self.workers = Workers::new(count);
+        }
+    }
+
+    /// The number of threads the colour passes use.
+    pub(crate) fn workers(&self) -> usize {
+        self.workers.count()
     }
 
     /// Whether there is anything to solve this tick.
@@ -780,9 +972,10 @@ impl ContactSolver {
     /// Applies last substep's (or last tick's) accumulated impulses again.
     pub(crate) fn warm_start(&mut self) {
         self.substeps = self.substeps.wrapping_add(1);
-        let vels = &mut self.vels;
-        for_each_prefetched(&mut self.constraints, |c| {
-            let (mut va, mut vb) = load(vels, c.a, c.b);
+        // SAFETY: the pass visits one colour at a time (`for_each_colored`).
+        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls) };
+        let visit = |c: &mut Constraint| {
+            let (mut va, mut vb) = arrays.load(c.a, c.b);
             // The linear change is the same direction for every point: sum
             // the impulses (exactly) and scale once per constraint.
             let mut total = Scalar::ZERO;
@@ -809,8 +1002,9 @@ impl ContactSolver {
                 }
             }
             apply_linear(c, &mut va, &mut vb, [total, i0, i1]);
-            store(vels, c.a, c.b, va, vb);
-        });
+            arrays.store(c.wa, c.wb, va, vb);
+        };
+        for_each_colored(&mut self.constraints, &self.starts, &self.workers, visit);
     }
 
     /// One pass over every constraint: friction, then the normal impulses
@@ -827,11 +1021,12 @@ impl ContactSolver {
         // tall stack rocking (without sleeping, the stack of 20's top box
         // swung by 8 cm; rotating the start keeps it within a millimetre).
         let rot = self.substeps as usize;
-        let vels = &mut self.vels;
-        let dls = &mut self.dls;
+        // SAFETY: the pass visits one colour at a time (`for_each_colored`),
+        // then the heavy constraints on this thread alone.
+        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls) };
         let bodies = &self.bodies;
-        let mut visit = |c: &mut Constraint| {
-            let (mut va, mut vb) = load(vels, c.a, c.b);
+        let visit = |c: &mut Constraint| {
+            let (mut va, mut vb) = arrays.load(c.a, c.b);
             // The linear part of the relative velocity along n, t0 and t1,
             // kept up to date through the rows (an impulse λ along one unit
             // direction of the basis changes it by λ(1/mA + 1/mB) along that
@@ -900,12 +1095,12 @@ impl ContactSolver {
                 }
             }
             apply_linear(c, &mut va, &mut vb, applied);
-            store(vels, c.a, c.b, va, vb);
+            arrays.store(c.wa, c.wb, va, vb);
             if !use_bias {
-                c.collect_angular(dls);
+                c.collect_angular(&arrays);
             }
         };
-        for_each_prefetched(&mut self.constraints, &mut visit);
+        for_each_colored(&mut self.constraints, &self.starts, &self.workers, visit);
         for _ in 0..HIGH_RATIO_PASSES {
             for &i in &self.heavy {
                 visit(&mut self.constraints[i as usize]);
@@ -932,6 +1127,8 @@ impl ContactSolver {
             .filter(|&k| solid(active.map_or(k, |a| a[k] as usize)))
             .count();
         reserve_near(&mut self.constraints, bound);
+        reserve_near(&mut self.pending, bound);
+        self.coloring.reserve(bound);
     }
 
     /// Step 4 of [`prepare`](Self::prepare) for a scene with high mass
@@ -978,14 +1175,14 @@ impl ContactSolver {
     /// After the substeps: points that approached faster than the threshold
     /// and pushed get the normal velocity `−e·v_before`.
     pub(crate) fn restitution(&mut self, params: &SolverParams) {
-        let vels = &mut self.vels;
-        let dls = &mut self.dls;
+        // SAFETY: the pass visits one colour at a time (`for_each_colored`).
+        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls) };
         let threshold = -params.restitution_threshold;
-        for c in &mut self.constraints {
+        let visit = |c: &mut Constraint| {
             if c.restitution.is_zero() {
-                continue;
+                return;
             }
-            let (mut va, mut vb) = load(vels, c.a, c.b);
+            let (mut va, mut vb) = arrays.load(c.a, c.b);
             let mut un = linear_basis(c, &va, &vb)[0];
             let mut applied = Scalar::ZERO;
             for cp in &mut c.points[..c.count] {
@@ -1006,9 +1203,10 @@ impl ContactSolver {
                 }
             }
             apply_linear(c, &mut va, &mut vb, [applied, Scalar::ZERO, Scalar::ZERO]);
-            store(vels, c.a, c.b, va, vb);
-            c.collect_angular(dls);
-        }
+            arrays.store(c.wa, c.wb, va, vb);
+            c.collect_angular(&arrays);
+        };
+        for_each_colored(&mut self.constraints, &self.starts, &self.workers, visit);
     }
 
     /// Hands the accumulated impulses back to the pairs (warm starting next

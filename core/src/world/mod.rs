@@ -10,10 +10,12 @@ mod query;
 mod state_hash;
 mod step;
 
+pub use crate::solver::workers::MAX_WORKERS;
 pub use body_ref::BodyRef;
 pub use ccd::{CCD_MAX_ITERATIONS, CCD_TARGET_GAP, CCD_TOLERANCE};
 pub use config::{
-    MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig, WorldError,
+    ContactOrder, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig,
+    WorldError,
 };
 pub use observe::{Stage, StepObserver};
 pub use state_hash::{BodyField, FieldKind, STATE_HASH_VERSION};
@@ -138,6 +140,29 @@ impl World {
     /// The settings.
     pub fn config(&self) -> &WorldConfig {
         &self.config
+    }
+
+    /// Sets how many threads (this one included, clamped to
+    /// `1..=MAX_WORKERS`) the contact solver uses: for its passes in colour
+    /// order ([`ContactOrder::Colors`]; in pair order the passes run on this
+    /// thread), and in either order for the constant terms it prepares per
+    /// constraint. The threads start here, not in `step()`, and wait
+    /// between steps (spinning briefly, then parked).
+    ///
+    /// Not simulation state: every count gives the same bits (the
+    /// constraints of one colour share no moving body, and nothing is
+    /// summed across threads), so peers may use different counts, and the
+    /// count is in neither the state hash nor snapshots: a restored world
+    /// has one worker until this is called, a clone as many as the world
+    /// it was cloned from.
+    pub fn set_workers(&mut self, count: usize) {
+        self.solver.set_workers(count);
+    }
+
+    /// The threads the contact solver's colour passes use (see
+    /// [`World::set_workers`]).
+    pub fn workers(&self) -> usize {
+        self.solver.workers()
     }
 
     /// Changes gravity (takes effect at the next step).

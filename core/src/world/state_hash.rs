@@ -5,7 +5,7 @@ use crate::body::{BodyCold, BodyHandle, BodyHot};
 use crate::collider::MassSpec;
 use crate::hash::StateHasher;
 
-use super::World;
+use super::{ContactOrder, World};
 
 /// Version of the hashed layout; bumped whenever the list of hashed words
 /// changes, so hashes from different layouts never compare equal by
@@ -63,6 +63,12 @@ impl World {
         h.scalar(c.contact_damping_ratio);
         h.scalar(c.max_push_out);
         h.scalar(c.restitution_threshold);
+        // Hashed only when it is not the default, so the hashes of worlds
+        // built before the setting existed (recorded matches, golden files)
+        // stay valid.
+        if c.contact_order == ContactOrder::Colors {
+            h.word(u64::from_le_bytes(*b"colours\0"));
+        }
         h.word(self.bodies.len() as u64);
         for (handle, hot, cold) in self.bodies.iter() {
             h.word(handle.index() as u64);

@@ -16,7 +16,7 @@ use crate::solver::joint_solver::{JOINT_DAMPING_RATIO, JointParams, JointSolver}
 use crate::solver::sleep;
 
 use super::observe::{Guarded, Notify, Quiet, Stage, StepObserver};
-use super::{StepReport, World, rotation_delta};
+use super::{ContactOrder, StepReport, World, rotation_delta};
 
 impl World {
     /// Advances the world by one tick (`1/tick_rate` seconds).
@@ -115,6 +115,8 @@ impl World {
         n.finished(Stage::PrepareContacts);
         let jparams = self.joint_params(&params);
         report.contact_constraints = prep.constraints;
+        report.contact_colors = prep.colors;
+        report.contact_overflow = prep.overflow;
         report.buffer_growths += prep.growths;
 
         report.buffer_growths += self.stage_ccd_begin();
@@ -284,6 +286,7 @@ impl World {
             omega_max: omega_max(substep_rate),
             max_push_out: cfg.max_push_out,
             restitution_threshold: cfg.restitution_threshold,
+            colored: cfg.contact_order == ContactOrder::Colors,
         }
     }
 

@@ -220,3 +220,75 @@ pub(super) fn prefetch<T>(x: &T) {
     #[cfg(not(target_arch = "x86_64"))]
     let _ = x;
 }
+
+/// The solver bodies' velocities and angular write-back sums, shared by
+/// the workers of one colour pass (see [`BodyArrays::new`]).
+#[derive(Clone, Copy)]
+pub(super) struct BodyArrays {
+    vels: *mut BodyVel,
+    dls: *mut Vec3,
+    len: usize,
+}
+
+// SAFETY: see `BodyArrays::new`: workers touch disjoint entries between
+// barriers.
+unsafe impl Send for BodyArrays {}
+// SAFETY: as above.
+unsafe impl Sync for BodyArrays {}
+
+impl BodyArrays {
+    /// Shares `vels` and `dls` (one entry per solver body) for one pass.
+    ///
+    /// # Safety
+    /// Until the pass ends the caller uses neither slice, and any entry
+    /// written through the result by one thread is touched by no other
+    /// thread until they synchronise: the constraints visited at once share
+    /// no dynamic body (one colour), and only dynamic bodies are written
+    /// (`wa`/`wb` of a constraint are `NONE` for a kinematic body).
+    pub(super) unsafe fn new(vels: &mut [BodyVel], dls: &mut [Vec3]) -> BodyArrays {
+        debug_assert_eq!(vels.len(), dls.len());
+        BodyArrays {
+            vels: vels.as_mut_ptr(),
+            dls: dls.as_mut_ptr(),
+            len: vels.len().min(dls.len()),
+        }
+    }
+
+    #[inline(always)]
+    fn vel(&self, i: u32) -> BodyVel {
+        if i == NONE {
+            return BodyVel::default();
+        }
+        assert!((i as usize) < self.len);
+        // SAFETY: in bounds; no other thread writes this entry now (`new`).
+        unsafe { *self.vels.add(i as usize) }
+    }
+
+    /// The velocities of bodies `a` and `b` (zero for `NONE`).
+    #[inline(always)]
+    pub(super) fn load(&self, a: u32, b: u32) -> (BodyVel, BodyVel) {
+        (self.vel(a), self.vel(b))
+    }
+
+    /// Writes the velocities of the dynamic bodies `wa` and `wb` (`NONE`:
+    /// not written).
+    #[inline(always)]
+    pub(super) fn store(&self, wa: u32, wb: u32, va: BodyVel, vb: BodyVel) {
+        for (i, v) in [(wa, va), (wb, vb)] {
+            if i != NONE {
+                assert!((i as usize) < self.len);
+                // SAFETY: in bounds; this thread alone touches the entry of
+                // a dynamic body during its colour (`new`).
+                unsafe { *self.vels.add(i as usize) = v };
+            }
+        }
+    }
+
+    /// Adds `d` to dynamic body `i`'s angular write-back sum.
+    #[inline(always)]
+    pub(super) fn add_dl(&self, i: u32, d: Vec3) {
+        assert!((i as usize) < self.len);
+        // SAFETY: as in `store`.
+        unsafe { *self.dls.add(i as usize) += d };
+    }
+}

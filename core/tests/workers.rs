@@ -1,0 +1,193 @@
+//! The contact solver's worker threads never change a bit: worlds in colour
+//! order step to the same state hash every tick with 1, 2, 3, 4 and 8
+//! workers, on the repository's scene files and on a random pile big
+//! enough that every colour is split over the workers; pair order ignores
+//! the worker count; and the order itself is a world setting (hashed, kept
+//! in snapshots).
+
+mod common;
+
+use common::{Rng, s, v};
+use lockstep_core::scene::{build_world_with_config, parse_scene};
+use lockstep_core::{BodyDesc, ColliderDesc, ContactOrder, Quat, Transform, World, WorldConfig};
+
+const COUNTS: [usize; 5] = [1, 2, 3, 4, 8];
+
+/// Steps `w` for `ticks` ticks (driving its kinematic "paddle", if it has
+/// one) and returns the state hash after each, checking for faults. Also
+/// returns the most constraints of any tick, and the most colours.
+fn run(mut w: World, ticks: u64) -> (Vec<u64>, u32, u32) {
+    let paddle = w.find_body("paddle");
+    let (mut most, mut colors) = (0, 0);
+    let hashes = (0..ticks)
+        .map(|t| {
+            if let Some(k) = paddle {
+                let a = s(t as f64 / 40.0);
+                w.set_kinematic_target(
+                    k,
+                    Transform::new(v(0.0, 0.6, 0.0), Quat::from_axis_angle(v(0.0, 1.0, 0.0), a)),
+                )
+                .unwrap();
+            }
+            let r = w.step();
+            assert!(r.faults.is_empty(), "tick {t}: {}", r.faults);
+            most = most.max(r.contact_constraints);
+            colors = colors.max(r.contact_colors);
+            w.state_hash()
+        })
+        .collect();
+    (hashes, most, colors)
+}
+
+/// A walled pit with a kinematic paddle turning in it, and `n` random
+/// boxes, spheres and capsules dropped in (seeded: the same pile every
+/// run).
+fn pile(order: ContactOrder, n: usize, seed: u64) -> World {
+    let mut w = World::new(WorldConfig {
+        contact_order: order,
+        ..WorldConfig::default()
+    })
+    .unwrap();
+    let ground = w
+        .create_body(&BodyDesc::fixed().position(v(0.0, -0.5, 0.0)))
+        .unwrap();
+    w.add_collider(ground, ColliderDesc::cuboid(s(6.0), s(0.5), s(6.0)))
+        .unwrap();
+    for (x, z, hx, hz) in [
+        (4.0, 0.0, 0.2, 4.0),
+        (-4.0, 0.0, 0.2, 4.0),
+        (0.0, 4.0, 4.0, 0.2),
+        (0.0, -4.0, 4.0, 0.2),
+    ] {
+        let wall = w
+            .create_body(&BodyDesc::fixed().position(v(x, 2.0, z)))
+            .unwrap();
+        w.add_collider(wall, ColliderDesc::cuboid(s(hx), s(2.0), s(hz)))
+            .unwrap();
+    }
+    let paddle = w
+        .create_body(
+            &BodyDesc::kinematic()
+                .name("paddle")
+                .position(v(0.0, 0.6, 0.0)),
+        )
+        .unwrap();
+    w.add_collider(paddle, ColliderDesc::cuboid(s(3.0), s(0.2), s(0.3)))
+        .unwrap();
+    let mut rng = Rng(seed);
+    let mut unit = || (rng.next() >> 11) as f64 / (1u64 << 53) as f64;
+    for i in 0..n {
+        let (layer, k) = (i / 36, i % 36);
+        let pos = v(
+            -3.0 + (k % 6) as f64 + 0.3 * unit(),
+            1.5 + layer as f64 * 0.9,
+            -3.0 + (k / 6) as f64 + 0.3 * unit(),
+        );
+        let rot =
+            Quat::from_axis_angle(v(unit(), 1.0, unit()).normalize_or_zero(), s(unit() * 3.0));
+        let b = w
+            .create_body(&BodyDesc::dynamic().position(pos).rotation(rot))
+            .unwrap();
+        let shape = match i % 3 {
+            0 => ColliderDesc::cuboid(s(0.2 + 0.2 * unit()), s(0.2), s(0.3)),
+            1 => ColliderDesc::sphere(s(0.25 + 0.1 * unit())),
+            _ => ColliderDesc::capsule(s(0.2), s(0.2)),
+        };
+        w.add_collider(b, shape).unwrap();
+    }
+    w
+}
+
+#[test]
+fn a_random_pile_in_colour_order_steps_to_the_same_hashes_with_1_to_8_workers() {
+    let (reference, most, colors) = run(pile(ContactOrder::Colors, 180, 7), 150);
+    // Big enough that colours hold many blocks of constraints each, so
+    // every worker count really splits them.
+    assert!(most > 300, "{most} constraints");
+    assert!(colors >= 4, "{colors} colours");
+    for count in COUNTS {
+        let mut w = pile(ContactOrder::Colors, 180, 7);
+        w.set_workers(count);
+        assert_eq!(w.workers(), count);
+        let (hashes, _, _) = run(w, 150);
+        if let Some(t) = (0..hashes.len()).find(|&t| hashes[t] != reference[t]) {
+            panic!("{count} workers: the hash differs first at tick {t}");
+        }
+    }
+}
+
+#[test]
+fn the_scene_files_in_colour_order_step_to_the_same_hashes_with_1_to_8_workers() {
+    for name in ["pyramid.toml", "ragdolls.toml", "shapes.toml", "demo.toml"] {
+        let path = format!("{}/../scenes/{name}", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let desc = parse_scene(&text, name).unwrap();
+        let config = WorldConfig {
+            contact_order: ContactOrder::Colors,
+            ..desc.world.config()
+        };
+        let build = || build_world_with_config(&desc, config, name).unwrap();
+        let (reference, _, _) = run(build(), 120);
+        for count in COUNTS {
+            let mut w = build();
+            w.set_workers(count);
+            let (hashes, _, _) = run(w, 120);
+            if let Some(t) = (0..hashes.len()).find(|&t| hashes[t] != reference[t]) {
+                panic!("{name}, {count} workers: the hash differs first at tick {t}");
+            }
+        }
+    }
+}
+
+#[test]
+fn pair_order_ignores_the_worker_count_and_the_order_is_part_of_the_state() {
+    let (pairs, _, colors) = run(pile(ContactOrder::Pairs, 72, 3), 90);
+    assert_eq!(colors, 0, "pair order colours nothing");
+    let mut w = pile(ContactOrder::Pairs, 72, 3);
+    w.set_workers(3);
+    assert_eq!(run(w, 90).0, pairs);
+    // The two orders are two settings: different hashes from the start
+    // (the setting is hashed), and different motion once bodies touch.
+    let (mut a, mut b) = (
+        pile(ContactOrder::Pairs, 72, 3),
+        pile(ContactOrder::Colors, 72, 3),
+    );
+    assert_ne!(a.state_hash(), b.state_hash(), "the setting is hashed");
+    assert_eq!(a.body_hashes(), b.body_hashes(), "the same bodies");
+    for _ in 0..90 {
+        a.step();
+        b.step();
+    }
+    assert_ne!(
+        a.body_hashes(),
+        b.body_hashes(),
+        "the orders move bodies differently"
+    );
+}
+
+#[test]
+fn a_snapshot_keeps_the_order_and_a_restored_world_takes_any_worker_count() {
+    let mut w = pile(ContactOrder::Colors, 72, 11);
+    w.set_workers(2);
+    for _ in 0..40 {
+        w.step();
+    }
+    let bytes = w.snapshot();
+    let mut restored = World::restore(&bytes).unwrap();
+    assert_eq!(restored.config().contact_order, ContactOrder::Colors);
+    assert_eq!(
+        restored.workers(),
+        1,
+        "the worker count is not in snapshots"
+    );
+    restored.set_workers(4);
+    for t in 0..60 {
+        w.step();
+        restored.step();
+        assert_eq!(
+            w.state_hash(),
+            restored.state_hash(),
+            "tick {t} after restore"
+        );
+    }
+}
