@@ -111,6 +111,19 @@ fn checked_step(w: &mut World, t: u32) -> StepReport {
     r
 }
 
+/// Moves the kinematic body `k` along x with the tick and steps once,
+/// without faults.
+fn drive_and_step(w: &mut World, k: BodyHandle, t: i64) -> StepReport {
+    let target = Transform::new(
+        Vec3::new(Scalar::from_ratio(t, 60), s(1.0), Scalar::ZERO),
+        Quat::IDENTITY,
+    );
+    w.set_kinematic_target(k, target).unwrap();
+    let r = w.step();
+    assert!(r.faults.is_empty(), "step {t}: {}", r.faults);
+    r
+}
+
 /// Without sleeping the scene reaches a state where no buffer grows, and
 /// from then on steps allocate nothing.
 #[test]
@@ -133,13 +146,7 @@ fn step_does_not_allocate_once_warm() {
     );
     let before = allocations();
     for t in 0..200 {
-        let target = Transform::new(
-            Vec3::new(Scalar::from_ratio(t, 60), s(1.0), Scalar::ZERO),
-            Quat::IDENTITY,
-        );
-        w.set_kinematic_target(k, target).unwrap();
-        let r = w.step();
-        assert!(r.faults.is_empty());
+        let r = drive_and_step(&mut w, k, t);
         assert!(r.contact_constraints > 0, "step {t} solved no contact");
     }
     let after = allocations();
@@ -183,13 +190,7 @@ fn colour_order_on_two_workers_does_not_allocate_once_warm() {
     }
     let before = allocations();
     for t in 0..200 {
-        let target = Transform::new(
-            Vec3::new(Scalar::from_ratio(t, 60), s(1.0), Scalar::ZERO),
-            Quat::IDENTITY,
-        );
-        w.set_kinematic_target(k, target).unwrap();
-        let r = w.step();
-        assert!(r.faults.is_empty());
+        let r = drive_and_step(&mut w, k, t);
         assert!(r.contact_colors > 1, "step {t} coloured nothing");
     }
     assert_eq!(allocations() - before, 0, "step() allocated");
