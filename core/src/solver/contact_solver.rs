@@ -157,7 +157,7 @@ fn for_each_colored<F>(
     }
     let last = (0..COLORS).rev().find(|&c| starts[c + 1] > starts[c]);
     let claimed: [AtomicUsize; COLORS] = std::array::from_fn(|_| AtomicUsize::new(0));
-    let barrier = SpinBarrier::new(n);
+    let barrier = SpinBarrier::new(workers);
     let base = ConstraintsPtr(constraints.as_mut_ptr());
     workers.run(&|_| {
         for c in 0..COLORS {

@@ -57,6 +57,8 @@ struct Shared {
     done: AtomicUsize,
     /// The fault flags the helpers raised in the current job.
     faults: AtomicU8,
+    /// Whether a helper's share of the current job panicked.
+    panicked: AtomicBool,
     /// Set when the pool is dropped.
     stop: AtomicBool,
 }
@@ -110,6 +112,7 @@ impl Workers {
             epoch: AtomicU64::new(0),
             done: AtomicUsize::new(0),
             faults: AtomicU8::new(0),
+            panicked: AtomicBool::new(false),
             stop: AtomicBool::new(false),
         });
         let helpers = (1..count)
@@ -149,7 +152,12 @@ impl Workers {
         for h in &self.helpers {
             h.thread().unpark();
         }
-        job(0);
+        // Worker 0's panic is held until the helpers are done with the job
+        // (which borrows this frame); barriers see the flag and give up.
+        let mine = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| job(0)));
+        if mine.is_err() {
+            self.shared.panicked.store(true, Ordering::Relaxed);
+        }
         let mut waited = 0u32;
         while self.shared.done.load(Ordering::Acquire) < self.helpers.len() {
             pause(&mut waited);
@@ -157,6 +165,13 @@ impl Workers {
         let raised = self.shared.faults.swap(0, Ordering::Relaxed);
         if raised != 0 {
             faults::raise(Faults::from_bits(raised));
+        }
+        let helper_panicked = self.shared.panicked.swap(false, Ordering::Relaxed);
+        if let Err(payload) = mine {
+            std::panic::resume_unwind(payload);
+        }
+        if helper_panicked {
+            panic!("a solver worker thread panicked (its message is above)");
         }
     }
 }
@@ -200,9 +215,15 @@ fn helper(shared: &Shared, index: usize) {
         // posting thread wrote the job.
         if let Some(job) = unsafe { *shared.job.get() } {
             faults::take();
+            // A panic must not leave `run` waiting for this helper forever:
+            // it is caught, counted done, and raised again on the caller.
             // SAFETY: `run` does not return (so the job lives) until this
             // helper counts itself done below.
-            unsafe { (*job)(index) };
+            let ran =
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| unsafe { (*job)(index) }));
+            if ran.is_err() {
+                shared.panicked.store(true, Ordering::Relaxed);
+            }
             let raised = faults::take().bits();
             if raised != 0 {
                 shared.faults.fetch_or(raised, Ordering::Relaxed);
@@ -226,16 +247,21 @@ fn pause(waited: &mut u32) {
 /// [`wait`](SpinBarrier::wait) the same number of times, and none returns
 /// from its `k`th call before all have made it. Its Acquire/Release pair
 /// orders every write before the barrier before every read after it.
-pub(crate) struct SpinBarrier {
+pub(crate) struct SpinBarrier<'a> {
+    /// Set when a worker of the job panicked: a waiter would wait forever,
+    /// so it panics too (and `Workers::run` reports the first).
+    abandon: &'a AtomicBool,
     workers: usize,
     arrived: AtomicUsize,
     generation: AtomicUsize,
 }
 
-impl SpinBarrier {
-    pub(crate) fn new(workers: usize) -> SpinBarrier {
+impl SpinBarrier<'_> {
+    /// A barrier for every worker of `pool`.
+    pub(crate) fn new(pool: &Workers) -> SpinBarrier<'_> {
         SpinBarrier {
-            workers,
+            abandon: &pool.shared.panicked,
+            workers: pool.count(),
             arrived: AtomicUsize::new(0),
             generation: AtomicUsize::new(0),
         }
@@ -252,6 +278,9 @@ impl SpinBarrier {
         } else {
             let mut waited = 0u32;
             while self.generation.load(Ordering::Acquire) == generation {
+                if self.abandon.load(Ordering::Relaxed) {
+                    panic!("another solver worker panicked");
+                }
                 pause(&mut waited);
             }
         }
@@ -297,10 +326,50 @@ mod tests {
     }
 
     #[test]
+    fn a_panic_on_a_helper_reaches_the_caller_and_the_pool_still_works() {
+        let w = Workers::new(2);
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            w.run(&|i| {
+                if i == 1 {
+                    panic!("worker 1 fails on purpose");
+                }
+            });
+        }));
+        assert!(caught.is_err(), "the helper's panic reaches run's caller");
+        let hits = AtomicUsize::new(0);
+        w.run(&|_| {
+            hits.fetch_add(1, Ordering::Relaxed);
+        });
+        assert_eq!(hits.load(Ordering::Relaxed), 2);
+    }
+
+    #[test]
+    fn a_panic_before_a_barrier_does_not_leave_the_others_waiting() {
+        for (count, failing) in [(2, 0), (2, 1), (4, 2)] {
+            let w = Workers::new(count);
+            let barrier = SpinBarrier::new(&w);
+            let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                w.run(&|i| {
+                    if i == failing {
+                        panic!("worker {i} fails on purpose");
+                    }
+                    barrier.wait();
+                });
+            }));
+            assert!(caught.is_err(), "{count} workers, worker {failing} failing");
+            let hits = AtomicUsize::new(0);
+            w.run(&|_| {
+                hits.fetch_add(1, Ordering::Relaxed);
+            });
+            assert_eq!(hits.load(Ordering::Relaxed), count);
+        }
+    }
+
+    #[test]
     fn the_barrier_holds_every_worker_until_all_arrive() {
         for count in [2, 3, 4, 8] {
             let w = Workers::new(count);
-            let barrier = SpinBarrier::new(count);
+            let barrier = SpinBarrier::new(&w);
             let phase = AtomicUsize::new(0);
             let late = AtomicBool::new(false);
             w.run(&|_| {
