@@ -955,10 +955,31 @@ mod tests {
     }
 
     #[test]
+    fn threads_runs_colour_order_on_one_and_n_workers_to_the_same_positions() {
+        let scene = scenes::large_pyramid(6, 20);
+        let r = run_scene(&scene, 1, Some(3));
+        let t = r.threaded.as_ref().expect("threaded runs");
+        assert_eq!(t.workers, 3);
+        for e in [&t.one, &t.many] {
+            assert!(e.median_ms > 0.0 && !e.faulted);
+        }
+        // The same bits on 1 and 3 workers, so the same end positions.
+        assert_eq!(
+            t.one.max_displacement.to_bits(),
+            t.many.max_displacement.to_bits()
+        );
+        assert_eq!(t.one.top_dy.to_bits(), t.many.top_dy.to_bits());
+        let table = threads_table(&[r]);
+        assert!(table.contains("large_pyramid    3"), "{table}");
+        assert!(table.contains("colours N"), "{table}");
+    }
+
+    #[test]
     fn a_quick_scene_runs_in_both_engines_and_reports_every_column() {
         let scene = scenes::large_pyramid(3, 3);
-        let r = run_scene(&scene, 1);
+        let r = run_scene(&scene, 1, None);
         assert_eq!((r.bodies, r.steps, r.runs), (6, 3, 1));
+        assert!(r.threaded.is_none() && threads_table(std::slice::from_ref(&r)).is_empty());
         for e in [&r.ours, &r.rapier] {
             assert!(e.median_ms > 0.0 && e.min_ms <= e.median_ms);
             assert!(e.peak_bytes > 0);
