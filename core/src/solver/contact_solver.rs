@@ -4,8 +4,9 @@
 //! Per tick, `prepare` builds a compact array of solver bodies (awake dynamic
 //! and kinematic bodies that appear in a solid contact, in slot order;
 //! static and sleeping bodies are an implicit zero-velocity, infinite-mass
-//! body) and one constraint per solid pair with points, in colour order (see
-//! [`color`]: no two constraints of a colour share a dynamic body). Anchors
+//! body) and one constraint per solid pair with points, in the world's
+//! contact order: pair order, or colour order (see [`color`]: no two
+//! constraints of a colour share a moving dynamic body). Anchors
 //! are taken relative to the body centres at the start of the tick, and the
 //! effective masses are computed there once (the iteration loops never
 //! divide). Then, per substep:
@@ -66,17 +67,19 @@
 //! toward +∞ by the solver's own [`mul`] and [`round_wide`] (cheaper than
 //! `Scalar`'s ties-away rounding; the same overflow faults).
 //!
-//! Determinism: bodies in slot (handle) order; constraints colour by colour,
-//! each colour in pair order (ascending collider handles), the colours
-//! recomputed each tick from the pairs in that order; points in manifold
-//! order starting at point `k mod count` in substep `k` of the tick.
+//! Determinism: bodies in slot (handle) order; constraints in pair order
+//! (ascending collider handles), or colour by colour, the colours
+//! recomputed each tick from the pairs in that order (the constraints of
+//! one colour give the same results in any order, on any worker); points
+//! in manifold order starting at point `k mod count` in substep `k` of the
+//! tick.
 
 mod color;
 mod patch;
 mod rows;
 mod shock;
 
-use color::{COLORS, Coloring, OVERFLOW};
+use color::{COLORS, Coloring};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::workers::{SpinBarrier, Workers};
@@ -165,17 +168,9 @@ fn for_each_colored<F>(
             if lo >= hi {
                 continue;
             }
-            loop {
-                let first = lo + claimed[c].fetch_add(1, Ordering::Relaxed) * BLOCK;
-                if first >= hi {
-                    break;
-                }
-                let end = (first + BLOCK).min(hi);
-                // SAFETY: `first..end` lies in the array and this worker
-                // alone claimed it.
-                let block = unsafe { std::slice::from_raw_parts_mut(base.at(first), end - first) };
-                for_each_prefetched(block, &visit);
-            }
+            // SAFETY: `lo..hi` lies in `constraints`, which this function
+            // holds mutably, and only this colour's counter claims in it.
+            unsafe { visit_claimed_blocks(base, lo..hi, &claimed[c], &visit) };
             if Some(c) != last {
                 barrier.wait();
             }
@@ -198,19 +193,35 @@ where
     }
     let claimed = AtomicUsize::new(0);
     let base = ConstraintsPtr(constraints.as_mut_ptr());
-    workers.run(&|_| {
-        loop {
-            let first = claimed.fetch_add(1, Ordering::Relaxed) * BLOCK;
-            if first >= len {
-                break;
-            }
-            let end = (first + BLOCK).min(len);
-            // SAFETY: `first..end` lies in the array and this worker alone
-            // claimed it.
-            let block = unsafe { std::slice::from_raw_parts_mut(base.at(first), end - first) };
-            for_each_prefetched(block, &visit);
+    // SAFETY: `0..len` is `constraints`, which this function holds mutably,
+    // and only `claimed` claims in it.
+    workers.run(&|_| unsafe { visit_claimed_blocks(base, 0..len, &claimed, &visit) });
+}
+
+/// One worker's share of `range`: blocks of [`BLOCK`] constraints claimed
+/// from `claimed` (the block index past `range.start`) until none is left.
+///
+/// # Safety
+/// `range` lies in the array at `base`, nothing else touches it while the
+/// workers run, and every worker claims from the same `claimed`, which
+/// starts at zero: so each block is visited once, by one worker.
+unsafe fn visit_claimed_blocks(
+    base: ConstraintsPtr,
+    range: std::ops::Range<usize>,
+    claimed: &AtomicUsize,
+    visit: &impl Fn(&mut Constraint),
+) {
+    loop {
+        let first = range.start + claimed.fetch_add(1, Ordering::Relaxed) * BLOCK;
+        if first >= range.end {
+            break;
         }
-    });
+        let end = (first + BLOCK).min(range.end);
+        // SAFETY: `first..end` lies in `range`, and this worker alone
+        // claimed it (the caller's contract).
+        let block = unsafe { std::slice::from_raw_parts_mut(base.at(first), end - first) };
+        for_each_prefetched(block, visit);
+    }
 }
 
 /// Marks "no solver body": a static or sleeping body.
@@ -890,11 +901,11 @@ impl ContactSolver {
             self.pending.capacity(),
             self.coloring.capacities(),
         ) != caps;
-        let s = &self.starts;
+        let (colors, overflow) = self.coloring.report();
         SolverStats {
             constraints: self.constraints.len() as u32,
-            colors: (0..COLORS).filter(|&c| s[c + 1] > s[c]).count() as u32,
-            overflow: s[OVERFLOW + 1] - s[OVERFLOW],
+            colors,
+            overflow,
             growths: grew as u32,
         }
     }

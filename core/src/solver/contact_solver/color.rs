@@ -38,7 +38,7 @@ use crate::collision::contacts::reserve_near;
 /// benchmark scene.
 pub(crate) const COLORS: usize = 24;
 
-/// The index of the overflow range in [`Coloring::ranges`].
+/// The index of the overflow in the per-colour counts and ranges.
 pub(crate) const OVERFLOW: usize = COLORS;
 
 /// The colour assignment of one tick.
@@ -137,6 +137,17 @@ impl Coloring {
     pub(crate) fn reserve(&mut self, n: usize) {
         reserve_near(&mut self.color, n);
         reserve_near(&mut self.slots, n);
+    }
+
+    /// This tick's colours with at least one constraint, and the
+    /// constraints that found no free colour: both zero without colours
+    /// (pair order is not an overflow).
+    pub(crate) fn report(&self) -> (u32, u32) {
+        if !self.enabled {
+            return (0, 0);
+        }
+        let used = self.count[..COLORS].iter().filter(|&&n| n > 0).count();
+        (used as u32, self.count[OVERFLOW])
     }
 
     /// The colour of the `k`th candidate coloured this tick.
@@ -242,6 +253,7 @@ mod tests {
         assert_eq!(starts[3], 6);
         assert_eq!(starts[COLORS], 6);
         assert_eq!(starts[OVERFLOW + 1], 6, "nothing in the overflow");
+        assert_eq!(col.report(), (3, 0));
     }
 
     #[test]
@@ -260,6 +272,7 @@ mod tests {
         }
         let starts = col.finish();
         assert_eq!(starts[OVERFLOW + 1] - starts[OVERFLOW], 30 - COLORS as u32);
+        assert_eq!(col.report(), (COLORS as u32, 30 - COLORS as u32));
         assert!(col.taken.iter().all(|&w| w == 0));
         // A second tick with fewer slots starts clear too.
         col.begin(10, true);
@@ -278,6 +291,7 @@ mod tests {
         let starts = col.finish();
         assert_eq!(starts[OVERFLOW], 0, "no colour holds a constraint");
         assert_eq!(starts[OVERFLOW + 1], 4);
+        assert_eq!(col.report(), (0, 0), "pair order reports no overflow");
         assert!(col.taken.iter().all(|&w| w == 0));
     }
 }
