@@ -525,18 +525,22 @@ pub struct SceneResult {
     pub runs: usize,
     /// lockstep-core.
     pub ours: EngineResult,
-    /// With `--threads N`: ours in colour order with one worker, then
-    /// with N.
+    /// With `--threads N`: ours in pair order on N workers, and in colour
+    /// order on one and on N.
     pub threaded: Option<Threaded>,
     /// Rapier.
     pub rapier: EngineResult,
 }
 
-/// Ours in colour order on one worker and on N (`engines --threads N`).
+/// Ours on N workers in pair order, and in colour order on one worker and
+/// on N (`engines --threads N`).
 #[derive(Clone, Debug)]
 pub struct Threaded {
     /// N.
     pub workers: usize,
+    /// Pair order, N workers (the same bits as pair order on one: the
+    /// narrow phase, integrators and solver set-up split, the passes not).
+    pub pairs_many: EngineResult,
     /// Colour order, one worker.
     pub one: EngineResult,
     /// Colour order, N workers (the same bits as `one`).
@@ -544,12 +548,12 @@ pub struct Threaded {
 }
 
 /// Runs one scene `runs` times per engine, alternating; with `threads`,
-/// each run also steps ours in colour order on one worker and on that
-/// many.
+/// each run also steps ours in pair order on that many workers and in
+/// colour order on one worker and on that many.
 pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneResult {
     let mut ours = Vec::new();
     let mut theirs = Vec::new();
-    let (mut one, mut many) = (Vec::new(), Vec::new());
+    let (mut pairs_many, mut one, mut many) = (Vec::new(), Vec::new(), Vec::new());
     let mut faulted = false;
     for _ in 0..runs.max(1) {
         let (run, sim) = measure(scene, Ours::new);
@@ -560,9 +564,12 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
         drop(sim);
         theirs.push(run);
         if let Some(n) = threads {
-            for (workers, out) in [(1, &mut one), (n, &mut many)] {
-                let (run, sim) =
-                    measure(scene, |s| Ours::in_order(s, ContactOrder::Colors, workers));
+            for (order, workers, out) in [
+                (ContactOrder::Pairs, n, &mut pairs_many),
+                (ContactOrder::Colors, 1, &mut one),
+                (ContactOrder::Colors, n, &mut many),
+            ] {
+                let (run, sim) = measure(scene, |s| Ours::in_order(s, order, workers));
                 faulted |= sim.faulted;
                 drop(sim);
                 out.push(run);
@@ -572,6 +579,7 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
     let has_tops = !scene.tops.is_empty();
     let threaded = threads.map(|workers| Threaded {
         workers,
+        pairs_many: EngineResult::from_runs(&pairs_many, has_tops, faulted),
         one: EngineResult::from_runs(&one, has_tops, faulted),
         many: EngineResult::from_runs(&many, has_tops, faulted),
     });
@@ -757,8 +765,8 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
     out
 }
 
-/// With `--threads N`: ours in colour order on 1 and N workers beside
-/// pair order and Rapier (one thread), from the same runs.
+/// With `--threads N`: ours in pair order on 1 and N workers and in colour
+/// order on 1 and N, beside Rapier (one thread), from the same runs.
 pub fn threads_table(results: &[SceneResult]) -> String {
     let mut out = String::new();
     if results.iter().all(|r| r.threaded.is_none()) {
@@ -766,14 +774,16 @@ pub fn threads_table(results: &[SceneResult]) -> String {
     }
     let _ = writeln!(
         out,
-        "\nthreads: ours in colour order (the contact solver's colours split over N workers; the same bits for any N)"
+        "\nthreads: ours on N workers (the same bits for any N; in pair order the narrow phase, integrators and solver set-up split, in colour order the solver passes too)"
     );
     let _ = writeln!(
         out,
-        "{:<14} {:>3}  {:>10} {:>10} {:>10}  {:>8}  {:>10}  {:>8} {:>8}  {:>9} {:>9}",
+        "{:<14} {:>3}  {:>10} {:>10} {:>8}  {:>10} {:>10}  {:>8}  {:>10}  {:>8} {:>8}  {:>9} {:>9}",
         "scene",
         "N",
         "pairs 1",
+        "pairs N",
+        "1→N",
         "colours 1",
         "colours N",
         "1→N",
@@ -787,10 +797,12 @@ pub fn threads_table(results: &[SceneResult]) -> String {
         let Some(t) = &r.threaded else { continue };
         let _ = writeln!(
             out,
-            "{:<14} {:>3}  {:>10.3} {:>10.3} {:>10.3}  {:>7.2}×  {:>10.3}  {:>8.2} {:>8.2}  {:>9.4} {:>9.4}",
+            "{:<14} {:>3}  {:>10.3} {:>10.3} {:>7.2}×  {:>10.3} {:>10.3}  {:>7.2}×  {:>10.3}  {:>8.2} {:>8.2}  {:>9.4} {:>9.4}",
             r.name,
             t.workers,
             r.ours.median_ms,
+            t.pairs_many.median_ms,
+            r.ours.median_ms / t.pairs_many.median_ms,
             t.one.median_ms,
             t.many.median_ms,
             t.one.median_ms / t.many.median_ms,
@@ -803,7 +815,7 @@ pub fn threads_table(results: &[SceneResult]) -> String {
     }
     let _ = writeln!(
         out,
-        "(median ms/step; 1→N = colours on 1 worker / on N; N/rapier = colours on N workers / Rapier on one thread \
+        "(median ms/step; 1→N = on 1 worker / on N, in each order; N/rapier = colours on N workers / Rapier on one thread \
          (Rapier's parallel build is not in this bench); 1/rapier = pair order / Rapier, as above)"
     );
     out
@@ -955,12 +967,12 @@ mod tests {
     }
 
     #[test]
-    fn threads_runs_colour_order_on_one_and_n_workers_to_the_same_positions() {
+    fn threads_runs_each_order_on_one_and_n_workers_to_the_same_positions() {
         let scene = scenes::large_pyramid(6, 20);
         let r = run_scene(&scene, 1, Some(3));
         let t = r.threaded.as_ref().expect("threaded runs");
         assert_eq!(t.workers, 3);
-        for e in [&t.one, &t.many] {
+        for e in [&t.pairs_many, &t.one, &t.many] {
             assert!(e.median_ms > 0.0 && !e.faulted);
         }
         // The same bits on 1 and 3 workers, so the same end positions.
@@ -969,6 +981,11 @@ mod tests {
             t.many.max_displacement.to_bits()
         );
         assert_eq!(t.one.top_dy.to_bits(), t.many.top_dy.to_bits());
+        assert_eq!(
+            r.ours.max_displacement.to_bits(),
+            t.pairs_many.max_displacement.to_bits()
+        );
+        assert_eq!(r.ours.top_dy.to_bits(), t.pairs_many.top_dy.to_bits());
         let table = threads_table(&[r]);
         assert!(table.contains("large_pyramid    3"), "{table}");
         assert!(table.contains("colours N"), "{table}");

@@ -5,7 +5,7 @@
 //! cargo run --release -p lockstep-bench -- math [--csv FILE] [--quick]
 //! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N] [--steps N] [--threads N] [--stages [--callgrind-dir DIR]]
 //! cargo run --release -p lockstep-bench -- sleep [--quick] [--csv FILE]
-//! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N]
+//! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N] [--threads N] [--stages]
 //! cargo run --release -p lockstep-bench -- accuracy [--quick] [--csv FILE] [--scenes a,b] [--runs N]
 //! cargo run --release -p lockstep-bench -- stress [--quick] [--csv FILE] [--scenes a,b]
 //! cargo run --release -p lockstep-bench -- net [--quick] [--csv FILE] [--scenes 256x4,512x4]

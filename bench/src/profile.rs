@@ -4,12 +4,18 @@
 //! (first step excluded) with the scene's contact points, the last step's
 //! narrow-phase tests and how many of them reused a manifold, top-box drop and
 //! final state hash (so a change meant to keep results can be checked bit
-//! for bit).
+//! for bit). `--threads N` steps the contact solver in colour order on N
+//! workers instead of pair order on one; `--stages` also prints ms/step per
+//! stage (timed through `World::step_observed`).
 
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use crate::engines::{build_ours, scene_list, sleep_off};
+use lockstep_core::ContactOrder;
+use lockstep_core::world::Stage;
+
+use crate::engines::{build_ours_in, scene_list, sleep_off};
+use crate::stages::StageClock;
 use crate::{Options, SuiteOutput};
 
 /// Steps when `--steps` is not given.
@@ -22,7 +28,19 @@ pub fn run(opts: &Options) -> SuiteOutput {
         .scenes
         .clone()
         .unwrap_or_else(|| vec!["large_pyramid".to_owned()]);
-    let mut text = String::from(
+    let order = match opts.threads {
+        Some(_) => ContactOrder::Colors,
+        None => ContactOrder::Pairs,
+    };
+    let workers = opts.threads.unwrap_or(1);
+    let mut text = format!(
+        "ours in {} order on {workers} worker(s)\n",
+        match order {
+            ContactOrder::Colors => "colour",
+            ContactOrder::Pairs => "pair",
+        }
+    );
+    text.push_str(
         "scene           bodies  steps   ms/step  contacts    tests  reused  top dy m  state hash\n",
     );
     let mut csv = String::from(
@@ -33,13 +51,22 @@ pub fn run(opts: &Options) -> SuiteOutput {
         if !wanted.iter().any(|w| w == name) {
             continue;
         }
-        let (mut world, bodies) = build_ours(&scene, sleep_off());
+        let (mut world, bodies) = build_ours_in(&scene, sleep_off(), order);
+        world.set_workers(workers);
+        let mut clock = StageClock::new();
         let mut total = 0.0;
         let (mut points, mut tests, mut reused) = (0, 0, 0);
         for i in 0..steps {
             let t = Instant::now();
-            let r = world.step();
-            if i > 0 {
+            let r = if opts.stages {
+                clock.start_step();
+                world.step_observed(&mut clock)
+            } else {
+                world.step()
+            };
+            if i == 0 {
+                clock.reset();
+            } else {
                 total += t.elapsed().as_secs_f64();
             }
             (points, tests, reused) = (r.contact_points, r.narrow_tests, r.reused_manifolds);
@@ -68,6 +95,12 @@ pub fn run(opts: &Options) -> SuiteOutput {
             "profile,{name},{},{steps},{ms:.4},{points},{tests},{reused},{top_dy:.6},{hash:016x}",
             scene.positions.len()
         );
+        if opts.stages {
+            for (stage, d) in Stage::ALL.iter().zip(clock.spent()) {
+                let ms = d.as_secs_f64() * 1e3 / (steps - 1) as f64;
+                let _ = writeln!(text, "    {:<22} {ms:>9.3}", stage.name());
+            }
+        }
     }
     SuiteOutput { text, csv }
 }

@@ -105,9 +105,40 @@ pub fn group_of(stage: Stage) -> Group {
 /// Reads the clock as each stage ends and adds the time since the previous
 /// stage (or the step's start) to the stage that ended. Fixed arrays: it
 /// does not allocate.
-struct StageClock {
+pub struct StageClock {
     last: Instant,
     spent: [Duration; Stage::ALL.len()],
+}
+
+impl StageClock {
+    /// A clock with nothing spent yet.
+    pub fn new() -> StageClock {
+        StageClock {
+            last: Instant::now(),
+            spent: [Duration::ZERO; Stage::ALL.len()],
+        }
+    }
+
+    /// Starts timing a step now.
+    pub fn start_step(&mut self) {
+        self.last = Instant::now();
+    }
+
+    /// Forgets what was spent so far (the first, cold step).
+    pub fn reset(&mut self) {
+        self.spent = [Duration::ZERO; Stage::ALL.len()];
+    }
+
+    /// Time spent per stage, [`Stage::ALL`] order.
+    pub fn spent(&self) -> &[Duration; Stage::ALL.len()] {
+        &self.spent
+    }
+}
+
+impl Default for StageClock {
+    fn default() -> StageClock {
+        StageClock::new()
+    }
 }
 
 impl StepObserver for StageClock {
@@ -167,18 +198,15 @@ fn ms_per_step(d: Duration, steps: usize) -> f64 {
 /// Steps ours with the stage clock.
 fn run_ours(scene: &Scene) -> OursRun {
     let (mut world, _) = build_ours(scene, sleep_off());
-    let mut clock = StageClock {
-        last: Instant::now(),
-        spent: [Duration::ZERO; Stage::ALL.len()],
-    };
+    let mut clock = StageClock::new();
     let mut total = Duration::ZERO;
     for i in 0..scene.steps {
         let start = Instant::now();
-        clock.last = start;
+        clock.start_step();
         world.step_observed(&mut clock);
         let spent = start.elapsed();
         if i == 0 {
-            clock.spent = [Duration::ZERO; Stage::ALL.len()];
+            clock.reset();
         } else {
             total += spent;
         }

@@ -1,25 +1,38 @@
-//! The contact solver's worker threads never change a bit: worlds in colour
-//! order step to the same state hash every tick with 1, 2, 3, 4 and 8
-//! workers, on the repository's scene files and on a random pile big
-//! enough that every colour is split over the workers; pair order ignores
-//! the worker count; and the order itself is a world setting (hashed, kept
-//! in snapshots).
+//! A world's worker threads never change a bit: worlds in either contact
+//! order step to the same state hash, step report and contact events every
+//! tick with 1, 2, 3, 4 and 8 workers, on the repository's scene files and
+//! on a random pile big enough that every colour, the narrow phase's pairs
+//! and the integrators' bodies are split over the workers; and the order
+//! itself is a world setting (hashed, kept in snapshots).
 
 mod common;
 
 use common::{Rng, s, v};
+use lockstep_core::collision::ContactEvent;
 use lockstep_core::scene::{build_world_with_config, parse_scene};
-use lockstep_core::{BodyDesc, ColliderDesc, ContactOrder, Quat, Transform, World, WorldConfig};
+use lockstep_core::{
+    BodyDesc, ColliderDesc, ContactOrder, Quat, StepReport, Transform, World, WorldConfig,
+};
 
 const COUNTS: [usize; 5] = [1, 2, 3, 4, 8];
+
+/// What a run left after each tick: the state hash, the step's report and
+/// its contact events.
+type Trace = Vec<(u64, StepReport, Vec<ContactEvent>)>;
 
 /// Steps `w` for `ticks` ticks (driving its kinematic "paddle", if it has
 /// one) and returns the state hash after each, checking for faults. Also
 /// returns the most constraints of any tick, and the most colours.
-fn run(mut w: World, ticks: u64) -> (Vec<u64>, u32, u32) {
+fn run(w: World, ticks: u64) -> (Vec<u64>, u32, u32) {
+    let (trace, most, colors) = trace(w, ticks);
+    (trace.into_iter().map(|t| t.0).collect(), most, colors)
+}
+
+/// [`run`] with every tick's report and events too.
+fn trace(mut w: World, ticks: u64) -> (Trace, u32, u32) {
     let paddle = w.find_body("paddle");
     let (mut most, mut colors) = (0, 0);
-    let hashes = (0..ticks)
+    let trace = (0..ticks)
         .map(|t| {
             if let Some(k) = paddle {
                 let a = s(t as f64 / 40.0);
@@ -33,10 +46,21 @@ fn run(mut w: World, ticks: u64) -> (Vec<u64>, u32, u32) {
             assert!(r.faults.is_empty(), "tick {t}: {}", r.faults);
             most = most.max(r.contact_constraints);
             colors = colors.max(r.contact_colors);
-            w.state_hash()
+            (w.state_hash(), r, w.contact_events().to_vec())
         })
         .collect();
-    (hashes, most, colors)
+    (trace, most, colors)
+}
+
+/// Panics at the first tick where `got` differs from `want`.
+fn same_trace(want: &Trace, got: &Trace, what: &str) {
+    assert_eq!(want.len(), got.len());
+    if let Some(t) = (0..want.len()).find(|&t| want[t] != got[t]) {
+        panic!(
+            "{what}: tick {t} differs (hash, report, events):\n{:?}\n{:?}",
+            want[t], got[t]
+        );
+    }
 }
 
 /// A walled pit with a kinematic paddle turning in it, and `n` random
@@ -99,53 +123,60 @@ fn pile(order: ContactOrder, n: usize, seed: u64) -> World {
 }
 
 #[test]
-fn a_random_pile_in_colour_order_steps_to_the_same_hashes_with_1_to_8_workers() {
-    let (reference, most, colors) = run(pile(ContactOrder::Colors, 180, 7), 150);
-    // Big enough that colours hold many blocks of constraints each, so
-    // every worker count really splits them.
-    assert!(most > 300, "{most} constraints");
-    assert!(colors >= 4, "{colors} colours");
-    for count in COUNTS {
-        let mut w = pile(ContactOrder::Colors, 180, 7);
-        w.set_workers(count);
-        assert_eq!(w.workers(), count);
-        let (hashes, _, _) = run(w, 150);
-        if let Some(t) = (0..hashes.len()).find(|&t| hashes[t] != reference[t]) {
-            panic!("{count} workers: the hash differs first at tick {t}");
+fn a_random_pile_steps_to_the_same_hashes_reports_and_events_with_1_to_8_workers() {
+    for order in [ContactOrder::Colors, ContactOrder::Pairs] {
+        let (reference, most, colors) = trace(pile(order, 180, 7), 150);
+        // Big enough that colours hold many blocks of constraints each, and
+        // the narrow phase many blocks of pairs, so every worker count
+        // really splits them; with bodies coming to rest and leaving
+        // contact on the way (events).
+        assert!(most > 300, "{most} constraints");
+        if order == ContactOrder::Colors {
+            assert!(colors >= 4, "{colors} colours");
+        }
+        assert!(reference.iter().any(|t| t.1.narrow_tests > 200));
+        assert!(reference.iter().any(|t| t.1.end_events > 0));
+        for count in COUNTS {
+            let mut w = pile(order, 180, 7);
+            w.set_workers(count);
+            assert_eq!(w.workers(), count);
+            let (got, _, _) = trace(w, 150);
+            same_trace(&reference, &got, &format!("{order:?}, {count} workers"));
         }
     }
 }
 
 #[test]
-fn the_scene_files_in_colour_order_step_to_the_same_hashes_with_1_to_8_workers() {
+fn the_scene_files_step_to_the_same_hashes_reports_and_events_with_1_to_8_workers() {
     for name in ["pyramid.toml", "ragdolls.toml", "shapes.toml", "demo.toml"] {
         let path = format!("{}/../scenes/{name}", env!("CARGO_MANIFEST_DIR"));
         let text = std::fs::read_to_string(&path).unwrap();
         let desc = parse_scene(&text, name).unwrap();
-        let config = WorldConfig {
-            contact_order: ContactOrder::Colors,
-            ..desc.world.config()
-        };
-        let build = || build_world_with_config(&desc, config, name).unwrap();
-        let (reference, _, _) = run(build(), 120);
-        for count in COUNTS {
-            let mut w = build();
-            w.set_workers(count);
-            let (hashes, _, _) = run(w, 120);
-            if let Some(t) = (0..hashes.len()).find(|&t| hashes[t] != reference[t]) {
-                panic!("{name}, {count} workers: the hash differs first at tick {t}");
+        for order in [ContactOrder::Colors, ContactOrder::Pairs] {
+            let config = WorldConfig {
+                contact_order: order,
+                ..desc.world.config()
+            };
+            let build = || build_world_with_config(&desc, config, name).unwrap();
+            let (reference, _, _) = trace(build(), 120);
+            for count in COUNTS {
+                let mut w = build();
+                w.set_workers(count);
+                let (got, _, _) = trace(w, 120);
+                same_trace(
+                    &reference,
+                    &got,
+                    &format!("{name}, {order:?}, {count} workers"),
+                );
             }
         }
     }
 }
 
 #[test]
-fn pair_order_ignores_the_worker_count_and_the_order_is_part_of_the_state() {
-    let (pairs, _, colors) = run(pile(ContactOrder::Pairs, 72, 3), 90);
+fn pair_order_colours_nothing_and_the_order_is_part_of_the_state() {
+    let (_, _, colors) = run(pile(ContactOrder::Pairs, 72, 3), 90);
     assert_eq!(colors, 0, "pair order colours nothing");
-    let mut w = pile(ContactOrder::Pairs, 72, 3);
-    w.set_workers(3);
-    assert_eq!(run(w, 90).0, pairs);
     // The two orders are two settings: different hashes from the start
     // (the setting is hashed), and different motion once bodies touch.
     let (mut a, mut b) = (

@@ -22,11 +22,21 @@
 //!
 //! Determinism: pairs, and therefore events, are in ascending order of
 //! (collider A, collider B) handles, whatever the trees' shape.
+//!
+//! Threads: an update is three passes. The merge walks the candidates and
+//! the old pairs in key order on the calling thread and lists the pairs to
+//! test; the narrow phase then runs on the listed pairs in blocks over the
+//! world's workers (each test reads the two colliders' poses and writes its
+//! own pair alone, so its result does not depend on who runs it); last, one
+//! walk in key order on the calling thread counts the tests and puts each
+//! pair's begin/end event in its place among the end events of the retired
+//! pairs. The pairs, events and counters are the same for any worker count.
 
 use serde::{Deserialize, Serialize};
 
 use crate::collider::ColliderHandle;
 use crate::math::Scalar;
+use crate::solver::workers::{SharedMut, Workers};
 
 use super::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
 use super::reuse::ReuseCache;
@@ -253,6 +263,72 @@ pub struct ContactSet {
     /// Derived: which pairs an update must visit (see the module docs).
     #[serde(skip)]
     active: ActivePairs,
+    /// Scratch of the current update.
+    #[serde(skip)]
+    scratch: UpdateScratch,
+}
+
+/// Buffers an update reuses (no state: always equal).
+#[derive(Clone, Debug, Default)]
+struct UpdateScratch {
+    /// The pairs the update tests (see the module docs).
+    tests: Vec<Test>,
+    /// The events being put in order.
+    merged: Vec<ContactEvent>,
+}
+
+impl PartialEq for UpdateScratch {
+    fn eq(&self, _: &UpdateScratch) -> bool {
+        true
+    }
+}
+
+impl Eq for UpdateScratch {}
+
+/// A pair the current update tests: where it is, how many events came
+/// before it in key order, and what the test did ([`Test::REUSED`],
+/// [`Test::BEGIN`], [`Test::END`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct Test {
+    /// Its index in the pair array, or in `ContactSet::next` tagged with
+    /// [`NEW_PAIR`].
+    at: u32,
+    /// Events before this pair's own.
+    events_before: u32,
+    /// What the test did.
+    outcome: u8,
+}
+
+impl Test {
+    /// The manifold was rebuilt from the reuse cache.
+    const REUSED: u8 = 1;
+    /// The pair started touching.
+    const BEGIN: u8 = 2;
+    /// The pair stopped touching.
+    const END: u8 = 4;
+}
+
+/// The narrow-phase function [`ContactSet::update`] calls (see there).
+pub trait NarrowTest:
+    Fn(
+        ColliderHandle,
+        ColliderHandle,
+        Option<(&mut Manifold, &mut ReuseCache)>,
+        &mut Manifold,
+    ) -> bool
+    + Sync
+{
+}
+
+impl<F> NarrowTest for F where
+    F: Fn(
+            ColliderHandle,
+            ColliderHandle,
+            Option<(&mut Manifold, &mut ReuseCache)>,
+            &mut Manifold,
+        ) -> bool
+        + Sync
+{
 }
 
 /// The active pairs: indices into the pair array, ascending, of every pair
@@ -342,7 +418,8 @@ impl ContactSet {
     /// Merges the sorted `candidates` with the current pairs.
     ///
     /// - `narrow(a, b, reuse, manifold)` fills the manifold of a candidate
-    ///   (called once per candidate, in pair order). For a solid pair
+    ///   (called once per candidate, on any of the `workers`, in any
+    ///   order: it must read nothing another call writes). For a solid pair
     ///   `reuse` holds the pair's current manifold and its reuse cache: the
     ///   closure may rebuild the manifold from the cache (returning true) or
     ///   run the full test and record the cache anew, or empty it for a
@@ -360,22 +437,93 @@ impl ContactSet {
     /// all pairs.
     ///
     /// Determinism: must be given candidates sorted by (A, B) handle index.
-    pub fn update(
+    pub(crate) fn update(
         &mut self,
         candidates: impl Iterator<Item = Candidate>,
-        narrow: impl FnMut(
-            ColliderHandle,
-            ColliderHandle,
-            Option<(&mut Manifold, &mut ReuseCache)>,
-            &mut Manifold,
-        ) -> bool,
+        narrow: impl NarrowTest,
         keep_asleep: impl FnMut(&ContactPair) -> bool,
+        workers: &Workers,
     ) -> ContactStats {
-        if self.active.valid {
-            self.update_active(candidates, narrow, keep_asleep)
+        let caps = self.scratch.tests.capacity();
+        self.scratch.tests.clear();
+        let mut stats = if self.active.valid {
+            self.update_active(candidates, &narrow, keep_asleep, workers)
         } else {
-            self.update_all(candidates, narrow, keep_asleep)
+            self.update_all(candidates, &narrow, keep_asleep, workers)
+        };
+        if self.scratch.tests.capacity() != caps {
+            stats.growths += 1;
         }
+        stats
+    }
+
+    /// Lists a pair to test (its kind set to the candidate's); `at` as in
+    /// [`Test::at`].
+    fn list_test(&mut self, at: u32) {
+        self.scratch.tests.push(Test {
+            at,
+            events_before: self.events.len() as u32,
+            outcome: 0,
+        });
+    }
+
+    /// The narrow phase on every listed pair, in blocks over the workers,
+    /// then the tests' counters and events in key order (see the module
+    /// docs).
+    fn run_tests(&mut self, narrow: &impl NarrowTest, workers: &Workers, stats: &mut ContactStats) {
+        const BLOCK: usize = 8;
+        let len = self.scratch.tests.len();
+        {
+            let tests = SharedMut::new(&mut self.scratch.tests);
+            let pairs = SharedMut::new(&mut self.pairs);
+            let next = SharedMut::new(&mut self.next);
+            workers.for_each_block(len, BLOCK, |r| {
+                let mut scratch = Manifold::EMPTY;
+                // SAFETY: each block goes to one worker alone, and each
+                // listed pair is listed once.
+                for t in unsafe { tests.slice(r) } {
+                    let pair = unsafe {
+                        if t.at & NEW_PAIR != 0 {
+                            next.get((t.at & !NEW_PAIR) as usize)
+                        } else {
+                            pairs.get(t.at as usize)
+                        }
+                    };
+                    t.outcome = Self::test_pair(pair, narrow, &mut scratch);
+                }
+            });
+        }
+        stats.narrow_tests += len as u32;
+        self.scratch.merged.clear();
+        reserve_near(&mut self.scratch.merged, self.events.len() + len);
+        let mut retired = 0;
+        for t in &self.scratch.tests {
+            stats.reused += u32::from(t.outcome & Test::REUSED != 0);
+            if t.outcome & (Test::BEGIN | Test::END) == 0 {
+                continue;
+            }
+            let upto = t.events_before as usize;
+            self.scratch
+                .merged
+                .extend_from_slice(&self.events[retired..upto]);
+            retired = upto;
+            let pair = if t.at & NEW_PAIR != 0 {
+                &self.next[(t.at & !NEW_PAIR) as usize]
+            } else {
+                &self.pairs[t.at as usize]
+            };
+            if t.outcome & Test::BEGIN != 0 {
+                self.scratch.merged.push(ContactEvent::begin(pair));
+                stats.begin_events += 1;
+            } else {
+                self.scratch.merged.push(ContactEvent::end(pair));
+                stats.end_events += 1;
+            }
+        }
+        self.scratch
+            .merged
+            .extend_from_slice(&self.events[retired..]);
+        std::mem::swap(&mut self.events, &mut self.scratch.merged);
     }
 
     /// [`update`](Self::update) walking every pair; rebuilds the active
@@ -383,26 +531,25 @@ impl ContactSet {
     fn update_all(
         &mut self,
         candidates: impl Iterator<Item = Candidate>,
-        mut narrow: impl FnMut(
-            ColliderHandle,
-            ColliderHandle,
-            Option<(&mut Manifold, &mut ReuseCache)>,
-            &mut Manifold,
-        ) -> bool,
+        narrow: &impl NarrowTest,
         mut keep_asleep: impl FnMut(&ContactPair) -> bool,
+        workers: &Workers,
     ) -> ContactStats {
         let mut stats = ContactStats::default();
         let active_cap = self.active.index.capacity();
         self.active.index.clear();
-        let caps = (self.next.capacity(), self.events.capacity());
+        let caps = (
+            self.next.capacity(),
+            self.events.capacity() + self.scratch.merged.capacity(),
+        );
         self.next.clear();
         self.events.clear();
         // Every candidate makes one pair, and retired pairs may stay asleep.
         let bound = candidates.size_hint().0.max(self.pairs.len());
         reserve_near(&mut self.next, bound);
         reserve_near(&mut self.active.index, bound);
+        reserve_near(&mut self.scratch.tests, bound);
         let mut old = 0usize;
-        let mut scratch = Manifold::EMPTY;
         for c in candidates {
             stats.candidates += 1;
             let key = (c.a.index(), c.b.index());
@@ -428,20 +575,15 @@ impl ContactSet {
                 ContactPair::new(c.a, c.b, c.kind)
             };
             self.active.index.push(self.next.len() as u32);
-            Self::refresh_pair(
-                &mut self.events,
-                &mut pair,
-                &c,
-                &mut narrow,
-                &mut scratch,
-                &mut stats,
-            );
+            pair.kind = c.kind;
+            self.list_test(NEW_PAIR | self.next.len() as u32);
             self.next.push(pair);
         }
         while old < self.pairs.len() {
             self.retire(old, &mut keep_asleep, &mut stats);
             old += 1;
         }
+        self.run_tests(narrow, workers, &mut stats);
         std::mem::swap(&mut self.pairs, &mut self.next);
         self.active.touching = 0;
         self.active.points = 0;
@@ -454,7 +596,7 @@ impl ContactSet {
         stats.points = self.active.points;
         self.active.valid = true;
         if self.next.capacity() != caps.0
-            || self.events.capacity() != caps.1
+            || self.events.capacity() + self.scratch.merged.capacity() != caps.1
             || self.active.index.capacity() != active_cap
         {
             stats.growths += 1;
@@ -462,42 +604,28 @@ impl ContactSet {
         stats
     }
 
-    /// Runs the narrow phase on one candidate and installs its manifold,
-    /// with the begin/end event its touching change calls for. A reused
-    /// manifold is rebuilt in place: its features, and so its impulses,
-    /// are the ones it had.
-    fn refresh_pair(
-        events: &mut Vec<ContactEvent>,
-        pair: &mut ContactPair,
-        c: &Candidate,
-        narrow: &mut impl FnMut(
-            ColliderHandle,
-            ColliderHandle,
-            Option<(&mut Manifold, &mut ReuseCache)>,
-            &mut Manifold,
-        ) -> bool,
-        scratch: &mut Manifold,
-        stats: &mut ContactStats,
-    ) {
-        pair.kind = c.kind;
+    /// Runs the narrow phase on one listed pair and installs its manifold.
+    /// A reused manifold is rebuilt in place: its features, and so its
+    /// impulses, are the ones it had. Returns the [`Test`] outcome bits.
+    fn test_pair(pair: &mut ContactPair, narrow: &impl NarrowTest, scratch: &mut Manifold) -> u8 {
         let was_touching = pair.touching;
+        let mut outcome = 0;
         scratch.clear();
-        stats.narrow_tests += 1;
-        match c.kind {
+        match pair.kind {
             PairKind::Trigger => {
-                narrow(c.a, c.b, None, scratch);
+                narrow(pair.a, pair.b, None, scratch);
                 pair.reuse = ReuseCache::EMPTY;
                 pair.touching = scratch.points().iter().any(|p| !p.depth.is_negative());
                 pair.manifold = Manifold::EMPTY;
             }
             PairKind::Solid => {
                 if narrow(
-                    c.a,
-                    c.b,
+                    pair.a,
+                    pair.b,
                     Some((&mut pair.manifold, &mut pair.reuse)),
                     scratch,
                 ) {
-                    stats.reused += 1;
+                    outcome |= Test::REUSED;
                     pair.touching = pair
                         .manifold
                         .points()
@@ -509,14 +637,13 @@ impl ContactSet {
             }
         }
         if pair.touching != was_touching {
-            if pair.touching {
-                events.push(ContactEvent::begin(pair));
-                stats.begin_events += 1;
+            outcome |= if pair.touching {
+                Test::BEGIN
             } else {
-                events.push(ContactEvent::end(pair));
-                stats.end_events += 1;
-            }
+                Test::END
+            };
         }
+        outcome
     }
 
     /// [`update`](Self::update) over the active pairs only: the same merge
@@ -526,13 +653,9 @@ impl ContactSet {
     fn update_active(
         &mut self,
         candidates: impl Iterator<Item = Candidate>,
-        mut narrow: impl FnMut(
-            ColliderHandle,
-            ColliderHandle,
-            Option<(&mut Manifold, &mut ReuseCache)>,
-            &mut Manifold,
-        ) -> bool,
+        narrow: &impl NarrowTest,
         mut keep_asleep: impl FnMut(&ContactPair) -> bool,
+        workers: &Workers,
     ) -> ContactStats {
         let mut stats = ContactStats::default();
         // Buffers swapped with each other are counted by their summed
@@ -540,7 +663,7 @@ impl ContactSet {
         let capacities = |s: &ContactSet| {
             [
                 s.next.capacity(),
-                s.events.capacity(),
+                s.events.capacity() + s.scratch.merged.capacity(),
                 s.active.order.capacity(),
                 s.active.index.capacity() + s.active.next_index.capacity(),
                 s.pairs.capacity(),
@@ -562,8 +685,8 @@ impl ContactSet {
         // Whether a pair was created or dropped (the array changes shape).
         let mut reshaped = false;
         let mut k = 0usize;
-        let mut scratch = Manifold::EMPTY;
         let n_active = self.active.index.len();
+        reserve_near(&mut self.scratch.tests, n_active);
         for c in candidates {
             stats.candidates += 1;
             let key = (c.a.index(), c.b.index());
@@ -572,12 +695,13 @@ impl ContactSet {
                 k += 1;
             }
             let old = self.active.index.get(k).map(|&i| i as usize);
-            let pair = match old.map(|i| &self.pairs[i]) {
+            let at = match old.map(|i| &self.pairs[i]) {
                 Some(p) if p.key() == key && p.a == c.a && p.b == c.b => {
                     k += 1;
                     let i = old.unwrap_or_default();
                     self.active.order.push((i as u32, true));
-                    &mut self.pairs[i]
+                    self.pairs[i].kind = c.kind;
+                    i as u32
                 }
                 found => {
                     if found.is_some_and(|p| p.key() == key) {
@@ -595,23 +719,16 @@ impl ContactSet {
                         .order
                         .push((NEW_PAIR | self.next.len() as u32, true));
                     self.next.push(ContactPair::new(c.a, c.b, c.kind));
-                    let last = self.next.len() - 1;
-                    &mut self.next[last]
+                    NEW_PAIR | (self.next.len() - 1) as u32
                 }
             };
-            Self::refresh_pair(
-                &mut self.events,
-                pair,
-                &c,
-                &mut narrow,
-                &mut scratch,
-                &mut stats,
-            );
+            self.list_test(at);
         }
         while k < n_active {
             reshaped |= !self.retire_active(k, &mut keep_asleep, &mut stats);
             k += 1;
         }
+        self.run_tests(narrow, workers, &mut stats);
         // The resting pairs outside the active list were kept as they are.
         stats.kept_asleep += (self.pairs.len() - n_active) as u32;
         let a = &mut self.active;

@@ -80,9 +80,9 @@ mod rows;
 mod shock;
 
 use color::{COLORS, Coloring};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::AtomicUsize;
 
-use super::workers::{SpinBarrier, Workers};
+use super::workers::{SharedMut, SpinBarrier, Workers, claim_blocks};
 
 use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
@@ -120,23 +120,9 @@ fn for_each_prefetched(cs: &mut [Constraint], mut f: impl FnMut(&mut Constraint)
 /// that two workers end a colour of a few hundred constraints together.
 const BLOCK: usize = 16;
 
-/// A constraint array shared by the workers of one pass.
-#[derive(Clone, Copy)]
-struct ConstraintsPtr(*mut Constraint);
-
-// SAFETY: each block of the array is claimed by exactly one worker (an
-// atomic counter per colour), so no two threads touch one constraint.
-unsafe impl Sync for ConstraintsPtr {}
-// SAFETY: as above.
-unsafe impl Send for ConstraintsPtr {}
-
-impl ConstraintsPtr {
-    /// The address of constraint `i` (a method, so a closure captures the
-    /// whole `Sync` wrapper rather than its raw pointer field).
-    fn at(self, i: usize) -> *mut Constraint {
-        self.0.wrapping_add(i)
-    }
-}
+/// Solver bodies a worker claims at a time when the velocities go to and
+/// from the bodies (a few nanoseconds each).
+const BODY_BLOCK: usize = 128;
 
 /// Visits every constraint once, in colour order: each colour's
 /// constraints split in blocks over the workers (they share no moving
@@ -161,22 +147,24 @@ fn for_each_colored<F>(
     let last = (0..COLORS).rev().find(|&c| starts[c + 1] > starts[c]);
     let claimed: [AtomicUsize; COLORS] = std::array::from_fn(|_| AtomicUsize::new(0));
     let barrier = SpinBarrier::new(workers);
-    let base = ConstraintsPtr(constraints.as_mut_ptr());
+    let (shared, overflow) = constraints.split_at_mut(colored);
+    let shared = SharedMut::new(shared);
+    // SAFETY: each block is claimed by one worker alone (one counter per
+    // colour, every worker claiming from it).
+    let visit_block = |r| for_each_prefetched(unsafe { shared.slice(r) }, &visit);
     workers.run(&|_| {
         for c in 0..COLORS {
             let (lo, hi) = (starts[c] as usize, (starts[c + 1] as usize).min(colored));
             if lo >= hi {
                 continue;
             }
-            // SAFETY: `lo..hi` lies in `constraints`, which this function
-            // holds mutably, and only this colour's counter claims in it.
-            unsafe { visit_claimed_blocks(base, lo..hi, &claimed[c], &visit) };
+            claim_blocks(lo..hi, BLOCK, &claimed[c], &visit_block);
             if Some(c) != last {
                 barrier.wait();
             }
         }
     });
-    for_each_prefetched(&mut constraints[colored..], &visit);
+    for_each_prefetched(overflow, &visit);
 }
 
 /// Visits every constraint once, in blocks shared out over the workers in
@@ -187,41 +175,11 @@ where
     F: Fn(&mut Constraint) + Sync,
 {
     let len = constraints.len();
-    if workers.count() == 1 || len <= BLOCK {
-        for_each_prefetched(constraints, &visit);
-        return;
-    }
-    let claimed = AtomicUsize::new(0);
-    let base = ConstraintsPtr(constraints.as_mut_ptr());
-    // SAFETY: `0..len` is `constraints`, which this function holds mutably,
-    // and only `claimed` claims in it.
-    workers.run(&|_| unsafe { visit_claimed_blocks(base, 0..len, &claimed, &visit) });
-}
-
-/// One worker's share of `range`: blocks of [`BLOCK`] constraints claimed
-/// from `claimed` (the block index past `range.start`) until none is left.
-///
-/// # Safety
-/// `range` lies in the array at `base`, nothing else touches it while the
-/// workers run, and every worker claims from the same `claimed`, which
-/// starts at zero: so each block is visited once, by one worker.
-unsafe fn visit_claimed_blocks(
-    base: ConstraintsPtr,
-    range: std::ops::Range<usize>,
-    claimed: &AtomicUsize,
-    visit: &impl Fn(&mut Constraint),
-) {
-    loop {
-        let first = range.start + claimed.fetch_add(1, Ordering::Relaxed) * BLOCK;
-        if first >= range.end {
-            break;
-        }
-        let end = (first + BLOCK).min(range.end);
-        // SAFETY: `first..end` lies in `range`, and this worker alone
-        // claimed it (the caller's contract).
-        let block = unsafe { std::slice::from_raw_parts_mut(base.at(first), end - first) };
-        for_each_prefetched(block, visit);
-    }
+    let shared = SharedMut::new(constraints);
+    // SAFETY: `for_each_block` hands each block to one worker alone.
+    workers.for_each_block(len, BLOCK, |r| {
+        for_each_prefetched(unsafe { shared.slice(r) }, &visit)
+    });
 }
 
 /// Marks "no solver body": a static or sleeping body.
@@ -781,6 +739,10 @@ impl ContactSolver {
             });
             self.dls.push(Vec3::ZERO);
         }
+        // Step 4's shortcut, known now: when even the lightest solver body
+        // against the heaviest is not a high ratio, every contact keeps the
+        // world's spring, set in step 3.
+        let uniform = heaviest.is_positive() && !Softness::for_ratio(params, heaviest, lightest).1;
         // 3. Constant terms of each point: each constraint from its own pair
         //    and bodies alone, so the workers share them out in any order.
         let zero = SolverBody::default();
@@ -868,6 +830,9 @@ impl ContactSolver {
             }
             let patch = prepare_patch(p, c, ba, bb);
             c.patch = patch;
+            if uniform {
+                c.softness = params.softness;
+            }
         };
         for_each_block(&mut self.constraints, &self.workers, constants);
         // 4. The heaviest body each solver body touches (smallest inverse
@@ -875,14 +840,10 @@ impl ContactSolver {
         //    ratio of that to its lighter body, and the high-ratio list.
         //    No contact's ratio exceeds that of the lightest to the heaviest
         //    solver body (division rounds monotonically), so when even that
-        //    one is not high, every contact keeps the world's spring: the
-        //    same result without the two walks.
+        //    one is not high (`uniform`), every contact kept the world's
+        //    spring in step 3: the same result without the two walks.
         self.heavy.clear();
-        if heaviest.is_positive() && !Softness::for_ratio(params, heaviest, lightest).1 {
-            for c in &mut self.constraints {
-                c.softness = params.softness;
-            }
-        } else {
+        if !uniform {
             self.assign_ratio_springs(params);
         }
         // 5. The shock pass's order over the high-ratio contacts.
@@ -923,6 +884,12 @@ impl ContactSolver {
         self.workers.count()
     }
 
+    /// The world's worker pool (the solver holds it; the narrow phase and
+    /// the integrators split their work over it too).
+    pub(crate) fn pool(&self) -> &Workers {
+        &self.workers
+    }
+
     /// Whether there is anything to solve this tick.
     pub(crate) fn is_empty(&self) -> bool {
         self.constraints.is_empty()
@@ -931,23 +898,38 @@ impl ContactSolver {
     /// Reads the bodies' current velocities and pose changes (after the
     /// integrator touched them).
     pub(crate) fn gather(&mut self, hot: &[BodyHot]) {
-        for (sb, vel) in self.bodies.iter_mut().zip(&mut self.vels) {
-            let b = &hot[sb.slot as usize];
-            vel.v = b.linear_velocity;
-            vel.w = b.angular_velocity;
-            sb.dp = b.center - sb.center0;
-            sb.dr = Mat3::from_quat(b.rotation * sb.rotation0_inv);
-        }
+        let len = self.bodies.len();
+        let (bodies, vels) = (
+            SharedMut::new(&mut self.bodies),
+            SharedMut::new(&mut self.vels),
+        );
+        self.workers.for_each_block(len, BODY_BLOCK, |r| {
+            // SAFETY: each block goes to one worker alone.
+            let (bodies, vels) = unsafe { (bodies.slice(r.clone()), vels.slice(r)) };
+            for (sb, vel) in bodies.iter_mut().zip(vels) {
+                let b = &hot[sb.slot as usize];
+                vel.v = b.linear_velocity;
+                vel.w = b.angular_velocity;
+                sb.dp = b.center - sb.center0;
+                sb.dr = Mat3::from_quat(b.rotation * sb.rotation0_inv);
+            }
+        });
     }
 
     /// Reads only the velocities (the poses did not change since the last
     /// [`gather`](Self::gather)).
     pub(crate) fn gather_velocities(&mut self, hot: &[BodyHot]) {
-        for (sb, vel) in self.bodies.iter().zip(&mut self.vels) {
-            let b = &hot[sb.slot as usize];
-            vel.v = b.linear_velocity;
-            vel.w = b.angular_velocity;
-        }
+        let len = self.bodies.len();
+        let (bodies, vels) = (&self.bodies, SharedMut::new(&mut self.vels));
+        self.workers.for_each_block(len, BODY_BLOCK, |r| {
+            // SAFETY: each block goes to one worker alone.
+            let vels = unsafe { vels.slice(r.clone()) };
+            for (sb, vel) in bodies[r].iter().zip(vels) {
+                let b = &hot[sb.slot as usize];
+                vel.v = b.linear_velocity;
+                vel.w = b.angular_velocity;
+            }
+        });
     }
 
     /// Writes the solved velocities back, leaving the angular momenta for
@@ -955,29 +937,44 @@ impl ContactSolver {
     /// relax pass of one substep only the position integration runs, and it
     /// reads `ω`, not `L`.
     pub(crate) fn scatter_velocities(&self, hot: &mut [BodyHot]) {
-        for (sb, vel) in self.bodies.iter().zip(&self.vels) {
-            if sb.dynamic {
-                let b = &mut hot[sb.slot as usize];
-                b.linear_velocity = vel.v;
-                b.angular_velocity = vel.w;
+        let (bodies, vels) = (&self.bodies, &self.vels);
+        let hot = SharedMut::new(hot);
+        self.workers.for_each_block(bodies.len(), BODY_BLOCK, |r| {
+            for (sb, vel) in bodies[r.clone()].iter().zip(&vels[r]) {
+                if sb.dynamic {
+                    // SAFETY: solver bodies have distinct slots, and each
+                    // block goes to one worker alone.
+                    let b = unsafe { hot.get(sb.slot as usize) };
+                    b.linear_velocity = vel.v;
+                    b.angular_velocity = vel.w;
+                }
             }
-        }
+        });
     }
 
     /// Writes the solved velocities back, and the angular impulses summed
     /// since the last `scatter` (by the relax and restitution passes, see
     /// [`Constraint::collect_angular`]) into the angular momenta.
     pub(crate) fn scatter(&mut self, hot: &mut [BodyHot]) {
-        for ((sb, vel), dl) in self.bodies.iter().zip(&self.vels).zip(&mut self.dls) {
-            let dl = std::mem::take(dl);
-            if !sb.dynamic {
-                continue;
+        let (bodies, vels) = (&self.bodies, &self.vels);
+        let dls = SharedMut::new(&mut self.dls);
+        let hot = SharedMut::new(hot);
+        self.workers.for_each_block(bodies.len(), BODY_BLOCK, |r| {
+            // SAFETY: each block goes to one worker alone.
+            let dls = unsafe { dls.slice(r.clone()) };
+            for ((sb, vel), dl) in bodies[r.clone()].iter().zip(&vels[r]).zip(dls) {
+                let dl = std::mem::take(dl);
+                if !sb.dynamic {
+                    continue;
+                }
+                // SAFETY: solver bodies have distinct slots, and each block
+                // goes to one worker alone.
+                let b = unsafe { hot.get(sb.slot as usize) };
+                b.linear_velocity = vel.v;
+                b.angular_velocity = vel.w;
+                b.angular_momentum += dl;
             }
-            let b = &mut hot[sb.slot as usize];
-            b.linear_velocity = vel.v;
-            b.angular_velocity = vel.w;
-            b.angular_momentum += dl;
-        }
+        });
     }
 
     /// Applies last substep's (or last tick's) accumulated impulses again.

@@ -24,8 +24,34 @@
 //! inertia is a multiple of the identity (spheres, cubes) have no gyroscopic
 //! term and skip all of this.
 
+use std::sync::atomic::{AtomicU32, Ordering};
+
 use crate::body::{BodyHot, BodyKind};
 use crate::math::{Quat, Scalar, SymMat3, Vec3};
+
+use super::workers::{SharedMut, Workers};
+
+/// Awake slots a worker claims at a time.
+const BLOCK: usize = 128;
+
+/// Runs `update` on every body of `awake` (distinct slots of `hot`), in
+/// blocks over the workers: each body's update reads and writes only that
+/// body, so the results are the same for any worker count.
+fn for_each_awake(
+    hot: &mut [BodyHot],
+    awake: &[u32],
+    workers: &Workers,
+    update: impl Fn(&mut BodyHot) + Sync,
+) {
+    let hot = SharedMut::new(hot);
+    workers.for_each_block(awake.len(), BLOCK, |r| {
+        for &slot in &awake[r] {
+            // SAFETY: the awake slots are distinct, and each block goes to
+            // one worker alone.
+            update(unsafe { hot.get(slot as usize) });
+        }
+    });
+}
 
 /// At most this many fixed-point rounds for the midpoint angular velocity.
 /// Four reach the last bit for `h|ω|` up to about 0.05 (ω ≈ 12 rad/s at
@@ -101,29 +127,31 @@ pub(crate) struct VelocityCounters {
 /// `awake` lists the slots to visit (the awake dynamic and kinematic
 /// bodies, ascending): sleeping and static bodies cost nothing here.
 ///
-/// Determinism: visits bodies in slot order; each body's update reads only
-/// its own state.
+/// Determinism: each body's update reads only its own state (so the
+/// workers may share the bodies out in any order).
 pub(crate) fn integrate_velocities(
     hot: &mut [BodyHot],
     awake: &[u32],
     gravity: Vec3,
     h: Scalar,
+    workers: &Workers,
 ) -> VelocityCounters {
-    let mut counters = VelocityCounters::default();
+    // Counts are integers: their sum is the same in any order.
+    let (integrated, gyroscopic, clamped) =
+        (AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0));
     let max_w = max_angular_speed(h);
     let max_w2 = max_w.wide_mul(max_w) as u128;
-    for &slot in awake {
-        let b = &mut hot[slot as usize];
+    for_each_awake(hot, awake, workers, |b| {
         if b.kind != BodyKind::Dynamic || b.sleeping {
-            continue;
+            return;
         }
-        counters.integrated += 1;
+        integrated.fetch_add(1, Ordering::Relaxed);
         if b.angular_velocity.length_squared_wide() > max_w2 {
             // ω and L are proportional (ω = I⁻¹L): scaling L scales ω.
             let k = max_w / b.angular_velocity.length();
             b.angular_momentum *= k;
             b.angular_velocity *= k;
-            counters.clamped += 1;
+            clamped.fetch_add(1, Ordering::Relaxed);
         }
         let accel = gravity * b.gravity_scale + b.force * b.inv_mass;
         b.linear_velocity += accel * h;
@@ -143,10 +171,14 @@ pub(crate) fn integrate_velocities(
         } else {
             let (w, _) = midpoint_omega(b.rotation, &b.inv_inertia, b.angular_momentum, h);
             b.angular_velocity = w;
-            counters.gyroscopic += 1;
+            gyroscopic.fetch_add(1, Ordering::Relaxed);
         }
+    });
+    VelocityCounters {
+        integrated: integrated.into_inner(),
+        gyroscopic: gyroscopic.into_inner(),
+        clamped: clamped.into_inner(),
     }
-    counters
 }
 
 /// The most a body may turn in one substep, rad: a quarter turn's half
@@ -164,30 +196,33 @@ pub fn max_angular_speed(h: Scalar) -> Scalar {
 
 /// Position stage for one substep: `x += v·h`, `q ← normalize(q + ½h ω⊗q)`
 /// for every moving dynamic and kinematic body (the slots in `awake`).
-pub(crate) fn integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar) {
-    for &slot in awake {
-        let b = &mut hot[slot as usize];
+pub(crate) fn integrate_positions(
+    hot: &mut [BodyHot],
+    awake: &[u32],
+    h: Scalar,
+    workers: &Workers,
+) {
+    for_each_awake(hot, awake, workers, |b| {
         if !b.is_moving() {
-            continue;
+            return;
         }
         b.center += b.linear_velocity * h;
         if !b.angular_velocity.is_zero() {
             b.rotation = b.rotation.integrate(b.angular_velocity, h);
         }
-    }
+    });
 }
 
 /// After the last substep: each anisotropic dynamic body's angular velocity
 /// becomes the one its momentum gives at the new orientation (the midpoint
 /// value was only for the substep). Visits the slots in `awake`.
-pub(crate) fn finish_angular_velocities(hot: &mut [BodyHot], awake: &[u32]) {
-    for &slot in awake {
-        let b = &mut hot[slot as usize];
+pub(crate) fn finish_angular_velocities(hot: &mut [BodyHot], awake: &[u32], workers: &Workers) {
+    for_each_awake(hot, awake, workers, |b| {
         if b.kind == BodyKind::Dynamic && !b.sleeping && !b.isotropic {
             b.angular_velocity =
                 omega_from_momentum(b.rotation, &b.inv_inertia, b.angular_momentum);
         }
-    }
+    });
 }
 
 #[cfg(test)]

@@ -1,4 +1,8 @@
-//! Worker threads for the contact solver's colour passes.
+//! Worker threads for a world's step: the contact solver's colour passes,
+//! and in either contact order the narrow phase (per block of pairs), the
+//! integrators (per block of awake bodies), the solver's gathers and
+//! scatters (per block of solver bodies) and `prepare`'s constant terms
+//! (per block of constraints).
 //!
 //! A [`Workers`] holds `count − 1` helper threads, started once (when the
 //! game sets the count) and parked between jobs, so a step allocates
@@ -7,10 +11,13 @@
 //! all of them have finished it.
 //!
 //! Why the results never depend on the count: a job only ever splits work
-//! whose pieces are independent (the constraints of one colour share no
-//! moving body, so each one's result is the same whichever worker visits
+//! whose pieces are independent (a pair's test writes that pair alone, a
+//! body's integration that body alone; the constraints of one colour share
+//! no moving body, so each one's result is the same whichever worker visits
 //! it and in whatever order), and every colour ends at a [`SpinBarrier`]
-//! before the next one starts. Nothing is summed across workers. The
+//! before the next one starts. Nothing is summed across workers but
+//! integer counters (exact in any order); whatever must be in order (the
+//! contact events) is put in order on the calling thread afterwards. The
 //! worker count is not simulation state: it is in neither the state hash
 //! nor snapshots, and tests step the same scenes with 1, 2, 3, 4 and 8
 //! workers and compare every hash.
@@ -27,6 +34,8 @@
 //! workers than cores still make progress.
 
 use std::cell::UnsafeCell;
+use std::marker::PhantomData;
+use std::ops::Range;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, AtomicUsize, Ordering};
 
@@ -176,6 +185,104 @@ impl Workers {
     }
 }
 
+impl Workers {
+    /// Calls `visit` on blocks that cover `0..len` once: `block` items
+    /// each (the last one shorter), shared out over the workers in any
+    /// order. Only for work whose items are independent: each item's result
+    /// depends on nothing another item's visit writes, so it is the same
+    /// whoever visits it, and a count of blocks or workers changes nothing.
+    /// With one worker, or a single block, the calling thread visits
+    /// `0..len` in one call.
+    pub(crate) fn for_each_block(
+        &self,
+        len: usize,
+        block: usize,
+        visit: impl Fn(Range<usize>) + Sync,
+    ) {
+        if len == 0 {
+            return;
+        }
+        if self.count() == 1 || len <= block {
+            visit(0..len);
+            return;
+        }
+        let claimed = AtomicUsize::new(0);
+        self.run(&|_| claim_blocks(0..len, block, &claimed, &visit));
+    }
+}
+
+/// One worker's share of `range`: blocks of `block` items claimed from
+/// `claimed` (the block index past `range.start`) until none is left. When
+/// every worker of a job claims from the same counter, which starts at zero,
+/// each block is visited once, by one worker.
+pub(crate) fn claim_blocks(
+    range: Range<usize>,
+    block: usize,
+    claimed: &AtomicUsize,
+    visit: &impl Fn(Range<usize>),
+) {
+    let block = block.max(1);
+    loop {
+        let first = range.start + claimed.fetch_add(1, Ordering::Relaxed) * block;
+        if first >= range.end {
+            break;
+        }
+        visit(first..(first + block).min(range.end));
+    }
+}
+
+/// A mutable slice the workers of one job share, each touching only the
+/// items it alone claimed (with [`claim_blocks`], or by an index no other
+/// worker holds).
+pub(crate) struct SharedMut<'a, T> {
+    ptr: *mut T,
+    len: usize,
+    _slice: PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: the wrapper only hands out items through `unsafe` methods whose
+// callers promise that no two threads touch one item; `T: Send` because
+// items are written from other threads.
+unsafe impl<T: Send> Sync for SharedMut<'_, T> {}
+// SAFETY: as above.
+unsafe impl<T: Send> Send for SharedMut<'_, T> {}
+
+impl<'a, T> SharedMut<'a, T> {
+    /// Shares `items` (held mutably for the wrapper's life).
+    pub(crate) fn new(items: &'a mut [T]) -> SharedMut<'a, T> {
+        SharedMut {
+            ptr: items.as_mut_ptr(),
+            len: items.len(),
+            _slice: PhantomData,
+        }
+    }
+
+    /// The items of `range`.
+    ///
+    /// # Safety
+    /// No other thread touches these items while the returned slice lives.
+    /// (An out-of-bounds range panics.)
+    #[allow(clippy::mut_from_ref)]
+    pub(crate) unsafe fn slice(&self, range: Range<usize>) -> &mut [T] {
+        assert!(range.start <= range.end && range.end <= self.len);
+        // SAFETY: in bounds (checked), and the caller holds these items
+        // alone.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
+    }
+
+    /// Item `i`.
+    ///
+    /// # Safety
+    /// No other thread touches this item while the returned reference
+    /// lives. (An out-of-bounds index panics.)
+    #[allow(clippy::mut_from_ref)]
+    pub(crate) unsafe fn get(&self, i: usize) -> &mut T {
+        assert!(i < self.len);
+        // SAFETY: in bounds (checked), and the caller holds this item alone.
+        unsafe { &mut *self.ptr.add(i) }
+    }
+}
+
 impl Drop for Workers {
     fn drop(&mut self) {
         self.shared.stop.store(true, Ordering::Release);
@@ -290,6 +397,33 @@ impl SpinBarrier<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn for_each_block_visits_every_item_once_in_whole_blocks() {
+        for count in [1, 2, 3, 8] {
+            let w = Workers::new(count);
+            for (len, block) in [(0, 4), (1, 4), (4, 4), (5, 4), (1000, 7), (1000, 128)] {
+                let mut seen = vec![0u8; len];
+                let shared = SharedMut::new(&mut seen);
+                w.for_each_block(len, block, |r| {
+                    assert!(r.start < r.end && r.end <= len);
+                    // Blocks start on a multiple of `block` and end at the
+                    // next one or at `len` (one call with one worker).
+                    assert!(r.start % block == 0);
+                    assert!(r.end == len || (count > 1 && r.len() == block));
+                    // SAFETY: the blocks are disjoint (checked by the counts
+                    // below).
+                    for x in unsafe { shared.slice(r) } {
+                        *x += 1;
+                    }
+                });
+                assert!(
+                    seen.iter().all(|&n| n == 1),
+                    "{count} workers, {len}/{block}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn every_worker_runs_each_job_once_and_run_waits_for_all() {

@@ -162,6 +162,7 @@ impl World {
             colliders,
             contacts,
             candidates,
+            solver,
             ..
         } = self;
         let cands = candidates.iter().map(|&(ka, kb)| {
@@ -237,7 +238,7 @@ impl World {
                 ) | (Some(ProxyKind::Static), Some(ProxyKind::Sleeping))
             )
         };
-        let stats = contacts.update(cands, narrow_phase, resting);
+        let stats = contacts.update(cands, narrow_phase, resting, solver.pool());
         debug_assert!(
             self.active_pairs_cover_moving(),
             "active pair list misses a pair"

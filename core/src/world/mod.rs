@@ -143,15 +143,18 @@ impl World {
     }
 
     /// Sets how many threads (this one included, clamped to
-    /// `1..=MAX_WORKERS`) the contact solver uses: for its passes in colour
-    /// order ([`ContactOrder::Colors`]; in pair order the passes run on this
-    /// thread), and in either order for the constant terms it prepares per
-    /// constraint. The threads start here, not in `step()`, and wait
-    /// between steps (spinning briefly, then parked).
+    /// `1..=MAX_WORKERS`) a step uses: in either contact order for the
+    /// narrow phase, the integrators and the contact solver's per-body and
+    /// per-constraint set-up, and in colour order
+    /// ([`ContactOrder::Colors`]) for the solver passes too (in pair order
+    /// they run on this thread). The threads start here, not in `step()`,
+    /// and wait between steps (spinning briefly, then parked).
     ///
-    /// Not simulation state: every count gives the same bits (the
-    /// constraints of one colour share no moving body, and nothing is
-    /// summed across threads), so peers may use different counts, and the
+    /// Not simulation state: every count gives the same bits (each piece of
+    /// shared work writes only its own pair, body or constraint; the
+    /// constraints of one colour share no moving body; nothing but integer
+    /// counters is summed across threads), so peers may use different
+    /// counts, and the
     /// count is in neither the state hash nor snapshots: a restored world
     /// has one worker until this is called, a clone as many as the world
     /// it was cloned from.
@@ -159,8 +162,7 @@ impl World {
         self.solver.set_workers(count);
     }
 
-    /// The threads the contact solver's colour passes use (see
-    /// [`World::set_workers`]).
+    /// The threads a step uses (see [`World::set_workers`]).
     pub fn workers(&self) -> usize {
         self.solver.workers()
     }

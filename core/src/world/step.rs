@@ -14,6 +14,7 @@ use crate::solver::contact_solver::{ContactSolver, PairInfo, Softness, SolverPar
 use crate::solver::integrate::{self, VelocityCounters};
 use crate::solver::joint_solver::{JOINT_DAMPING_RATIO, JointParams, JointSolver};
 use crate::solver::sleep;
+use crate::solver::workers::Workers;
 
 use super::observe::{Guarded, Notify, Quiet, Stage, StepObserver};
 use super::{ContactOrder, StepReport, World, rotation_delta};
@@ -136,7 +137,7 @@ impl World {
             params: jparams,
         };
         for substep in 0..cfg.substeps {
-            let c = stage_integrate_velocities(hot, awake, cfg.gravity, h);
+            let c = stage_integrate_velocities(hot, awake, cfg.gravity, h, solver.pool());
             n.finished(Stage::IntegrateVelocities);
             report.awake_bodies = c.integrated;
             report.gyroscopic_solves += c.gyroscopic;
@@ -150,7 +151,7 @@ impl World {
             n.finished(Stage::WarmStart);
             stage_solve(solver, &mut js, &params, cfg.solver_iterations, hot);
             n.finished(Stage::Solve);
-            stage_integrate_positions(hot, awake, h);
+            stage_integrate_positions(hot, awake, h, solver.pool());
             n.finished(Stage::IntegratePositions);
             stage_relax(solver, &mut js, &params, cfg.relax_iterations, hot);
             n.finished(Stage::Relax);
@@ -159,7 +160,7 @@ impl World {
         n.finished(Stage::Restitution);
         stage_store_impulses(solver, contacts.pairs_mut());
         n.finished(Stage::StoreImpulses);
-        stage_finish_velocities(hot, awake);
+        stage_finish_velocities(hot, awake, solver.pool());
         // Joints past their thresholds break (after the last substep's
         // impulses are known).
         let (broken, grew) = self.stage_break_joints();
@@ -402,8 +403,9 @@ fn stage_integrate_velocities(
     awake: &[u32],
     gravity: Vec3,
     h: Scalar,
+    workers: &Workers,
 ) -> VelocityCounters {
-    integrate::integrate_velocities(hot, awake, gravity, h)
+    integrate::integrate_velocities(hot, awake, gravity, h, workers)
 }
 
 /// The joints of this tick, for the substep stages.
@@ -475,8 +477,8 @@ fn stage_solve(
 
 /// Positions and orientations advance by one substep.
 #[inline(never)]
-fn stage_integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar) {
-    integrate::integrate_positions(hot, awake, h);
+fn stage_integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar, workers: &Workers) {
+    integrate::integrate_positions(hot, awake, h, workers);
 }
 
 /// The relax passes (no push-out) at the substep's new poses, and the shock
@@ -529,8 +531,8 @@ fn stage_store_impulses(solver: &ContactSolver, pairs: &mut [ContactPair]) {
 
 /// End-of-tick angular velocities from the momenta.
 #[inline(never)]
-fn stage_finish_velocities(hot: &mut [BodyHot], awake: &[u32]) {
-    integrate::finish_angular_velocities(hot, awake);
+fn stage_finish_velocities(hot: &mut [BodyHot], awake: &[u32], workers: &Workers) {
+    integrate::finish_angular_velocities(hot, awake, workers);
 }
 
 /// The stiffest contact spring a high-mass-ratio contact may get, rad/s

@@ -26,8 +26,8 @@
 //! pair order: it is a pure function of the contact set and the bodies'
 //! kinds and sleep states, which the state hash already covers, so it
 //! needs no place in snapshots or the hash, and a restored world colours
-//! exactly as the one it was saved from. Colouring costs one scan of a few
-//! bitmask words per constraint, far less than one solver pass.
+//! exactly as the one it was saved from. Colouring costs one word per body
+//! of each constraint, far less than one solver pass.
 
 use super::NONE;
 use crate::collision::contacts::reserve_near;
@@ -41,16 +41,19 @@ pub(crate) const COLORS: usize = 24;
 /// The index of the overflow in the per-colour counts and ranges.
 pub(crate) const OVERFLOW: usize = COLORS;
 
+// A body's colours are the bits of one `u32`.
+const _: () = assert!(COLORS < 32);
+
 /// The colour assignment of one tick.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Coloring {
-    /// Per colour and body slot, whether a constraint of that colour has
-    /// the body: `COLORS` bitsets of `words` words each. Every bit set is
-    /// cleared again before [`Coloring::finish`] returns, so the next tick
-    /// starts from zeros without clearing every word.
-    taken: Vec<u64>,
-    /// Words per colour in `taken`.
-    words: usize,
+    /// Per body slot, the colours (bit `c` for colour `c`) in which a
+    /// constraint has the body: one word per slot, so finding a
+    /// constraint's first free colour is one load per body and a count of
+    /// trailing ones. Every bit set is cleared again before
+    /// [`Coloring::finish`] returns, so the next tick starts from zeros
+    /// without clearing every word.
+    taken: Vec<u32>,
     /// Per candidate constraint (in pair order), its colour.
     color: Vec<u8>,
     /// The dynamic slots of each candidate (`NONE` for no dynamic body), to
@@ -69,14 +72,9 @@ impl Coloring {
     /// thread).
     pub(crate) fn begin(&mut self, slots: usize, enabled: bool) {
         self.enabled = enabled;
-        let words = slots.div_ceil(64);
-        if words != self.words {
-            // Only grows or shrinks the zeroed layout: every bit is clear
-            // between ticks.
-            self.words = words;
-            self.taken.clear();
-            self.taken.resize(COLORS * words, 0);
-        }
+        // Only grows or shrinks the zeroed words: every bit is clear
+        // between ticks.
+        self.taken.resize(slots, 0);
         self.color.clear();
         self.slots.clear();
         self.count = [0; COLORS + 1];
@@ -86,22 +84,22 @@ impl Coloring {
     /// bodies are at slots `a` and `b` (`NONE` for a body that is not one),
     /// and returns its colour ([`OVERFLOW`] if none is free).
     pub(crate) fn assign(&mut self, a: u32, b: u32) -> usize {
-        let color = if self.enabled {
-            (0..COLORS).find(|&c| (a == NONE || self.free(c, a)) && (b == NONE || self.free(c, b)))
+        let mask = |s: u32| if s == NONE { 0 } else { self.taken[s as usize] };
+        let free = if self.enabled {
+            !(mask(a) | mask(b)) & ((1u32 << COLORS) - 1)
         } else {
-            None
+            0
         };
-        let color = match color {
-            Some(c) => {
-                for s in [a, b] {
-                    if s != NONE {
-                        let (w, bit) = self.bit(c, s);
-                        self.taken[w] |= bit;
-                    }
+        let color = if free != 0 {
+            let c = free.trailing_zeros() as usize;
+            for s in [a, b] {
+                if s != NONE {
+                    self.taken[s as usize] |= 1 << c;
                 }
-                c
             }
-            None => OVERFLOW,
+            c
+        } else {
+            OVERFLOW
         };
         self.color.push(color as u8);
         self.slots.push([a, b]);
@@ -121,8 +119,7 @@ impl Coloring {
             }
             for s in [a, b] {
                 if s != NONE {
-                    let (w, _) = self.bit(c, s);
-                    self.taken[w] = 0;
+                    self.taken[s as usize] = 0;
                 }
             }
         }
@@ -162,16 +159,6 @@ impl Coloring {
             self.color.capacity(),
             self.slots.capacity(),
         )
-    }
-
-    fn free(&self, c: usize, slot: u32) -> bool {
-        let (w, bit) = self.bit(c, slot);
-        self.taken[w] & bit == 0
-    }
-
-    fn bit(&self, c: usize, slot: u32) -> (usize, u64) {
-        let s = slot as usize;
-        (c * self.words + s / 64, 1u64 << (s % 64))
     }
 }
 
