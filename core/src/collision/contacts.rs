@@ -297,6 +297,9 @@ struct Test {
     events_before: u32,
     /// What the test did.
     outcome: u8,
+    /// The pair's contact points after the test, if it touches (what
+    /// [`counts`] gives for it).
+    points: u8,
 }
 
 impl Test {
@@ -306,6 +309,16 @@ impl Test {
     const BEGIN: u8 = 2;
     /// The pair stopped touching.
     const END: u8 = 4;
+    /// The pair touches after the test.
+    const TOUCHING: u8 = 8;
+
+    /// What the pair adds to the touching and point counters.
+    fn counts(&self) -> (u32, u32) {
+        (
+            u32::from(self.outcome & Test::TOUCHING != 0),
+            u32::from(self.points),
+        )
+    }
 }
 
 /// The narrow-phase function [`ContactSet::update`] calls (see there).
@@ -464,6 +477,7 @@ impl ContactSet {
             at,
             events_before: self.events.len() as u32,
             outcome: 0,
+            points: 0,
         });
     }
 
@@ -490,6 +504,11 @@ impl ContactSet {
                         }
                     };
                     t.outcome = Self::test_pair(pair, narrow, &mut scratch);
+                    let (touching, points) = counts(pair);
+                    if touching != 0 {
+                        t.outcome |= Test::TOUCHING;
+                    }
+                    t.points = points as u8;
                 }
             });
         }
@@ -739,8 +758,19 @@ impl ContactSet {
                 &self.pairs[j as usize]
             }
         };
+        // The tested pairs' counts come from their tests (in the same
+        // order as the candidates' entries), so this walk reads the pairs
+        // kept asleep alone.
+        let mut tested = self.scratch.tests.iter();
         for &e in &a.order {
-            let (t, n) = counts(entry(e));
+            let test = if e.1 { tested.next() } else { None };
+            let (t, n) = match test {
+                Some(test) => {
+                    debug_assert_eq!(test.at, e.0);
+                    test.counts()
+                }
+                None => counts(entry(e)),
+            };
             touching += t;
             points += n;
         }

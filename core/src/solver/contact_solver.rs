@@ -167,21 +167,6 @@ fn for_each_colored<F>(
     for_each_prefetched(overflow, &visit);
 }
 
-/// Visits every constraint once, in blocks shared out over the workers in
-/// any order: only for work where each constraint's result depends on
-/// nothing another visit writes.
-fn for_each_block<F>(constraints: &mut [Constraint], workers: &Workers, visit: F)
-where
-    F: Fn(&mut Constraint) + Sync,
-{
-    let len = constraints.len();
-    let shared = SharedMut::new(constraints);
-    // SAFETY: `for_each_block` hands each block to one worker alone.
-    workers.for_each_block(len, BLOCK, |r| {
-        for_each_prefetched(unsafe { shared.slice(r) }, &visit)
-    });
-}
-
 /// Marks "no solver body": a static or sleeping body.
 const NONE: u32 = u32::MAX;
 
@@ -531,9 +516,12 @@ pub(crate) struct ContactSolver {
     constraints: Vec<Constraint>,
     /// The colouring's buffers.
     coloring: Coloring,
-    /// The candidate constraints in pair order, before they are placed in
-    /// colour order (`prepare` only).
+    /// Per candidate pair, in pair order, what the first scan found
+    /// (`prepare` only).
     pending: Vec<Pending>,
+    /// Per constraint (colour order), its entry in `pending` (`prepare`
+    /// only).
+    placed: Vec<u32>,
     /// Where each colour's constraints start in `constraints` (colour `c`
     /// is `starts[c]..starts[c + 1]`, the overflow last).
     starts: [u32; COLORS + 2],
@@ -556,18 +544,28 @@ pub(crate) struct ContactSolver {
     substeps: u32,
 }
 
-/// A constraint found in `prepare`'s first scan, before its place in colour
-/// order is known.
-#[derive(Clone, Copy, Debug)]
+/// What `prepare`'s first scan found for one candidate pair, before its
+/// constraint's place in colour order is known.
+#[derive(Clone, Copy, Debug, Default)]
 struct Pending {
+    /// Whether the pair makes a constraint this tick (solid, with points,
+    /// and a moving dynamic body); if not, the rest is unset.
+    used: bool,
     pair: u32,
     /// Slots of the moving bodies (`NONE` for a static or sleeping one).
     a: u32,
     b: u32,
+    /// Slots of the moving dynamic bodies, the ones a colour takes (`NONE`
+    /// for any other).
+    dyn_a: u32,
+    dyn_b: u32,
     friction: Scalar,
     restitution: Scalar,
     rounding: [Scalar; 2],
 }
+
+/// Candidate pairs a worker scans at a time in `prepare`.
+const SCAN_BLOCK: usize = 64;
 
 /// What `prepare` needs to know about one pair: the body slots of its two
 /// colliders and the combined material.
@@ -601,7 +599,7 @@ impl ContactSolver {
         active: Option<&[u32]>,
         hot: &[BodyHot],
         params: &SolverParams,
-        mut info: impl FnMut(&ContactPair) -> Option<PairInfo>,
+        info: impl Fn(&ContactPair) -> Option<PairInfo> + Sync,
     ) -> SolverStats {
         let caps = (
             self.bodies.capacity(),
@@ -614,7 +612,7 @@ impl ContactSolver {
             self.heavy.capacity(),
             self.level.capacity(),
             self.shock.capacity(),
-            self.pending.capacity(),
+            (self.pending.capacity(), self.placed.capacity()),
             self.coloring.capacities(),
         );
         self.substeps = 0;
@@ -633,72 +631,92 @@ impl ContactSolver {
             b.kind != BodyKind::Static && !b.sleeping
         };
         // 1. The constraints in pair order, each with its colour, and the
-        //    set of bodies they touch.
+        //    set of bodies they touch. First each candidate pair on its own
+        //    (its colliders, material and bodies; in blocks over the
+        //    workers), then the marks and colours in pair order on this
+        //    thread, from the compact results.
         let candidates = active.map_or(pairs.len(), <[u32]>::len);
-        self.reserve_constraints(pairs, active, candidates);
-        self.pending.clear();
+        // Only grows: every entry below `candidates` is written next.
+        self.pending.resize(candidates, Pending::default());
+        {
+            let found = SharedMut::new(&mut self.pending[..candidates]);
+            let scan = |k: usize| -> Option<Pending> {
+                let i = active.map_or(k, |a| a[k] as usize);
+                let p = pairs.get(i)?;
+                if p.kind != PairKind::Solid || p.manifold.is_empty() {
+                    return None;
+                }
+                let pi = info(p)?;
+                if pi.slot_a as usize >= hot.len() || pi.slot_b as usize >= hot.len() {
+                    return None;
+                }
+                let (ma, mb) = (moves(pi.slot_a), moves(pi.slot_b));
+                let dyn_a = ma && hot[pi.slot_a as usize].kind == BodyKind::Dynamic;
+                let dyn_b = mb && hot[pi.slot_b as usize].kind == BodyKind::Dynamic;
+                if !dyn_a && !dyn_b {
+                    return None;
+                }
+                let slot = |on: bool, slot: u32| if on { slot } else { NONE };
+                Some(Pending {
+                    used: true,
+                    pair: i as u32,
+                    a: slot(ma, pi.slot_a),
+                    b: slot(mb, pi.slot_b),
+                    dyn_a: slot(dyn_a, pi.slot_a),
+                    dyn_b: slot(dyn_b, pi.slot_b),
+                    friction: pi.friction,
+                    restitution: pi.restitution,
+                    rounding: pi.rounding,
+                })
+            };
+            self.workers.for_each_block(candidates, SCAN_BLOCK, |r| {
+                // SAFETY: each block goes to one worker alone.
+                let out = unsafe { found.slice(r.clone()) };
+                for (k, pc) in r.zip(out) {
+                    *pc = scan(k).unwrap_or_default();
+                }
+            });
+        }
+        let pending = &self.pending[..candidates];
+        let used = pending.iter().filter(|pc| pc.used).count();
+        // A constraint is over a kilobyte: grown once, to the count and an
+        // eighth more (`reserve_near`), rather than doubled as it is pushed
+        // (which held up to twice what a pyramid needs, and three times that
+        // while it moved).
+        reserve_near(&mut self.constraints, used);
+        self.coloring.reserve(used);
         self.coloring.begin(hot.len(), params.colored);
-        for k in 0..candidates {
-            let i = active.map_or(k, |a| a[k] as usize);
-            let Some(p) = pairs.get(i) else { continue };
-            if p.kind != PairKind::Solid || p.manifold.is_empty() {
-                continue;
-            }
-            let Some(pi) = info(p) else { continue };
-            if pi.slot_a as usize >= hot.len() || pi.slot_b as usize >= hot.len() {
-                continue;
-            }
-            let (ma, mb) = (moves(pi.slot_a), moves(pi.slot_b));
-            let dyn_a = ma && hot[pi.slot_a as usize].kind == BodyKind::Dynamic;
-            let dyn_b = mb && hot[pi.slot_b as usize].kind == BodyKind::Dynamic;
-            if !dyn_a && !dyn_b {
-                continue;
-            }
-            for (moves, slot) in [(ma, pi.slot_a), (mb, pi.slot_b)] {
+        for pc in pending.iter().filter(|pc| pc.used) {
+            for slot in [pc.a, pc.b] {
+                if slot == NONE {
+                    continue;
+                }
                 let idx = &mut self.body_of_slot[slot as usize];
-                if moves && *idx == NONE {
+                if *idx == NONE {
                     // Marked; the index is set in step 2.
                     *idx = 0;
                     self.touched.push(slot);
                 }
             }
-            self.coloring.assign(
-                if dyn_a { pi.slot_a } else { NONE },
-                if dyn_b { pi.slot_b } else { NONE },
-            );
-            self.pending.push(Pending {
-                pair: i as u32,
-                a: if ma { pi.slot_a } else { NONE },
-                b: if mb { pi.slot_b } else { NONE },
-                friction: pi.friction,
-                restitution: pi.restitution,
-                rounding: pi.rounding,
-            });
+            self.coloring.assign(pc.dyn_a, pc.dyn_b);
         }
-        // Each constraint goes to the next place of its colour's range.
-        // Constraints are overwritten in place and the rest cut off: a
-        // fresh push would build each (over a kilobyte) on the stack and
-        // copy it.
+        // Each constraint goes to the next place of its colour's range
+        // (`placed`; its fields are set in step 3). Constraints are
+        // overwritten in place and the rest cut off: a fresh push would
+        // build each (over a kilobyte) on the stack and copy it.
         self.starts = self.coloring.finish();
-        let used = self.pending.len();
         while self.constraints.len() < used {
             self.constraints.push(Constraint::default());
         }
         self.constraints.truncate(used);
+        self.placed.clear();
+        self.placed.resize(used, 0);
         let mut next = self.starts;
-        for (k, pc) in self.pending.iter().enumerate() {
-            let color = self.coloring.color_of(k);
-            let at = next[color] as usize;
+        let found = pending.iter().enumerate().filter(|(_, pc)| pc.used);
+        for (j, (k, _)) in found.enumerate() {
+            let color = self.coloring.color_of(j);
+            self.placed[next[color] as usize] = k as u32;
             next[color] += 1;
-            // Every other field is set in step 3 (`points` up to `count`,
-            // which is all any pass reads).
-            let c = &mut self.constraints[at];
-            c.pair = pc.pair;
-            c.a = pc.a;
-            c.b = pc.b;
-            c.friction = pc.friction;
-            c.restitution = pc.restitution;
-            c.rounding = pc.rounding;
         }
         // 2. Solver bodies in slot order, and the range of their inverse
         //    masses (for step 4).
@@ -747,7 +765,17 @@ impl ContactSolver {
         //    and bodies alone, so the workers share them out in any order.
         let zero = SolverBody::default();
         let (bodies, vels, body_of_slot) = (&self.bodies, &self.vels, &self.body_of_slot);
-        let constants = |c: &mut Constraint| {
+        let pending = &self.pending;
+        let constants = |c: &mut Constraint, k: u32| {
+            // Every other field is set below (`points` up to `count`,
+            // which is all any pass reads).
+            let pc = &pending[k as usize];
+            c.pair = pc.pair;
+            c.a = pc.a;
+            c.b = pc.b;
+            c.friction = pc.friction;
+            c.restitution = pc.restitution;
+            c.rounding = pc.rounding;
             let p = &pairs[c.pair as usize];
             c.a = if c.a == NONE {
                 NONE
@@ -834,7 +862,25 @@ impl ContactSolver {
                 c.softness = params.softness;
             }
         };
-        for_each_block(&mut self.constraints, &self.workers, constants);
+        let placed = &self.placed;
+        let shared = SharedMut::new(&mut self.constraints);
+        self.workers.for_each_block(used, BLOCK, |r| {
+            // SAFETY: each block goes to one worker alone.
+            let block = unsafe { shared.slice(r.clone()) };
+            let placed = &placed[r];
+            for (i, &k) in placed.iter().enumerate() {
+                if let Some(&ahead) = placed.get(i + PREFETCH_AHEAD) {
+                    prefetch(&block[i + PREFETCH_AHEAD]);
+                    // In colour order the pairs are read out of order: ask
+                    // for the next one's points too.
+                    if let Some(p) = pairs.get(pending[ahead as usize].pair as usize) {
+                        prefetch(&p.manifold);
+                        prefetch(&p.impulses);
+                    }
+                }
+                constants(&mut block[i], k);
+            }
+        });
         // 4. The heaviest body each solver body touches (smallest inverse
         //    mass, its own included), then each contact's spring from the
         //    ratio of that to its lighter body, and the high-ratio list.
@@ -859,7 +905,7 @@ impl ContactSolver {
             self.heavy.capacity(),
             self.level.capacity(),
             self.shock.capacity(),
-            self.pending.capacity(),
+            (self.pending.capacity(), self.placed.capacity()),
             self.coloring.capacities(),
         ) != caps;
         let (colors, overflow) = self.coloring.report();
@@ -1114,29 +1160,6 @@ impl ContactSolver {
                 visit(&mut self.constraints[i as usize]);
             }
         }
-    }
-
-    /// Makes room for this tick's constraints before any is written: at
-    /// most one per solid pair with points among the candidates. A constraint
-    /// is over a kilobyte, so a vector left to double as it is pushed would
-    /// hold up to twice what the scene needs, and three times that while it
-    /// moves (the old and the new buffer at once): on a pyramid of boxes
-    /// that was most of the world's memory. Grown once, to the bound and an
-    /// eighth more ([`reserve_near`]), so a scene whose contacts creep up by
-    /// a few per tick does not grow every tick. No change in results: only
-    /// capacity.
-    fn reserve_constraints(&mut self, pairs: &[ContactPair], active: Option<&[u32]>, n: usize) {
-        let solid = |i: usize| {
-            pairs
-                .get(i)
-                .is_some_and(|p| p.kind == PairKind::Solid && !p.manifold.is_empty())
-        };
-        let bound = (0..n)
-            .filter(|&k| solid(active.map_or(k, |a| a[k] as usize)))
-            .count();
-        reserve_near(&mut self.constraints, bound);
-        reserve_near(&mut self.pending, bound);
-        self.coloring.reserve(bound);
     }
 
     /// Step 4 of [`prepare`](Self::prepare) for a scene with high mass
