@@ -53,11 +53,12 @@ pub struct Options {
     pub runs: Option<usize>,
     /// Steps per run, if not the scene's own (`profile` suite).
     pub steps: Option<usize>,
-    /// Also the per-stage tables (`engines` suite).
+    /// Also the per-stage tables (`engines`, `profile`).
     pub stages: bool,
     /// Where `engines --stages` keeps its callgrind files, if anywhere.
     pub callgrind_dir: Option<PathBuf>,
-    /// `engines`: also ours in colour order on 1 and this many workers.
+    /// `engines`: also ours on 1 and this many workers; `profile`: ours in
+    /// colour order on this many.
     pub threads: Option<usize>,
 }
 
@@ -192,15 +193,16 @@ struct Cli {
     steps: Option<usize>,
     /// `engines` suite: also per scene ms/step for each stage of ours beside
     /// Rapier's own stage counters, and our instruction counts per stage
-    /// (callgrind, if valgrind is installed).
+    /// (callgrind, if valgrind is installed); `profile`: ms/step per stage.
     #[arg(long)]
     stages: bool,
     /// `engines --stages`: keep each scene's callgrind file as
     /// DIR/SCENE.callgrind (for `callgrind_annotate`).
     #[arg(long, value_name = "DIR")]
     callgrind_dir: Option<PathBuf>,
-    /// `engines` suite: also step ours in colour order on 1 and on N
-    /// solver workers (N in 1..=64), in the same runs.
+    /// `engines` suite: also step ours on N workers in pair order, and in
+    /// colour order on 1 and on N (N in 1..=64), in the same runs;
+    /// `profile`: ours in colour order on N workers.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
     threads: Option<u16>,
     /// Internal: the callgrind child of `engines --stages` (restore this
