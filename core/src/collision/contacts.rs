@@ -322,7 +322,7 @@ impl Test {
 }
 
 /// The narrow-phase function [`ContactSet::update`] calls (see there).
-pub trait NarrowTest:
+pub(crate) trait NarrowTest:
     Fn(
         ColliderHandle,
         ColliderHandle,
