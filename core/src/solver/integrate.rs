@@ -36,21 +36,39 @@ const BLOCK: usize = 128;
 
 /// Runs `update` on every body of `awake` (distinct slots of `hot`), in
 /// blocks over the workers: each body's update reads and writes only that
-/// body, so the results are the same for any worker count.
+/// body, so the results are the same for any worker count. Returns the sum
+/// of what the updates counted: each block sums its own, then adds it to
+/// the totals once (integers: the same sum in any order).
 fn for_each_awake(
     hot: &mut [BodyHot],
     awake: &[u32],
     workers: &Workers,
-    update: impl Fn(&mut BodyHot) + Sync,
-) {
+    update: impl Fn(&mut BodyHot) -> VelocityCounters + Sync,
+) -> VelocityCounters {
+    let totals = [AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0)];
     let hot = SharedMut::new(hot);
     workers.for_each_block(awake.len(), BLOCK, |r| {
+        let mut sum = [0u32; 3];
         for &slot in &awake[r] {
             // SAFETY: the awake slots are distinct, and each block goes to
             // one worker alone.
-            update(unsafe { hot.get(slot as usize) });
+            let c = update(unsafe { hot.get(slot as usize) });
+            sum[0] += c.integrated;
+            sum[1] += c.gyroscopic;
+            sum[2] += c.clamped;
+        }
+        for (total, n) in totals.iter().zip(sum) {
+            if n != 0 {
+                total.fetch_add(n, Ordering::Relaxed);
+            }
         }
     });
+    let [integrated, gyroscopic, clamped] = totals.map(AtomicU32::into_inner);
+    VelocityCounters {
+        integrated,
+        gyroscopic,
+        clamped,
+    }
 }
 
 /// At most this many fixed-point rounds for the midpoint angular velocity.
@@ -136,22 +154,20 @@ pub(crate) fn integrate_velocities(
     h: Scalar,
     workers: &Workers,
 ) -> VelocityCounters {
-    // Counts are integers: their sum is the same in any order.
-    let (integrated, gyroscopic, clamped) =
-        (AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0));
     let max_w = max_angular_speed(h);
     let max_w2 = max_w.wide_mul(max_w) as u128;
     for_each_awake(hot, awake, workers, |b| {
+        let mut counted = VelocityCounters::default();
         if b.kind != BodyKind::Dynamic || b.sleeping {
-            return;
+            return counted;
         }
-        integrated.fetch_add(1, Ordering::Relaxed);
+        counted.integrated = 1;
         if b.angular_velocity.length_squared_wide() > max_w2 {
             // ω and L are proportional (ω = I⁻¹L): scaling L scales ω.
             let k = max_w / b.angular_velocity.length();
             b.angular_momentum *= k;
             b.angular_velocity *= k;
-            clamped.fetch_add(1, Ordering::Relaxed);
+            counted.clamped = 1;
         }
         let accel = gravity * b.gravity_scale + b.force * b.inv_mass;
         b.linear_velocity += accel * h;
@@ -171,14 +187,10 @@ pub(crate) fn integrate_velocities(
         } else {
             let (w, _) = midpoint_omega(b.rotation, &b.inv_inertia, b.angular_momentum, h);
             b.angular_velocity = w;
-            gyroscopic.fetch_add(1, Ordering::Relaxed);
+            counted.gyroscopic = 1;
         }
-    });
-    VelocityCounters {
-        integrated: integrated.into_inner(),
-        gyroscopic: gyroscopic.into_inner(),
-        clamped: clamped.into_inner(),
-    }
+        counted
+    })
 }
 
 /// The most a body may turn in one substep, rad: a quarter turn's half
@@ -203,13 +215,13 @@ pub(crate) fn integrate_positions(
     workers: &Workers,
 ) {
     for_each_awake(hot, awake, workers, |b| {
-        if !b.is_moving() {
-            return;
+        if b.is_moving() {
+            b.center += b.linear_velocity * h;
+            if !b.angular_velocity.is_zero() {
+                b.rotation = b.rotation.integrate(b.angular_velocity, h);
+            }
         }
-        b.center += b.linear_velocity * h;
-        if !b.angular_velocity.is_zero() {
-            b.rotation = b.rotation.integrate(b.angular_velocity, h);
-        }
+        VelocityCounters::default()
     });
 }
 
@@ -222,6 +234,7 @@ pub(crate) fn finish_angular_velocities(hot: &mut [BodyHot], awake: &[u32], work
             b.angular_velocity =
                 omega_from_momentum(b.rotation, &b.inv_inertia, b.angular_momentum);
         }
+        VelocityCounters::default()
     });
 }
 
