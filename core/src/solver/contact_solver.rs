@@ -1242,18 +1242,28 @@ impl ContactSolver {
 
     /// Hands the accumulated impulses back to the pairs (warm starting next
     /// tick).
+    ///
+    /// In blocks of constraints over the workers: each constraint writes
+    /// its own pair (`prepare` makes at most one constraint per pair).
     pub(crate) fn store_impulses(&self, pairs: &mut [ContactPair]) {
-        for c in &self.constraints {
-            let p = &mut pairs[c.pair as usize];
-            for (k, cp) in c.points[..c.count].iter().enumerate() {
-                p.impulses[k] = PointImpulse {
-                    normal: cp.normal_impulse,
-                };
-            }
-            p.friction = PatchFriction {
-                tangent: c.patch.tangent_impulse,
-                twist: c.patch.twist_impulse,
-            };
-        }
+        let constraints = &self.constraints;
+        let pairs = SharedMut::new(pairs);
+        self.workers
+            .for_each_block(constraints.len(), BODY_BLOCK, |r| {
+                for c in &constraints[r] {
+                    // SAFETY: no other constraint holds this pair (above), and
+                    // each block goes to one worker alone.
+                    let p = unsafe { pairs.get(c.pair as usize) };
+                    for (k, cp) in c.points[..c.count].iter().enumerate() {
+                        p.impulses[k] = PointImpulse {
+                            normal: cp.normal_impulse,
+                        };
+                    }
+                    p.friction = PatchFriction {
+                        tangent: c.patch.tangent_impulse,
+                        twist: c.patch.twist_impulse,
+                    };
+                }
+            });
     }
 }
