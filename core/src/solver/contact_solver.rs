@@ -80,9 +80,9 @@ mod rows;
 mod shock;
 
 use color::{COLORS, Coloring};
-use std::sync::atomic::AtomicUsize;
+use std::ops::Range;
 
-use super::workers::{SharedMut, SpinBarrier, Workers, claim_blocks};
+use super::workers::{ColorGate, SharedMut, Workers};
 
 use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
@@ -127,7 +127,8 @@ const BODY_BLOCK: usize = 128;
 /// Visits every constraint once, in colour order: each colour's
 /// constraints split in blocks over the workers (they share no moving
 /// body, so each one's result is the same whoever visits it and in any
-/// order), a barrier between colours, then the overflow in order on this
+/// order), no block of a colour before the colour before it has finished,
+/// then the overflow in order on this
 /// thread. With one worker, or no colours (pair order), one thread visits
 /// the array from first to last: the same results.
 fn for_each_colored<F>(
@@ -144,26 +145,16 @@ fn for_each_colored<F>(
         for_each_prefetched(constraints, &visit);
         return;
     }
-    let last = (0..COLORS).rev().find(|&c| starts[c + 1] > starts[c]);
-    let claimed: [AtomicUsize; COLORS] = std::array::from_fn(|_| AtomicUsize::new(0));
-    let barrier = SpinBarrier::new(workers);
+    let ranges: [Range<usize>; COLORS] = std::array::from_fn(|c| {
+        (starts[c] as usize).min(colored)..(starts[c + 1] as usize).min(colored)
+    });
+    let gate = ColorGate::<COLORS>::new(workers);
     let (shared, overflow) = constraints.split_at_mut(colored);
     let shared = SharedMut::new(shared);
     // SAFETY: each block is claimed by one worker alone (one counter per
     // colour, every worker claiming from it).
     let visit_block = |r| for_each_prefetched(unsafe { shared.slice(r) }, &visit);
-    workers.run(&|_| {
-        for c in 0..COLORS {
-            let (lo, hi) = (starts[c] as usize, (starts[c + 1] as usize).min(colored));
-            if lo >= hi {
-                continue;
-            }
-            claim_blocks(lo..hi, BLOCK, &claimed[c], &visit_block);
-            if Some(c) != last {
-                barrier.wait();
-            }
-        }
-    });
+    workers.run(&|_| gate.visit(&ranges, BLOCK, &visit_block));
     for_each_prefetched(overflow, &visit);
 }
 

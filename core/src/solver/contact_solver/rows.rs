@@ -230,8 +230,8 @@ pub(super) struct BodyArrays {
     len: usize,
 }
 
-// SAFETY: see `BodyArrays::new`: workers touch disjoint entries between
-// barriers.
+// SAFETY: see `BodyArrays::new`: workers touch disjoint entries within a
+// colour, and a colour starts after the one before it has finished.
 unsafe impl Send for BodyArrays {}
 // SAFETY: as above.
 unsafe impl Sync for BodyArrays {}
