@@ -288,13 +288,16 @@ impl Eq for UpdateScratch {}
 /// A pair the current update tests: where it is, how many events came
 /// before it in key order, and what the test did ([`Test::REUSED`],
 /// [`Test::BEGIN`], [`Test::END`]).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct Test {
     /// Its index in the pair array, or in `ContactSet::next` tagged with
     /// [`NEW_PAIR`].
     at: u32,
     /// Events before this pair's own.
     events_before: u32,
+    /// The candidate's kind, given to the pair as it is tested (on a
+    /// worker, so the merge reads an old pair and never writes it).
+    kind: PairKind,
     /// What the test did.
     outcome: u8,
     /// The pair's contact points after the test, if it touches (what
@@ -472,10 +475,11 @@ impl ContactSet {
 
     /// Lists a pair to test (its kind set to the candidate's); `at` as in
     /// [`Test::at`].
-    fn list_test(&mut self, at: u32) {
+    fn list_test(&mut self, at: u32, kind: PairKind) {
         self.scratch.tests.push(Test {
             at,
             events_before: self.events.len() as u32,
+            kind,
             outcome: 0,
             points: 0,
         });
@@ -503,6 +507,7 @@ impl ContactSet {
                             pairs.get(t.at as usize)
                         }
                     };
+                    pair.kind = t.kind;
                     t.outcome = Self::test_pair(pair, narrow, &mut scratch);
                     let (touching, points) = counts(pair);
                     if touching != 0 {
@@ -595,7 +600,7 @@ impl ContactSet {
             };
             self.active.index.push(self.next.len() as u32);
             pair.kind = c.kind;
-            self.list_test(NEW_PAIR | self.next.len() as u32);
+            self.list_test(NEW_PAIR | self.next.len() as u32, c.kind);
             self.next.push(pair);
         }
         while old < self.pairs.len() {
@@ -719,7 +724,6 @@ impl ContactSet {
                     k += 1;
                     let i = old.unwrap_or_default();
                     self.active.order.push((i as u32, true));
-                    self.pairs[i].kind = c.kind;
                     i as u32
                 }
                 found => {
@@ -741,7 +745,7 @@ impl ContactSet {
                     NEW_PAIR | (self.next.len() - 1) as u32
                 }
             };
-            self.list_test(at);
+            self.list_test(at, c.kind);
         }
         while k < n_active {
             reshaped |= !self.retire_active(k, &mut keep_asleep, &mut stats);
