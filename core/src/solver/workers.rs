@@ -19,12 +19,12 @@
 //! body's integration that body alone; the constraints of one colour share
 //! no moving body, so each one's result is the same whichever worker visits
 //! it and in whatever order), and no block of a colour starts before every
-//! block of the colour before it has finished ([`ColorGate`]). Nothing is summed across workers but
-//! integer counters (exact in any order); whatever must be in order (the
-//! contact events) is put in order on the calling thread afterwards. The
-//! worker count is not simulation state: it is in neither the state hash
-//! nor snapshots, and tests step the same scenes with 1, 2, 3, 4 and 8
-//! workers and compare every hash.
+//! block of the colour before it has finished ([`ColorGate`]). Nothing is
+//! summed across workers but integer counters (exact in any order);
+//! whatever must be in order (the contact events) is put in order on the
+//! calling thread afterwards. The worker count is not simulation state: it
+//! is in neither the state hash nor snapshots, and tests step the same
+//! scenes with 1, 2, 3, 4 and 8 workers and compare every hash.
 //!
 //! Faults: the core's fault flags are per thread (`math::faults`). A
 //! helper clears its flags before each job and hands what the job raised
