@@ -582,7 +582,7 @@ impl ContactSet {
                 self.retire(old, &mut keep_asleep, &mut stats);
                 old += 1;
             }
-            let mut pair = if old < self.pairs.len()
+            let pair = if old < self.pairs.len()
                 && self.pairs[old].key() == key
                 && self.pairs[old].a == c.a
                 && self.pairs[old].b == c.b
@@ -599,7 +599,7 @@ impl ContactSet {
                 ContactPair::new(c.a, c.b, c.kind)
             };
             self.active.index.push(self.next.len() as u32);
-            pair.kind = c.kind;
+            // The test gives the pair the candidate's kind.
             self.list_test(NEW_PAIR | self.next.len() as u32, c.kind);
             self.next.push(pair);
         }

@@ -124,12 +124,15 @@ const BLOCK: usize = 16;
 /// from the bodies (a few nanoseconds each).
 const BODY_BLOCK: usize = 128;
 
+/// Constraints a worker claims at a time when the impulses go back to the
+/// pairs (a copy of a few words each).
+const STORE_BLOCK: usize = 128;
+
 /// Visits every constraint once, in colour order: each colour's
 /// constraints split in blocks over the workers (they share no moving
 /// body, so each one's result is the same whoever visits it and in any
 /// order), no block of a colour before the colour before it has finished,
-/// then the overflow in order on this
-/// thread. With one worker, or no colours (pair order), one thread visits
+/// then the overflow in order on this thread. With one worker, or no colours (pair order), one thread visits
 /// the array from first to last: the same results.
 fn for_each_colored<F>(
     constraints: &mut [Constraint],
@@ -1240,7 +1243,7 @@ impl ContactSolver {
         let constraints = &self.constraints;
         let pairs = SharedMut::new(pairs);
         self.workers
-            .for_each_block(constraints.len(), BODY_BLOCK, |r| {
+            .for_each_block(constraints.len(), STORE_BLOCK, |r| {
                 for c in &constraints[r] {
                     // SAFETY: no other constraint holds this pair (above), and
                     // each block goes to one worker alone.

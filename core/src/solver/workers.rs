@@ -441,14 +441,10 @@ impl<const N: usize> ColorGate<'_, N> {
                     pause(&mut waited);
                 }
             }
-            loop {
-                let first = range.start + self.claimed[c].fetch_add(1, Ordering::Relaxed) * block;
-                if first >= range.end {
-                    break;
-                }
-                visit(first..(first + block).min(range.end));
+            claim_blocks(range.clone(), block, &self.claimed[c], &|r| {
+                visit(r);
                 self.finished[c].fetch_add(1, Ordering::Release);
-            }
+            });
             before = Some(c);
         }
     }
