@@ -27,7 +27,7 @@ use rapier3d::prelude::{
 
 use crate::scenes::{self, BodyShape, Scene};
 use crate::{Options, SuiteOutput};
-use crate::{alloc, scene_file, stages};
+use crate::{alloc, harness, scene_file, stages};
 
 /// Steps per second in both engines.
 const TICK_RATE: u32 = 60;
@@ -59,7 +59,7 @@ fn settings_text() -> String {
     format!(
         "ours: lockstep-core (Q32.32), tick_rate {TICK_RATE}, substeps {SUBSTEPS} (1 solve + 1 relax pass each), \
          friction at each manifold's patch centre (2 tangent rows + twist), sleep off, contact margin 2 cm\n\
-         rapier3d 0.36.1 (dim3, f32, enhanced-determinism; no `parallel`: one thread): dt 1/{TICK_RATE}, \
+         rapier3d 0.36.1 (dim3, f32, enhanced-determinism, `parallel` on a pool of one thread; `--threads N`: also on N): dt 1/{TICK_RATE}, \
          num_solver_iterations {} (= substeps), num_internal_pgs_iterations {}, \
          num_internal_stabilization_iterations {}, warmstart_coefficient {}, contact_clustering {}, \
          contact_recycling {}, prediction distance {} m, CCD off, can_sleep(false)\n\
@@ -256,8 +256,27 @@ fn rv(p: [f64; 3]) -> Vector {
     Vector::new(r(p[0]), r(p[1]), r(p[2]))
 }
 
+/// Runs `f` on the one thread of a rayon pool of its own, so that Rapier
+/// (built with `parallel`) steps on one thread: called from a pool's
+/// thread, Rapier's parallel loops split over that pool, and from outside
+/// any pool over rayon's global pool (one thread per core).
+pub fn on_one_thread<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    match rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .thread_name(|_| "bench".to_string())
+        // The main thread's size: scene building and the suites recurse as
+        // they would there.
+        .stack_size(8 << 20)
+        .build()
+    {
+        Ok(pool) => pool.install(f),
+        Err(e) => panic!("cannot start the bench's one-thread pool: {e}"),
+    }
+}
+
 impl Rapier {
-    /// The scene built in Rapier with the suite's settings.
+    /// The scene built in Rapier with the suite's settings, stepping on the
+    /// calling thread's pool (see [`on_one_thread`]).
     pub(crate) fn new(scene: &Scene) -> Rapier {
         if let BodyShape::File(desc) = &scene.shape {
             let (world, bodies) = scene_file::build_rapier(desc);
@@ -323,6 +342,17 @@ impl Rapier {
             );
         }
         Rapier { world, bodies }
+    }
+
+    /// The scene in Rapier stepping on a pool of its own with `threads`
+    /// threads (Rapier's `parallel` build: its narrow phase, body updates
+    /// and coloured solver split over them).
+    fn on_threads(scene: &Scene, threads: usize) -> Rapier {
+        let mut rapier = Rapier::new(scene);
+        if let Err(e) = rapier.world.physics_pipeline.configure_thread_pool(threads) {
+            panic!("cannot start Rapier's pool of {threads} threads: {e}");
+        }
+        rapier
     }
 }
 
@@ -545,6 +575,15 @@ pub struct Threaded {
     pub one: EngineResult,
     /// Colour order, N workers (the same bits as `one`).
     pub many: EngineResult,
+    /// Rapier on a pool of N threads.
+    pub rapier_many: EngineResult,
+    /// Whether Rapier on N threads ended every run with the same positions,
+    /// to the bit, as on one thread.
+    pub rapier_same: bool,
+    /// The core-to-core round trip (ns, [`harness::core_round_trip_ns`])
+    /// before and after each run's N-thread measurements: whether the host
+    /// had the two CPUs near each other or far apart while they ran.
+    pub round_trip_ns: Vec<f64>,
 }
 
 /// Runs one scene `runs` times per engine, alternating; with `threads`,
@@ -554,6 +593,9 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
     let mut ours = Vec::new();
     let mut theirs = Vec::new();
     let (mut pairs_many, mut one, mut many) = (Vec::new(), Vec::new(), Vec::new());
+    let mut rapier_many = Vec::new();
+    let mut rapier_same = true;
+    let mut round_trip_ns = Vec::new();
     let mut faulted = false;
     for _ in 0..runs.max(1) {
         let (run, sim) = measure(scene, Ours::new);
@@ -561,9 +603,15 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
         drop(sim);
         ours.push(run);
         let (run, sim) = measure(scene, Rapier::new);
+        let rapier_end = sim.positions();
         drop(sim);
         theirs.push(run);
         if let Some(n) = threads {
+            round_trip_ns.push(harness::core_round_trip_ns(harness::ROUND_TRIPS));
+            let (run, sim) = measure(scene, |s| Rapier::on_threads(s, n));
+            rapier_same &= same_bits(&rapier_end, &sim.positions());
+            drop(sim);
+            rapier_many.push(run);
             for (order, workers, out) in [
                 (ContactOrder::Pairs, n, &mut pairs_many),
                 (ContactOrder::Colors, 1, &mut one),
@@ -574,6 +622,7 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
                 drop(sim);
                 out.push(run);
             }
+            round_trip_ns.push(harness::core_round_trip_ns(harness::ROUND_TRIPS));
         }
     }
     let has_tops = !scene.tops.is_empty();
@@ -582,6 +631,9 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
         pairs_many: EngineResult::from_runs(&pairs_many, has_tops, faulted),
         one: EngineResult::from_runs(&one, has_tops, faulted),
         many: EngineResult::from_runs(&many, has_tops, faulted),
+        rapier_many: EngineResult::from_runs(&rapier_many, has_tops, false),
+        rapier_same,
+        round_trip_ns,
     });
     SceneResult {
         threaded,
@@ -592,6 +644,14 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
         ours: EngineResult::from_runs(&ours, has_tops, faulted),
         rapier: EngineResult::from_runs(&theirs, has_tops, false),
     }
+}
+
+/// Whether two lists of positions are the same to the bit.
+fn same_bits(a: &[[f64; 3]], b: &[[f64; 3]]) -> bool {
+    a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .all(|(p, q)| (0..3).all(|i| p[i].to_bits() == q[i].to_bits()))
 }
 
 /// The scenes by name, at full or quick size.
@@ -766,7 +826,8 @@ pub fn table(results: &[SceneResult], skipped: &[&str]) -> String {
 }
 
 /// With `--threads N`: ours in pair order on 1 and N workers and in colour
-/// order on 1 and N, beside Rapier (one thread), from the same runs.
+/// order on 1 and N, beside Rapier on one thread and on N, from the same
+/// runs.
 pub fn threads_table(results: &[SceneResult]) -> String {
     let mut out = String::new();
     if results.iter().all(|r| r.threaded.is_none()) {
@@ -774,11 +835,11 @@ pub fn threads_table(results: &[SceneResult]) -> String {
     }
     let _ = writeln!(
         out,
-        "\nthreads: ours on N workers (the same bits for any N; in pair order the narrow phase, integrators and solver set-up split, in colour order the solver passes too)"
+        "\nthreads: ours on N workers (the same bits for any N; in pair order the narrow phase, integrators and solver set-up split, in colour order the solver passes too), Rapier on N threads (its `parallel` build)"
     );
     let _ = writeln!(
         out,
-        "{:<14} {:>3}  {:>10} {:>10} {:>8}  {:>10} {:>10}  {:>8}  {:>10}  {:>8} {:>8}  {:>9} {:>9}",
+        "{:<14} {:>3}  {:>10} {:>10} {:>7}  {:>10} {:>10} {:>7}  {:>10} {:>10} {:>7} {:>5}  {:>8} {:>8}  {:>9} {:>9}  {:>11}",
         "scene",
         "N",
         "pairs 1",
@@ -788,16 +849,20 @@ pub fn threads_table(results: &[SceneResult]) -> String {
         "colours N",
         "1→N",
         "rapier 1",
-        "N/rapier",
-        "1/rapier",
+        "rapier N",
+        "1→N",
+        "same",
+        "N/rap N",
+        "1/rap 1",
         "top dy N",
-        "max xz N"
+        "max xz N",
+        "trip ns"
     );
     for r in results {
         let Some(t) = &r.threaded else { continue };
         let _ = writeln!(
             out,
-            "{:<14} {:>3}  {:>10.3} {:>10.3} {:>7.2}×  {:>10.3} {:>10.3}  {:>7.2}×  {:>10.3}  {:>8.2} {:>8.2}  {:>9.4} {:>9.4}",
+            "{:<14} {:>3}  {:>10.3} {:>10.3} {:>6.2}×  {:>10.3} {:>10.3} {:>6.2}×  {:>10.3} {:>10.3} {:>6.2}× {:>5}  {:>8.2} {:>8.2}  {:>9.4} {:>9.4}  {:>11}",
             r.name,
             t.workers,
             r.ours.median_ms,
@@ -807,18 +872,36 @@ pub fn threads_table(results: &[SceneResult]) -> String {
             t.many.median_ms,
             t.one.median_ms / t.many.median_ms,
             r.rapier.median_ms,
-            t.many.median_ms / r.rapier.median_ms,
+            t.rapier_many.median_ms,
+            r.rapier.median_ms / t.rapier_many.median_ms,
+            if t.rapier_same { "yes" } else { "NO" },
+            t.many.median_ms / t.rapier_many.median_ms,
             r.ours.median_ms / r.rapier.median_ms,
             t.many.top_dy,
-            t.many.max_horizontal
+            t.many.max_horizontal,
+            trip_range(&t.round_trip_ns)
         );
     }
     let _ = writeln!(
         out,
-        "(median ms/step; 1→N = on 1 worker / on N, in each order; N/rapier = colours on N workers / Rapier on one thread \
-         (Rapier's parallel build is not in this bench); 1/rapier = pair order / Rapier, as above)"
+        "(median ms/step; 1→N = on 1 worker or thread / on N, in each order and for Rapier; same = Rapier on N threads ended \
+         every run at the same positions, to the bit, as on one; N/rap N = ours in colour order on N workers / Rapier on N \
+         threads; 1/rap 1 = ours in pair order / Rapier, both on one; trip ns = fewest–most ns for a cache line to go to \
+         another thread and back, probed before and after each run's N-thread measurements: on a virtual machine, whether \
+         the host kept the CPUs near each other (tens of ns) or far apart (hundreds), which moves every N-worker figure)"
     );
     out
+}
+
+/// The fewest and most of the round-trip probes, as `min–max` ns.
+fn trip_range(ns: &[f64]) -> String {
+    let lo = ns.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ns.iter().copied().fold(0.0, f64::max);
+    if lo.is_finite() {
+        format!("{lo:.0}–{hi:.0}")
+    } else {
+        "-".to_string()
+    }
 }
 
 /// The results as CSV, one line per scene and engine.
@@ -972,9 +1055,12 @@ mod tests {
         let r = run_scene(&scene, 1, Some(3));
         let t = r.threaded.as_ref().expect("threaded runs");
         assert_eq!(t.workers, 3);
-        for e in [&t.pairs_many, &t.one, &t.many] {
+        for e in [&t.pairs_many, &t.one, &t.many, &t.rapier_many] {
             assert!(e.median_ms > 0.0 && !e.faulted);
         }
+        // Rapier on 3 threads simulated the same scene: its pyramid stands
+        // as on one thread.
+        assert!(r.rapier.top_dy < 0.01 && t.rapier_many.top_dy < 0.01);
         // The same bits on 1 and 3 workers, so the same end positions.
         assert_eq!(
             t.one.max_displacement.to_bits(),
@@ -989,6 +1075,7 @@ mod tests {
         let table = threads_table(&[r]);
         assert!(table.contains("large_pyramid    3"), "{table}");
         assert!(table.contains("colours N"), "{table}");
+        assert!(table.contains("rapier N"), "{table}");
     }
 
     #[test]

@@ -257,7 +257,10 @@ fn main() -> ExitCode {
         callgrind_dir: cli.callgrind_dir.clone(),
         threads: cli.threads.map(usize::from),
     };
-    let out = (suite.run)(&opts);
+    // Rapier's `parallel` build splits work over the rayon pool it is called
+    // in: every suite runs in a pool of one thread, and `engines --threads N`
+    // gives its N-thread Rapier runs their own pool.
+    let out = engines::on_one_thread(|| (suite.run)(&opts));
     println!(
         "suite {}{}\n{MACHINE_CAVEAT}",
         suite.name,

@@ -53,6 +53,10 @@ pub fn run(opts: &Options) -> SuiteOutput {
         }
         let (mut world, bodies) = build_ours_in(&scene, sleep_off(), order);
         world.set_workers(workers);
+        // With workers, where the host had the CPUs (see
+        // `harness::core_round_trip_ns`), before and after the steps.
+        let trip_before =
+            (workers > 1).then(|| crate::harness::core_round_trip_ns(crate::harness::ROUND_TRIPS));
         let mut clock = StageClock::new();
         let mut total = 0.0;
         let (mut points, mut tests, mut reused) = (0, 0, 0);
@@ -75,6 +79,10 @@ pub fn run(opts: &Options) -> SuiteOutput {
         // are checked by comparing it before and after.
         let hash = world.state_hash();
         let ms = total * 1e3 / (steps - 1) as f64;
+        let trips = trip_before.map(|before| {
+            let after = crate::harness::core_round_trip_ns(crate::harness::ROUND_TRIPS);
+            format!("  (core round trip {before:.0} ns before, {after:.0} ns after)")
+        });
         let top_dy = scene
             .tops
             .iter()
@@ -87,8 +95,9 @@ pub fn run(opts: &Options) -> SuiteOutput {
             .fold(0.0, f64::max);
         let _ = writeln!(
             text,
-            "{name:<14} {:>7} {steps:>6} {ms:>9.3} {points:>9} {tests:>8} {reused:>7} {top_dy:>9.4}  {hash:016x}",
-            scene.positions.len()
+            "{name:<14} {:>7} {steps:>6} {ms:>9.3} {points:>9} {tests:>8} {reused:>7} {top_dy:>9.4}  {hash:016x}{}",
+            scene.positions.len(),
+            trips.unwrap_or_default()
         );
         let _ = writeln!(
             csv,
