@@ -374,6 +374,45 @@ impl Constraint {
             arrays.add_dl(b, combine3(f.rb_t[0], d0, f.rb_t[1], d1, n, dw));
         }
     }
+
+    /// Applies the accumulated impulses to the velocities `va`, `vb` of A
+    /// and B (the warm start), records their total normal impulse and
+    /// clears the marks (the angular write-back takes them all again).
+    ///
+    /// Every change is a rounded product of the impulses and this
+    /// constraint's constant terms, added to the velocity: none depends on
+    /// the velocities, so the changes may be summed apart (from zero) and
+    /// added later, to the same bits.
+    #[inline(always)]
+    fn warm_start(&mut self, va: &mut BodyVel, vb: &mut BodyVel) {
+        let (a, b) = (self.a, self.b);
+        // The linear change is the same direction for every point: sum the
+        // impulses (exactly) and scale once per constraint.
+        let mut total = Scalar::ZERO;
+        for cp in &mut self.points[..self.count] {
+            cp.mark = Scalar::ZERO;
+            let ni = cp.normal_impulse;
+            if ni.is_zero() {
+                continue;
+            }
+            total += ni;
+            push_angular(va, vb, a, b, ni, cp.ia_n, cp.ib_n);
+        }
+        self.warm_total = total;
+        let f = &mut self.patch;
+        f.mark = [Scalar::ZERO; 3];
+        let [i0, i1] = f.tangent_impulse;
+        let iw = f.twist_impulse;
+        if !(i0.is_zero() && i1.is_zero() && iw.is_zero()) {
+            if a != NONE {
+                va.w -= combine3(f.ia_t[0], i0, f.ia_t[1], i1, f.ia_w, iw);
+            }
+            if b != NONE {
+                vb.w += combine3(f.ib_t[0], i0, f.ib_t[1], i1, f.ib_w, iw);
+            }
+        }
+        apply_linear(self, va, vb, [total, i0, i1]);
+    }
 }
 
 /// Softness of the contact spring for a substep.
@@ -500,6 +539,11 @@ pub(crate) struct ContactSolver {
     vels: Vec<BodyVel>,
     /// Angular impulse of each solver body since the last write-back.
     dls: Vec<Vec3>,
+    /// The next substep's warm start, summed per solver body by the last
+    /// relax pass (see [`ContactSolver::solve`]); zero otherwise.
+    warm: Vec<BodyVel>,
+    /// Whether `warm` holds the next warm start.
+    warm_ready: bool,
     /// Slot → solver body index, or `NONE`. Only the slots of `bodies` hold
     /// an index, so a tick resets just those, never every slot.
     body_of_slot: Vec<u32>,
@@ -598,7 +642,7 @@ impl ContactSolver {
         let caps = (
             self.bodies.capacity(),
             self.vels.capacity(),
-            self.dls.capacity(),
+            (self.dls.capacity(), self.warm.capacity()),
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
             self.touched.capacity(),
@@ -620,6 +664,8 @@ impl ContactSolver {
         self.bodies.clear();
         self.vels.clear();
         self.dls.clear();
+        self.warm.clear();
+        self.warm_ready = false;
         let moves = |slot: u32| {
             let b = &hot[slot as usize];
             b.kind != BodyKind::Static && !b.sleeping
@@ -750,6 +796,7 @@ impl ContactSolver {
                 w: b.angular_velocity,
             });
             self.dls.push(Vec3::ZERO);
+            self.warm.push(BodyVel::default());
         }
         // Step 4's shortcut, known now: when even the lightest solver body
         // against the heaviest is not a high ratio, every contact keeps the
@@ -891,7 +938,7 @@ impl ContactSolver {
         let grew = (
             self.bodies.capacity(),
             self.vels.capacity(),
-            self.dls.capacity(),
+            (self.dls.capacity(), self.warm.capacity()),
             self.body_of_slot.capacity(),
             self.constraints.capacity(),
             self.touched.capacity(),
@@ -1017,39 +1064,33 @@ impl ContactSolver {
         });
     }
 
-    /// Applies last substep's (or last tick's) accumulated impulses again.
+    /// Applies last substep's (or last tick's) accumulated impulses again:
+    /// the sums the last relax pass left in `warm` if it made them, else a
+    /// pass over the constraints.
     pub(crate) fn warm_start(&mut self) {
         self.substeps = self.substeps.wrapping_add(1);
+        if std::mem::take(&mut self.warm_ready) {
+            let len = self.vels.len();
+            let (vels, warm) = (
+                SharedMut::new(&mut self.vels),
+                SharedMut::new(&mut self.warm),
+            );
+            self.workers.for_each_block(len, BODY_BLOCK, |r| {
+                // SAFETY: each block goes to one worker alone.
+                let (vels, warm) = unsafe { (vels.slice(r.clone()), warm.slice(r)) };
+                for (vel, w) in vels.iter_mut().zip(warm) {
+                    let w = std::mem::take(w);
+                    vel.v += w.v;
+                    vel.w += w.w;
+                }
+            });
+            return;
+        }
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
-        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls) };
+        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         let visit = |c: &mut Constraint| {
             let (mut va, mut vb) = arrays.load(c.a, c.b);
-            // The linear change is the same direction for every point: sum
-            // the impulses (exactly) and scale once per constraint.
-            let mut total = Scalar::ZERO;
-            for cp in &mut c.points[..c.count] {
-                cp.mark = Scalar::ZERO;
-                let ni = cp.normal_impulse;
-                if ni.is_zero() {
-                    continue;
-                }
-                total += ni;
-                push_angular(&mut va, &mut vb, c.a, c.b, ni, cp.ia_n, cp.ib_n);
-            }
-            c.warm_total = total;
-            let f = &mut c.patch;
-            f.mark = [Scalar::ZERO; 3];
-            let [i0, i1] = f.tangent_impulse;
-            let iw = f.twist_impulse;
-            if !(i0.is_zero() && i1.is_zero() && iw.is_zero()) {
-                if c.a != NONE {
-                    va.w -= combine3(f.ia_t[0], i0, f.ia_t[1], i1, f.ia_w, iw);
-                }
-                if c.b != NONE {
-                    vb.w += combine3(f.ib_t[0], i0, f.ib_t[1], i1, f.ib_w, iw);
-                }
-            }
-            apply_linear(c, &mut va, &mut vb, [total, i0, i1]);
+            c.warm_start(&mut va, &mut vb);
             arrays.store(c.wa, c.wb, va, vb);
         };
         for_each_colored(&mut self.constraints, &self.starts, &self.workers, visit);
@@ -1062,7 +1103,17 @@ impl ContactSolver {
     /// angular impulses into its bodies' write-back (one pass over the
     /// constraints fewer than a separate sum: the sums are exact integer
     /// additions, so their order does not change the result).
-    pub(crate) fn solve(&mut self, params: &SolverParams, use_bias: bool) {
+    ///
+    /// With `warm_next` (a relax pass with a substep after it) it also sums
+    /// each constraint's warm start of the next substep into `warm`, while
+    /// the constraint is at hand: its impulses are final once its visit
+    /// ends, and the warm start's changes do not depend on the velocities
+    /// (see [`Constraint::warm_start`]), so [`warm_start`](Self::warm_start)
+    /// then adds the sums instead of reading every constraint again: the
+    /// same bits. Not when the high-ratio visits or the shock pass change
+    /// impulses after the pass.
+    pub(crate) fn solve(&mut self, params: &SolverParams, use_bias: bool, warm_next: bool) {
+        let fuse = warm_next && !use_bias && self.heavy.is_empty() && self.shock.is_empty();
         // Substep k starts each manifold's points at point k (mod count) and
         // goes round: always the same order lets the first point of a
         // manifold take more than its share of the load, and that keeps a
@@ -1071,7 +1122,7 @@ impl ContactSolver {
         let rot = self.substeps as usize;
         // SAFETY: the pass visits one colour at a time (`for_each_colored`),
         // then the heavy constraints on this thread alone.
-        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls) };
+        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         let bodies = &self.bodies;
         let visit = |c: &mut Constraint| {
             let (mut va, mut vb) = arrays.load(c.a, c.b);
@@ -1147,8 +1198,14 @@ impl ContactSolver {
             if !use_bias {
                 c.collect_angular(&arrays);
             }
+            if fuse {
+                let (mut da, mut db) = (BodyVel::default(), BodyVel::default());
+                c.warm_start(&mut da, &mut db);
+                arrays.add_warm(c.wa, c.wb, da, db);
+            }
         };
         for_each_colored(&mut self.constraints, &self.starts, &self.workers, visit);
+        self.warm_ready = fuse;
         for _ in 0..HIGH_RATIO_PASSES {
             for &i in &self.heavy {
                 visit(&mut self.constraints[i as usize]);
@@ -1201,7 +1258,7 @@ impl ContactSolver {
     /// and pushed get the normal velocity `−e·v_before`.
     pub(crate) fn restitution(&mut self, params: &SolverParams) {
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
-        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls) };
+        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         let threshold = -params.restitution_threshold;
         let visit = |c: &mut Constraint| {
             if c.restitution.is_zero() {

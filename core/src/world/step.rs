@@ -153,7 +153,15 @@ impl World {
             n.finished(Stage::Solve);
             stage_integrate_positions(hot, awake, h, solver.pool());
             n.finished(Stage::IntegratePositions);
-            stage_relax(solver, &mut js, &params, cfg.relax_iterations, hot);
+            let warm_next = substep + 1 < cfg.substeps;
+            stage_relax(
+                solver,
+                &mut js,
+                &params,
+                cfg.relax_iterations,
+                hot,
+                warm_next,
+            );
             n.finished(Stage::Relax);
         }
         stage_restitution(solver, &params, hot);
@@ -469,7 +477,7 @@ fn stage_solve(
         solver.gather_velocities(hot);
     }
     for _ in 0..iterations {
-        solver.solve(params, true);
+        solver.solve(params, true, false);
     }
     solver.shock(params, false);
     solver.scatter_velocities(hot);
@@ -482,7 +490,8 @@ fn stage_integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar, work
 }
 
 /// The relax passes (no push-out) at the substep's new poses, and the shock
-/// pass over the high-mass-ratio contacts.
+/// pass over the high-mass-ratio contacts. With `warm_next` (a substep
+/// follows) the last pass also sums the next warm start.
 #[inline(never)]
 fn stage_relax(
     solver: &mut ContactSolver,
@@ -490,6 +499,7 @@ fn stage_relax(
     params: &SolverParams,
     iterations: u32,
     hot: &mut [BodyHot],
+    warm_next: bool,
 ) {
     if !js.is_empty() {
         // The positions moved since the solve passes: the first relax pass
@@ -502,8 +512,8 @@ fn stage_relax(
         return;
     }
     solver.gather(hot);
-    for _ in 0..iterations {
-        solver.solve(params, false);
+    for i in 0..iterations {
+        solver.solve(params, false, warm_next && i + 1 == iterations);
     }
     solver.shock(params, true);
     solver.scatter(hot);

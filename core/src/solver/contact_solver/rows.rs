@@ -227,6 +227,7 @@ pub(super) fn prefetch<T>(x: &T) {
 pub(super) struct BodyArrays {
     vels: *mut BodyVel,
     dls: *mut Vec3,
+    warm: *mut BodyVel,
     len: usize,
 }
 
@@ -237,7 +238,8 @@ unsafe impl Send for BodyArrays {}
 unsafe impl Sync for BodyArrays {}
 
 impl BodyArrays {
-    /// Shares `vels` and `dls` (one entry per solver body) for one pass.
+    /// Shares `vels`, `dls` and `warm` (one entry per solver body) for one
+    /// pass.
     ///
     /// # Safety
     /// Until the pass ends the caller uses neither slice, and any entry
@@ -245,12 +247,17 @@ impl BodyArrays {
     /// thread until they synchronise: the constraints visited at once share
     /// no dynamic body (one colour), and only dynamic bodies are written
     /// (`wa`/`wb` of a constraint are `NONE` for a kinematic body).
-    pub(super) unsafe fn new(vels: &mut [BodyVel], dls: &mut [Vec3]) -> BodyArrays {
-        debug_assert_eq!(vels.len(), dls.len());
+    pub(super) unsafe fn new(
+        vels: &mut [BodyVel],
+        dls: &mut [Vec3],
+        warm: &mut [BodyVel],
+    ) -> BodyArrays {
+        debug_assert!(vels.len() == dls.len() && vels.len() == warm.len());
         BodyArrays {
             vels: vels.as_mut_ptr(),
             dls: dls.as_mut_ptr(),
-            len: vels.len().min(dls.len()),
+            warm: warm.as_mut_ptr(),
+            len: vels.len().min(dls.len()).min(warm.len()),
         }
     }
 
@@ -280,6 +287,21 @@ impl BodyArrays {
                 // SAFETY: in bounds; this thread alone touches the entry of
                 // a dynamic body during its colour (`new`).
                 unsafe { *self.vels.add(i as usize) = v };
+            }
+        }
+    }
+
+    /// Adds the changes `da`, `db` to the next warm start's sums of the
+    /// dynamic bodies `wa` and `wb` (`NONE`: not written).
+    #[inline(always)]
+    pub(super) fn add_warm(&self, wa: u32, wb: u32, da: BodyVel, db: BodyVel) {
+        for (i, d) in [(wa, da), (wb, db)] {
+            if i != NONE {
+                assert!((i as usize) < self.len);
+                // SAFETY: as in `store`.
+                let w = unsafe { &mut *self.warm.add(i as usize) };
+                w.v += d.v;
+                w.w += d.w;
             }
         }
     }
