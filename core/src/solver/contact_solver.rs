@@ -157,7 +157,7 @@ fn for_each_colored<F>(
     // SAFETY: each block is claimed by one worker alone (one counter per
     // colour, every worker claiming from it).
     let visit_block = |r| for_each_prefetched(unsafe { shared.slice(r) }, &visit);
-    workers.run(&|_| gate.visit(&ranges, BLOCK, &visit_block));
+    workers.run(&|w| gate.visit(w, &ranges, BLOCK, &visit_block));
     for_each_prefetched(overflow, &visit);
 }
 

@@ -387,18 +387,47 @@ fn pause(waited: &mut u32) {
     *waited = waited.saturating_add(1);
 }
 
+/// Segments a colour is cut into for its workers (see [`ColorGate`]); a
+/// worker past the last one starts on segment `worker % SEGMENTS`.
+const SEGMENTS: usize = 8;
+
+/// One counter per colour on cache lines of its own: the counters a worker
+/// touches on every block are not on the lines the others touch on theirs.
+#[repr(align(128))]
+struct Row<const N: usize>([AtomicUsize; N]);
+
+impl<const N: usize> Row<N> {
+    fn new() -> Row<N> {
+        Row(std::array::from_fn(|_| AtomicUsize::new(0)))
+    }
+}
+
 /// The order of a colour pass's blocks across workers: no block of a
 /// colour starts before every block of the colours before it has finished.
 /// It counts finished blocks, not arrived workers, so a worker that has not
 /// joined the job holds nothing up.
+///
+/// Each colour is cut into one contiguous segment per worker (at most
+/// [`SEGMENTS`]), and a worker claims the blocks of its own segment first,
+/// then those left in the others'. The constraints are in pair order within
+/// a colour, so a worker's segments of successive colours mostly touch the
+/// same bodies, whose velocities then stay in its core's caches instead of
+/// crossing to the other core at every colour; and the claims and the
+/// finished counts go to counters on the worker's own cache lines. Which
+/// worker visits a block changes no result (the constraints of a colour
+/// share no moving body), and a worker that never joins leaves its segment
+/// to the others.
 pub(crate) struct ColorGate<'a, const N: usize> {
     /// Set when a worker of the job panicked: a waiter would wait forever,
     /// so it panics too (and `Workers::run` reports the first).
     abandon: &'a AtomicBool,
-    /// Per colour, its blocks claimed so far.
-    claimed: [AtomicUsize; N],
-    /// Per colour, its blocks finished so far.
-    finished: [AtomicUsize; N],
+    /// Segments per colour: the job's workers, at most [`SEGMENTS`].
+    segments: usize,
+    /// Per segment and colour, its blocks claimed so far.
+    claimed: [Row<N>; SEGMENTS],
+    /// Per worker row (`worker % segments`) and colour, the blocks of the
+    /// colour that the row's workers finished, from any segment.
+    finished: [Row<N>; SEGMENTS],
 }
 
 impl<const N: usize> ColorGate<'_, N> {
@@ -406,45 +435,74 @@ impl<const N: usize> ColorGate<'_, N> {
     pub(crate) fn new(pool: &Workers) -> ColorGate<'_, N> {
         ColorGate {
             abandon: &pool.shared.panicked,
-            claimed: std::array::from_fn(|_| AtomicUsize::new(0)),
-            finished: std::array::from_fn(|_| AtomicUsize::new(0)),
+            segments: pool.count().min(SEGMENTS),
+            claimed: std::array::from_fn(|_| Row::new()),
+            finished: std::array::from_fn(|_| Row::new()),
         }
     }
 
-    /// One worker's share of the colours' ranges `ranges[c]` (in colour
-    /// order), in blocks of `block`: for each colour, it waits until the
-    /// colour before it (the last non-empty one) has finished all its
-    /// blocks, then claims and visits blocks until none is left. Every
-    /// worker of the job calls it with the same arguments; any number of
-    /// them (worker 0 alone included) visits every block once.
+    /// Segment `s` of `range`.
+    fn segment(&self, range: &Range<usize>, s: usize) -> Range<usize> {
+        let at = |k: usize| range.start + range.len() * k / self.segments;
+        at(s)..at(s + 1)
+    }
+
+    /// The blocks of `block` items that the segments of `range` hold.
+    fn blocks(&self, range: &Range<usize>, block: usize) -> usize {
+        (0..self.segments)
+            .map(|s| self.segment(range, s).len().div_ceil(block))
+            .sum()
+    }
+
+    /// Worker `worker`'s share of the colours' ranges `ranges[c]` (in
+    /// colour order), in blocks of `block`: for each colour, it waits until
+    /// the colour before it (the last non-empty one) has finished all its
+    /// blocks, then claims and visits blocks, from its own segment and then
+    /// from the others', until none is left. Every worker of the job calls
+    /// it with its index and the same other arguments; any number of them
+    /// (worker 0 alone included) visits every block once.
     pub(crate) fn visit(
         &self,
+        worker: usize,
         ranges: &[Range<usize>; N],
         block: usize,
         visit: &impl Fn(Range<usize>),
     ) {
         let block = block.max(1);
+        let own = worker % self.segments;
         let mut before: Option<usize> = None;
         for (c, range) in ranges.iter().enumerate() {
             if range.is_empty() {
                 continue;
             }
             if let Some(p) = before {
-                let blocks = ranges[p].len().div_ceil(block);
+                let blocks = self.blocks(&ranges[p], block);
                 let mut waited = 0u32;
                 // Acquire: every write of the colour's visits (each
-                // finished with a Release add) is seen after this.
-                while self.finished[p].load(Ordering::Acquire) < blocks {
+                // finished with a Release add to its worker's row) is
+                // seen after this. Each row only grows, so the sum reaches
+                // `blocks` only once every block has finished.
+                loop {
+                    let done: usize = self.finished[..self.segments]
+                        .iter()
+                        .map(|row| row.0[p].load(Ordering::Acquire))
+                        .sum();
+                    if done >= blocks {
+                        break;
+                    }
                     if self.abandon.load(Ordering::Relaxed) {
                         panic!("another solver worker panicked");
                     }
                     pause(&mut waited);
                 }
             }
-            claim_blocks(range.clone(), block, &self.claimed[c], &|r| {
-                visit(r);
-                self.finished[c].fetch_add(1, Ordering::Release);
-            });
+            for k in 0..self.segments {
+                let s = (own + k) % self.segments;
+                claim_blocks(self.segment(range, s), block, &self.claimed[s].0[c], &|r| {
+                    visit(r);
+                    self.finished[own].0[c].fetch_add(1, Ordering::Release);
+                });
+            }
             before = Some(c);
         }
     }
@@ -611,8 +669,8 @@ mod tests {
                 let early = AtomicBool::new(false);
                 let block = 1 + round % 9;
                 let gate = ColorGate::<N>::new(&w);
-                w.run(&|_| {
-                    gate.visit(&ranges, block, &|r: Range<usize>| {
+                w.run(&|i| {
+                    gate.visit(i, &ranges, block, &|r: Range<usize>| {
                         let c = colour_of(r.start);
                         assert!(r.len() <= block && ranges[c].contains(&(r.end - 1)));
                         // Every item of the colours before is done (Relaxed
@@ -654,7 +712,7 @@ mod tests {
                 w.run(&|i| {
                     joined.fetch_add(1, Ordering::AcqRel);
                     hold_until_all_joined(&joined, count);
-                    gate.visit(&ranges, 1, &|r: Range<usize>| {
+                    gate.visit(i, &ranges, 1, &|r: Range<usize>| {
                         // The failing worker dies on its first block (of
                         // colour 0: the others hold theirs until it has
                         // one), so colour 0 never finishes.
