@@ -155,7 +155,7 @@ fn for_each_colored<F>(
     let (shared, overflow) = constraints.split_at_mut(colored);
     let shared = SharedMut::new(shared);
     // SAFETY: each block is claimed by one worker alone (one counter per
-    // colour, every worker claiming from it).
+    // segment of a colour, every worker claiming from it).
     let visit_block = |r| for_each_prefetched(unsafe { shared.slice(r) }, &visit);
     workers.run(&|w| gate.visit(w, &ranges, BLOCK, &visit_block));
     for_each_prefetched(overflow, &visit);

@@ -233,17 +233,7 @@ impl Workers {
         // claims go to a counter on its own cache line.
         let segments = self.count().min(SEGMENTS);
         let claimed: [Row<1>; SEGMENTS] = std::array::from_fn(|_| Row::new());
-        self.run(&|w| {
-            for k in 0..segments {
-                let s = (w + k) % segments;
-                claim_blocks(
-                    segment(0..len, segments, s),
-                    block,
-                    &claimed[s].0[0],
-                    &visit,
-                );
-            }
-        });
+        self.run(&|w| claim_segmented(0..len, segments, w, block, |s| &claimed[s].0[0], &visit));
     }
 }
 
@@ -251,6 +241,30 @@ impl Workers {
 fn segment(range: Range<usize>, segments: usize, s: usize) -> Range<usize> {
     let at = |k: usize| range.start + range.len() * k / segments;
     at(s)..at(s + 1)
+}
+
+/// Worker `worker`'s share of `range` cut into `segments` segments, each
+/// with its own claim counter (`claimed(s)`): the blocks of segment
+/// `worker % segments` first, then what is left in the others, in turn.
+/// When every worker of a job calls it with the same counters, each block
+/// is visited once, by one worker, whichever of them joined.
+fn claim_segmented<'c>(
+    range: Range<usize>,
+    segments: usize,
+    worker: usize,
+    block: usize,
+    claimed: impl Fn(usize) -> &'c AtomicUsize,
+    visit: &impl Fn(Range<usize>),
+) {
+    for k in 0..segments {
+        let s = (worker + k) % segments;
+        claim_blocks(
+            segment(range.clone(), segments, s),
+            block,
+            claimed(s),
+            visit,
+        );
+    }
 }
 
 /// One worker's share of `range`: blocks of `block` items claimed from
@@ -514,18 +528,17 @@ impl<const N: usize> ColorGate<'_, N> {
                     pause(&mut waited);
                 }
             }
-            for k in 0..self.segments {
-                let s = (own + k) % self.segments;
-                claim_blocks(
-                    segment(range.clone(), self.segments, s),
-                    block,
-                    &self.claimed[s].0[c],
-                    &|r| {
-                        visit(r);
-                        self.finished[own].0[c].fetch_add(1, Ordering::Release);
-                    },
-                );
-            }
+            claim_segmented(
+                range.clone(),
+                self.segments,
+                own,
+                block,
+                |s| &self.claimed[s].0[c],
+                &|r| {
+                    visit(r);
+                    self.finished[own].0[c].fetch_add(1, Ordering::Release);
+                },
+            );
             before = Some(c);
         }
     }
