@@ -237,9 +237,20 @@ impl Workers {
     }
 }
 
-/// Segment `s` of `segments` contiguous, nearly equal pieces of `range`.
-fn segment(range: Range<usize>, segments: usize, s: usize) -> Range<usize> {
-    let at = |k: usize| range.start + range.len() * k / segments;
+/// Segment `s` of `segments` contiguous, nearly equal pieces of `range`,
+/// each starting at `range.start` plus a multiple of `block`: the blocks
+/// claimed from the segments then start where they would for one segment,
+/// whatever the number of workers (the wide solver kernels batch a block's
+/// constraints from its start, and count their batches).
+fn segment(range: Range<usize>, segments: usize, s: usize, block: usize) -> Range<usize> {
+    let block = block.max(1);
+    let at = |k: usize| {
+        if k >= segments {
+            range.end
+        } else {
+            range.start + range.len() * k / segments / block * block
+        }
+    };
     at(s)..at(s + 1)
 }
 
@@ -259,7 +270,7 @@ fn claim_segmented<'c>(
     for k in 0..segments {
         let s = (worker + k) % segments;
         claim_blocks(
-            segment(range.clone(), segments, s),
+            segment(range.clone(), segments, s, block),
             block,
             claimed(s),
             visit,
@@ -479,7 +490,7 @@ impl<const N: usize> ColorGate<'_, N> {
     fn blocks(&self, range: &Range<usize>, block: usize) -> usize {
         (0..self.segments)
             .map(|s| {
-                segment(range.clone(), self.segments, s)
+                segment(range.clone(), self.segments, s, block)
                     .len()
                     .div_ceil(block)
             })
