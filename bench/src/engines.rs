@@ -89,6 +89,9 @@ struct Ours {
     world: World,
     bodies: Vec<BodyHandle>,
     contact_points: usize,
+    /// Batches the wide lanes took and batches their guard refused, summed
+    /// over the steps.
+    lanes: (u64, u64),
     faulted: bool,
 }
 
@@ -206,12 +209,19 @@ impl Ours {
 
     /// Ours in the given order with `workers` solver threads.
     fn in_order(scene: &Scene, order: ContactOrder, workers: usize) -> Ours {
+        Ours::with(scene, order, workers, false)
+    }
+
+    /// [`Ours::in_order`] with the solver's wide lanes on (`wide`) or off.
+    fn with(scene: &Scene, order: ContactOrder, workers: usize, wide: bool) -> Ours {
         let (mut world, bodies) = build_ours_in(scene, sleep_off(), order);
         world.set_workers(workers);
+        world.set_wide(wide);
         Ours {
             world,
             bodies,
             contact_points: 0,
+            lanes: (0, 0),
             faulted: false,
         }
     }
@@ -221,6 +231,8 @@ impl Sim for Ours {
     fn step(&mut self) {
         let r = self.world.step();
         self.contact_points = r.contact_points as usize;
+        self.lanes.0 += u64::from(r.wide_batches);
+        self.lanes.1 += u64::from(r.wide_batches_guarded);
         self.faulted |= !r.faults.is_empty();
     }
 
@@ -577,6 +589,9 @@ pub struct Threaded {
     pub many: EngineResult,
     /// Rapier on a pool of N threads.
     pub rapier_many: EngineResult,
+    /// Which kernels ran the colour-order runs' normal rows
+    /// ([`harness::kernels`]).
+    pub kernels: String,
     /// Whether Rapier on N threads ended every run with the same positions,
     /// to the bit, as on one thread.
     pub rapier_same: bool,
@@ -589,13 +604,15 @@ pub struct Threaded {
 /// Runs one scene `runs` times per engine, alternating; with `threads`,
 /// each run also steps ours in pair order on that many workers and in
 /// colour order on one worker and on that many.
-pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneResult {
+/// With `wide`, the colour-order runs turn the solver's wide lanes on.
+pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>, wide: bool) -> SceneResult {
     let mut ours = Vec::new();
     let mut theirs = Vec::new();
     let (mut pairs_many, mut one, mut many) = (Vec::new(), Vec::new(), Vec::new());
     let mut rapier_many = Vec::new();
     let mut rapier_same = true;
     let mut round_trip_ns = Vec::new();
+    let mut kernels = String::new();
     let mut faulted = false;
     for _ in 0..runs.max(1) {
         let (run, sim) = measure(scene, Ours::new);
@@ -617,8 +634,11 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
                 (ContactOrder::Colors, 1, &mut one),
                 (ContactOrder::Colors, n, &mut many),
             ] {
-                let (run, sim) = measure(scene, |s| Ours::in_order(s, order, workers));
+                let (run, sim) = measure(scene, |s| Ours::with(s, order, workers, wide));
                 faulted |= sim.faulted;
+                if order == ContactOrder::Colors {
+                    kernels = harness::kernels(&sim.world, order, sim.lanes.0, sim.lanes.1);
+                }
                 drop(sim);
                 out.push(run);
             }
@@ -634,6 +654,7 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>) -> SceneRes
         rapier_many: EngineResult::from_runs(&rapier_many, has_tops, false),
         rapier_same,
         round_trip_ns,
+        kernels,
     });
     SceneResult {
         threaded,
@@ -882,6 +903,15 @@ pub fn threads_table(results: &[SceneResult]) -> String {
             trip_range(&t.round_trip_ns)
         );
     }
+    for r in results {
+        if let Some(t) = &r.threaded {
+            let _ = writeln!(
+                out,
+                "{:<14} colour order's normal rows: {}",
+                r.name, t.kernels
+            );
+        }
+    }
     let _ = writeln!(
         out,
         "(median ms/step; 1→N = on 1 worker or thread / on N, in each order and for Rapier; same = Rapier on N threads ended \
@@ -959,7 +989,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
                     scene.positions.len(),
                     scene.steps
                 );
-                let result = run_scene(&scene, runs, opts.threads);
+                let result = run_scene(&scene, runs, opts.threads, opts.wide);
                 if opts.stages {
                     eprintln!("engines --stages: {name}: stage runs, then instruction counts...");
                     let headline = (result.ours.median_ms, result.rapier.median_ms);
@@ -1052,7 +1082,7 @@ mod tests {
     #[test]
     fn threads_runs_each_order_on_one_and_n_workers_to_the_same_positions() {
         let scene = scenes::large_pyramid(6, 20);
-        let r = run_scene(&scene, 1, Some(3));
+        let r = run_scene(&scene, 1, Some(3), false);
         let t = r.threaded.as_ref().expect("threaded runs");
         assert_eq!(t.workers, 3);
         for e in [&t.pairs_many, &t.one, &t.many, &t.rapier_many] {
@@ -1081,7 +1111,7 @@ mod tests {
     #[test]
     fn a_quick_scene_runs_in_both_engines_and_reports_every_column() {
         let scene = scenes::large_pyramid(3, 3);
-        let r = run_scene(&scene, 1, None);
+        let r = run_scene(&scene, 1, None, false);
         assert_eq!((r.bodies, r.steps, r.runs), (6, 3, 1));
         assert!(r.threaded.is_none() && threads_table(std::slice::from_ref(&r)).is_empty());
         for e in [&r.ours, &r.rapier] {

@@ -210,6 +210,40 @@ pub fn core_round_trip_ns(trips: usize) -> f64 {
     })
 }
 
+/// Which kernels ran our contact solver's normal rows, for the tables:
+/// the exact wide lanes (with the batches they took and those their range
+/// guard sent to the scalar rows, summed over a run), or the scalar rows
+/// and why.
+pub fn kernels(
+    world: &lockstep_core::World,
+    order: lockstep_core::ContactOrder,
+    wide: u64,
+    guarded: u64,
+) -> String {
+    if order == lockstep_core::ContactOrder::Pairs {
+        "scalar (pair order has no batches)".to_owned()
+    } else if world.wide() {
+        let all = (wide + guarded).max(1) as f64;
+        format!(
+            "IFMA lanes: {wide} batches of 8 ({:.1}%), {guarded} sent to scalar by the guard",
+            100.0 * wide as f64 / all
+        )
+    } else if lanes_here() {
+        "scalar (the wide lanes are off; --wide turns them on)".to_owned()
+    } else {
+        "scalar (this CPU has no AVX-512 IFMA)".to_owned()
+    }
+}
+
+/// Whether this CPU has the solver's wide lanes.
+fn lanes_here() -> bool {
+    let Ok(mut w) = lockstep_core::World::new(lockstep_core::WorldConfig::default()) else {
+        return false;
+    };
+    w.set_wide(true);
+    w.wide()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -60,6 +60,10 @@ pub struct Options {
     /// `engines`: also ours on 1 and this many workers; `profile`: ours in
     /// colour order on this many.
     pub threads: Option<usize>,
+    /// Ours with the solver's exact wide lanes turned on (`engines`,
+    /// `profile`; used in colour order where the CPU has them): the same
+    /// bits as the scalar rows.
+    pub wide: bool,
 }
 
 /// What a suite produced: the printed table and the CSV text.
@@ -205,6 +209,11 @@ struct Cli {
     /// `profile`: ours in colour order on N workers.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
     threads: Option<u16>,
+    /// `engines`, `profile`: ours with the solver's exact wide lanes
+    /// (AVX-512 IFMA) turned on, used in colour order where the CPU has
+    /// them: the same bits as the scalar rows.
+    #[arg(long)]
+    wide: bool,
     /// Internal: the callgrind child of `engines --stages` (restore this
     /// snapshot, step once, then count `--steps` steps).
     #[arg(long, value_name = "FILE", hide = true)]
@@ -256,6 +265,7 @@ fn main() -> ExitCode {
         stages: cli.stages,
         callgrind_dir: cli.callgrind_dir.clone(),
         threads: cli.threads.map(usize::from),
+        wide: cli.wide,
     };
     // Rapier's `parallel` build splits work over the rayon pool it is called
     // in: every suite runs in a pool of one thread, and `engines --threads N`

@@ -53,6 +53,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
         }
         let (mut world, bodies) = build_ours_in(&scene, sleep_off(), order);
         world.set_workers(workers);
+        world.set_wide(opts.wide);
         // With workers, where the host had the CPUs (see
         // `harness::core_round_trip_ns`), before and after the steps.
         let trip_before =
@@ -60,6 +61,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
         let mut clock = StageClock::new();
         let mut total = 0.0;
         let (mut points, mut tests, mut reused) = (0, 0, 0);
+        let (mut wide, mut guarded) = (0u64, 0u64);
         for i in 0..steps {
             let t = Instant::now();
             let r = if opts.stages {
@@ -74,6 +76,8 @@ pub fn run(opts: &Options) -> SuiteOutput {
                 total += t.elapsed().as_secs_f64();
             }
             (points, tests, reused) = (r.contact_points, r.narrow_tests, r.reused_manifolds);
+            wide += u64::from(r.wide_batches);
+            guarded += u64::from(r.wide_batches_guarded);
         }
         // The final state hash: optimisations that must not change results
         // are checked by comparing it before and after.
@@ -103,6 +107,11 @@ pub fn run(opts: &Options) -> SuiteOutput {
             csv,
             "profile,{name},{},{steps},{ms:.4},{points},{tests},{reused},{top_dy:.6},{hash:016x}",
             scene.positions.len()
+        );
+        let _ = writeln!(
+            text,
+            "    normal rows: {}",
+            crate::harness::kernels(&world, order, wide, guarded)
         );
         if opts.stages {
             for (stage, d) in Stage::ALL.iter().zip(clock.spent()) {

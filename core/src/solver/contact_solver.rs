@@ -78,6 +78,7 @@ mod color;
 mod patch;
 mod rows;
 mod shock;
+mod wide;
 
 use color::{COLORS, Coloring};
 use std::ops::Range;
@@ -132,33 +133,52 @@ const STORE_BLOCK: usize = 128;
 /// constraints split in blocks over the workers (they share no moving
 /// body, so each one's result is the same whoever visits it and in any
 /// order), no block of a colour before the colour before it has finished,
-/// then the overflow in order on this thread. With one worker, or no colours (pair order), one thread visits
-/// the array from first to last: the same results.
+/// then the overflow in order on this thread. With one worker, one thread
+/// visits the colours from first to last, then the overflow: the same
+/// results. In pair order (no colours) it visits the array in order.
+///
+/// `visit` gets runs of consecutive constraints, and whether the run lies
+/// inside one colour (its constraints may then be visited in any order or
+/// together). A run inside a colour starts at the colour's start plus a
+/// multiple of [`BLOCK`], whatever the worker count (see
+/// `workers::segment`), so the wide kernels' batches of eight are the same
+/// for any count.
 fn for_each_colored<F>(
     constraints: &mut [Constraint],
     starts: &[u32; COLORS + 2],
     workers: &Workers,
     visit: F,
 ) where
-    F: Fn(&mut Constraint) + Sync,
+    F: Fn(&mut [Constraint], bool) + Sync,
 {
     let colored = (starts[COLORS] as usize).min(constraints.len());
-    let n = workers.count();
-    if n == 1 || colored == 0 {
-        for_each_prefetched(constraints, &visit);
+    if colored == 0 {
+        visit(constraints, false);
         return;
     }
     let ranges: [Range<usize>; COLORS] = std::array::from_fn(|c| {
         (starts[c] as usize).min(colored)..(starts[c + 1] as usize).min(colored)
     });
-    let gate = ColorGate::<COLORS>::new(workers);
     let (shared, overflow) = constraints.split_at_mut(colored);
-    let shared = SharedMut::new(shared);
-    // SAFETY: each block is claimed by one worker alone (one counter per
-    // segment of a colour, every worker claiming from it).
-    let visit_block = |r| for_each_prefetched(unsafe { shared.slice(r) }, &visit);
-    workers.run(&|w| gate.visit(w, &ranges, BLOCK, &visit_block));
-    for_each_prefetched(overflow, &visit);
+    if workers.count() == 1 {
+        for r in ranges {
+            visit(&mut shared[r], true);
+        }
+    } else {
+        let gate = ColorGate::<COLORS>::new(workers);
+        let shared = SharedMut::new(shared);
+        // SAFETY: each block is claimed by one worker alone (one counter per
+        // segment of a colour, every worker claiming from it).
+        let visit_block = |r| visit(unsafe { shared.slice(r) }, true);
+        workers.run(&|w| gate.visit(w, &ranges, BLOCK, &visit_block));
+    }
+    visit(overflow, false);
+}
+
+/// [`for_each_colored`]'s visitor for a pass that visits one constraint at
+/// a time.
+fn one_by_one(visit: impl Fn(&mut Constraint) + Sync) -> impl Fn(&mut [Constraint], bool) + Sync {
+    move |cs, _| for_each_prefetched(cs, &visit)
 }
 
 /// Marks "no solver body": a static or sleeping body.
@@ -256,6 +276,7 @@ struct ConstraintPoint {
 /// n·(ΔR_B r_B) − n·(ΔR_A r_A)`, and `n·(ΔR r) = (ΔRᵀ n)·r`, so the two
 /// rotated normals and the displacement term are formed once per
 /// constraint and visit, not two rotated anchors per point.
+#[derive(Clone, Copy, Default)]
 struct SeparationFrame {
     /// `ΔR_Aᵀ n` and `ΔR_Bᵀ n` (zero for no body).
     na: Vec3,
@@ -412,6 +433,184 @@ impl Constraint {
             }
         }
         apply_linear(self, va, vb, [total, i0, i1]);
+    }
+}
+
+/// One solve or relax pass's settings and shared arrays (see
+/// [`ContactSolver::solve`]).
+struct Pass<'a> {
+    params: &'a SolverParams,
+    /// Soft push-out (the solve pass) or none (relax).
+    use_bias: bool,
+    /// Whether the pass also sums the next substep's warm start.
+    fuse: bool,
+    /// The substep count: where each manifold's points start.
+    rot: usize,
+    bodies: &'a [SolverBody],
+    arrays: BodyArrays,
+    /// Whether runs inside a colour go to the wide kernels.
+    lanes: bool,
+}
+
+/// One constraint's visit between its friction rows and its normal rows:
+/// what [`Pass::head`] leaves for [`Pass::points`] (or the wide kernel) and
+/// [`Pass::tail`].
+#[derive(Clone, Copy, Default)]
+struct Visit {
+    va: BodyVel,
+    vb: BodyVel,
+    /// The linear part of the relative velocity along n, t0 and t1, kept up
+    /// to date through the rows (an impulse λ along one unit direction of
+    /// the basis changes it by λ(1/mA + 1/mB) along that direction and not
+    /// along the other two).
+    u: [Scalar; 3],
+    /// The impulses applied in this visit, turned into linear velocity once
+    /// at the end: three products per row instead of nine.
+    applied: [Scalar; 3],
+    frame: SeparationFrame,
+    /// The first point visited.
+    start: usize,
+}
+
+impl Pass<'_> {
+    /// One visit of constraint `c`: friction, then the normal rows.
+    #[inline(always)]
+    fn visit(&self, c: &mut Constraint) {
+        let mut v = self.head(c);
+        self.points(c, &mut v);
+        self.tail(c, &mut v);
+    }
+
+    /// The visit up to the normal rows: the velocities, the friction rows
+    /// and the separation frame.
+    #[inline(always)]
+    fn head(&self, c: &mut Constraint) -> Visit {
+        let (mut va, mut vb) = self.arrays.load(c.a, c.b);
+        let u = linear_basis(c, &va, &vb);
+        let mut applied = [Scalar::ZERO; 3];
+        let count = c.count.min(MAX_MANIFOLD_POINTS);
+        // Friction at the patch centre, bounded by μ times the manifold's
+        // total normal impulse of the warm start, the one the last
+        // substep's relax pass settled (see [`solve_patch`]). A contact
+        // without one (new this substep) takes its current total: an exact
+        // sum, whatever the order of its points.
+        let total = if c.warm_total.is_positive() {
+            c.warm_total
+        } else {
+            let mut total = Scalar::ZERO;
+            for cp in &c.points[..count] {
+                total += cp.normal_impulse;
+            }
+            total
+        };
+        solve_patch(c, &mut va, &mut vb, &u, &mut applied, total);
+        Visit {
+            va,
+            vb,
+            u,
+            applied,
+            frame: SeparationFrame::of(c, self.bodies),
+            start: if count == 0 { 0 } else { self.rot % count },
+        }
+    }
+
+    /// The normal rows: non-penetration at each point's current
+    /// separation, in the order that starts at `v.start`.
+    #[inline(always)]
+    fn points(&self, c: &mut Constraint, v: &mut Visit) {
+        let params = self.params;
+        let count = c.count.min(MAX_MANIFOLD_POINTS);
+        for kk in 0..count {
+            let k = kk + v.start;
+            let cp = &mut c.points[if k >= count { k - count } else { k }];
+            let s = v.frame.separation(cp);
+            let (bias, mass_scale, impulse_scale) = if s.is_positive() {
+                (s * params.inv_h, Scalar::ONE, Scalar::ZERO)
+            } else if self.use_bias {
+                (
+                    (c.softness.bias_rate * s).max(-params.max_push_out),
+                    c.softness.mass_scale,
+                    c.softness.impulse_scale,
+                )
+            } else {
+                (Scalar::ZERO, Scalar::ONE, Scalar::ZERO)
+            };
+            let vn = v.u[0] + angular_along(&v.va, &v.vb, cp.ra_n, cp.rb_n);
+            let lambda = -mul(mul(cp.normal_mass, mass_scale), vn + bias)
+                - mul(impulse_scale, cp.normal_impulse);
+            let old = cp.normal_impulse;
+            let new = (old + lambda).max(Scalar::ZERO);
+            let d = new - old;
+            if cp.max_normal_impulse.is_zero() && new.is_positive() {
+                // First push this tick (in a solve or a relax pass): the
+                // approach speed at impact, gravity included up to this
+                // substep, is what restitution reflects, not the speed at
+                // the start of the tick.
+                cp.relative_velocity = cp.relative_velocity.min(vn);
+            }
+            cp.normal_impulse = new;
+            cp.max_normal_impulse = cp.max_normal_impulse.max(new);
+            if !d.is_zero() {
+                v.u[0] += mul(c.inv_mass_sum, d);
+                v.applied[0] += d;
+                push_angular(&mut v.va, &mut v.vb, c.a, c.b, d, cp.ia_n, cp.ib_n);
+            }
+        }
+    }
+
+    /// The visit after the normal rows: the linear impulses, the
+    /// velocities back, and (relax) the angular write-back and the next
+    /// warm start.
+    #[inline(always)]
+    fn tail(&self, c: &mut Constraint, v: &mut Visit) {
+        apply_linear(c, &mut v.va, &mut v.vb, v.applied);
+        self.arrays.store(c.wa, c.wb, v.va, v.vb);
+        if !self.use_bias {
+            c.collect_angular(&self.arrays);
+        }
+        if self.fuse {
+            let (mut da, mut db) = (BodyVel::default(), BodyVel::default());
+            c.warm_start(&mut da, &mut db);
+            self.arrays.add_warm(c.wa, c.wb, da, db);
+        }
+    }
+
+    /// Visits a run of constraints of one colour (no two share a moving
+    /// body): in batches of [`wide::LANES`], each batch's normal rows on
+    /// the wide kernel (or, if its range guard refuses the batch, one
+    /// constraint at a time), then the rest one at a time. The same bits as
+    /// visiting them in order: each constraint's visit reads and writes
+    /// only its own data and its bodies.
+    fn visit_batches(&self, cs: &mut [Constraint]) -> wide::Counts {
+        let mut counts = wide::Counts::default();
+        let whole = cs.len() / wide::LANES * wide::LANES;
+        for first in (0..whole).step_by(wide::LANES) {
+            let mut visits: [Visit; wide::LANES] = std::array::from_fn(|i| {
+                // Ask for the next constraint while this one's head runs
+                // (see [`PREFETCH_AHEAD`]).
+                if let Some(next) = cs.get(first + i + PREFETCH_AHEAD) {
+                    prefetch(next);
+                }
+                self.head(&mut cs[first + i])
+            });
+            let batch: &mut [Constraint; wide::LANES] = (&mut cs[first..first + wide::LANES])
+                .try_into()
+                .expect("a whole batch");
+            if wide::points(batch, &mut visits, self.params, self.use_bias) {
+                counts.lanes += 1;
+            } else {
+                counts.guarded += 1;
+                for (c, v) in batch.iter_mut().zip(&mut visits) {
+                    self.points(c, v);
+                }
+            }
+            for (c, v) in batch.iter_mut().zip(&mut visits) {
+                self.tail(c, v);
+            }
+        }
+        let rest = &mut cs[whole..];
+        for_each_prefetched(rest, |c| self.visit(c));
+        counts
     }
 }
 
@@ -580,6 +779,12 @@ pub(crate) struct ContactSolver {
     /// Warm starts (substeps) since `prepare`: the point each manifold's
     /// solve starts from.
     substeps: u32,
+    /// Whether the wide kernels are turned on (off by default; not
+    /// simulation state: the same bits either way; see [`wide`]).
+    wide_on: bool,
+    /// Batches on the wide kernels and batches their guard refused, since
+    /// the last [`take_lane_counts`](Self::take_lane_counts).
+    lane_counts: wide::Tally,
 }
 
 /// What `prepare`'s first scan found for one candidate pair, before its
@@ -966,6 +1171,25 @@ impl ContactSolver {
         }
     }
 
+    /// Turns the wide kernels on where the CPU has them (`true`), or off.
+    /// Not simulation state: the results are the same bits.
+    pub(crate) fn set_wide(&mut self, on: bool) {
+        self.wide_on = on;
+    }
+
+    /// Whether the passes use the wide kernels: turned on, and the CPU has
+    /// them.
+    pub(crate) fn wide(&self) -> bool {
+        self.wide_on && wide::available()
+    }
+
+    /// The batches of constraints whose normal rows ran on the wide
+    /// kernels, and those their range guard sent to the scalar rows, since
+    /// the last call.
+    pub(crate) fn take_lane_counts(&self) -> wide::Counts {
+        self.lane_counts.take()
+    }
+
     /// The number of threads the colour passes use.
     pub(crate) fn workers(&self) -> usize {
         self.workers.count()
@@ -1093,7 +1317,12 @@ impl ContactSolver {
             c.warm_start(&mut va, &mut vb);
             arrays.store(c.wa, c.wb, va, vb);
         };
-        for_each_colored(&mut self.constraints, &self.starts, &self.workers, visit);
+        for_each_colored(
+            &mut self.constraints,
+            &self.starts,
+            &self.workers,
+            one_by_one(visit),
+        );
     }
 
     /// One pass over every constraint: friction, then the normal impulses
@@ -1114,101 +1343,37 @@ impl ContactSolver {
     /// impulses after the pass.
     pub(crate) fn solve(&mut self, params: &SolverParams, use_bias: bool, warm_next: bool) {
         let fuse = warm_next && !use_bias && self.heavy.is_empty() && self.shock.is_empty();
-        // Substep k starts each manifold's points at point k (mod count) and
-        // goes round: always the same order lets the first point of a
-        // manifold take more than its share of the load, and that keeps a
-        // tall stack rocking (without sleeping, the stack of 20's top box
-        // swung by 8 cm; rotating the start keeps it within a millimetre).
-        let rot = self.substeps as usize;
         // SAFETY: the pass visits one colour at a time (`for_each_colored`),
         // then the heavy constraints on this thread alone.
         let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
-        let bodies = &self.bodies;
-        let visit = |c: &mut Constraint| {
-            let (mut va, mut vb) = arrays.load(c.a, c.b);
-            // The linear part of the relative velocity along n, t0 and t1,
-            // kept up to date through the rows (an impulse λ along one unit
-            // direction of the basis changes it by λ(1/mA + 1/mB) along that
-            // direction and not along the other two), and the impulses
-            // applied in this visit, turned into linear velocity once at the
-            // end: three products per row instead of nine.
-            let mut u = linear_basis(c, &va, &vb);
-            let mut applied = [Scalar::ZERO; 3];
-            let count = c.count.min(MAX_MANIFOLD_POINTS);
-            let start = if count == 0 { 0 } else { rot % count };
-            let order = |kk: usize| {
-                let k = kk + start;
-                if k >= count { k - count } else { k }
-            };
-            // Friction at the patch centre, bounded by μ times the
-            // manifold's total normal impulse of the warm start, the one
-            // the last substep's relax pass settled (see [`solve_patch`]).
-            // A contact without one (new this substep) takes its current
-            // total: the points are visited in the same rotated order as
-            // below, so the exact sum does not depend on it.
-            let total = if c.warm_total.is_positive() {
-                c.warm_total
+        let pass = Pass {
+            params,
+            use_bias,
+            fuse,
+            // Substep k starts each manifold's points at point k (mod
+            // count) and goes round: always the same order lets the first
+            // point of a manifold take more than its share of the load, and
+            // that keeps a tall stack rocking (without sleeping, the stack
+            // of 20's top box swung by 8 cm; rotating the start keeps it
+            // within a millimetre).
+            rot: self.substeps as usize,
+            bodies: &self.bodies,
+            arrays,
+            lanes: self.wide_on && wide::available(),
+        };
+        let counts = &self.lane_counts;
+        let run = |cs: &mut [Constraint], independent: bool| {
+            if independent && pass.lanes {
+                counts.add(pass.visit_batches(cs));
             } else {
-                let mut total = Scalar::ZERO;
-                for cp in &c.points[..count] {
-                    total += cp.normal_impulse;
-                }
-                total
-            };
-            solve_patch(c, &mut va, &mut vb, &u, &mut applied, total);
-            // Non-penetration, at each point's current separation.
-            let frame = SeparationFrame::of(c, bodies);
-            for kk in 0..count {
-                let cp = &mut c.points[order(kk)];
-                let s = frame.separation(cp);
-                let (bias, mass_scale, impulse_scale) = if s.is_positive() {
-                    (s * params.inv_h, Scalar::ONE, Scalar::ZERO)
-                } else if use_bias {
-                    (
-                        (c.softness.bias_rate * s).max(-params.max_push_out),
-                        c.softness.mass_scale,
-                        c.softness.impulse_scale,
-                    )
-                } else {
-                    (Scalar::ZERO, Scalar::ONE, Scalar::ZERO)
-                };
-                let vn = u[0] + angular_along(&va, &vb, cp.ra_n, cp.rb_n);
-                let lambda = -mul(mul(cp.normal_mass, mass_scale), vn + bias)
-                    - mul(impulse_scale, cp.normal_impulse);
-                let old = cp.normal_impulse;
-                let new = (old + lambda).max(Scalar::ZERO);
-                let d = new - old;
-                if cp.max_normal_impulse.is_zero() && new.is_positive() {
-                    // First push this tick (in a solve or a relax pass):
-                    // the approach speed at impact, gravity included up to
-                    // this substep, is what restitution reflects, not the
-                    // speed at the start of the tick.
-                    cp.relative_velocity = cp.relative_velocity.min(vn);
-                }
-                cp.normal_impulse = new;
-                cp.max_normal_impulse = cp.max_normal_impulse.max(new);
-                if !d.is_zero() {
-                    u[0] += mul(c.inv_mass_sum, d);
-                    applied[0] += d;
-                    push_angular(&mut va, &mut vb, c.a, c.b, d, cp.ia_n, cp.ib_n);
-                }
-            }
-            apply_linear(c, &mut va, &mut vb, applied);
-            arrays.store(c.wa, c.wb, va, vb);
-            if !use_bias {
-                c.collect_angular(&arrays);
-            }
-            if fuse {
-                let (mut da, mut db) = (BodyVel::default(), BodyVel::default());
-                c.warm_start(&mut da, &mut db);
-                arrays.add_warm(c.wa, c.wb, da, db);
+                for_each_prefetched(cs, |c| pass.visit(c));
             }
         };
-        for_each_colored(&mut self.constraints, &self.starts, &self.workers, visit);
+        for_each_colored(&mut self.constraints, &self.starts, &self.workers, run);
         self.warm_ready = fuse;
         for _ in 0..HIGH_RATIO_PASSES {
             for &i in &self.heavy {
-                visit(&mut self.constraints[i as usize]);
+                pass.visit(&mut self.constraints[i as usize]);
             }
         }
     }
@@ -1288,7 +1453,12 @@ impl ContactSolver {
             arrays.store(c.wa, c.wb, va, vb);
             c.collect_angular(&arrays);
         };
-        for_each_colored(&mut self.constraints, &self.starts, &self.workers, visit);
+        for_each_colored(
+            &mut self.constraints,
+            &self.starts,
+            &self.workers,
+            one_by_one(visit),
+        );
     }
 
     /// Hands the accumulated impulses back to the pairs (warm starting next

@@ -223,6 +223,16 @@ pub struct StepReport {
     /// Contact constraints that found no free colour (visited after the
     /// last colour, one at a time). Zero on every benchmark scene.
     pub contact_overflow: u32,
+    /// Batches of eight contact constraints of one colour whose normal rows
+    /// ran on the CPU's exact wide lanes (AVX-512 IFMA; see
+    /// [`World::set_wide`](crate::World::set_wide)), over all the
+    /// step's solve and relax passes. Zero in pair order, with the lanes
+    /// off (the default), and on CPUs without them: the results are the
+    /// same bits.
+    pub wide_batches: u32,
+    /// Batches the lanes' range guard sent to the scalar rows instead
+    /// (a value too large for the lanes to be exact).
+    pub wide_batches_guarded: u32,
     /// Bodies whose motion continuous collision swept this step: fast ones
     /// (moved more than a quarter of their smallest extent) and bullets.
     /// Zero while everything is slow.

@@ -162,6 +162,31 @@ impl World {
         self.solver.set_workers(count);
     }
 
+    /// Turns the solver's exact wide lanes on (`true`) or off (the
+    /// default). On an x86_64 CPU with AVX-512 IFMA, found at run time,
+    /// the normal rows of contact constraints in colour order
+    /// ([`ContactOrder::Colors`]) then run eight constraints at a time on
+    /// the lanes, with exactly the bits of the scalar rows (see
+    /// [`StepReport::wide_batches`]); elsewhere the scalar rows run.
+    ///
+    /// Off by default because they do not pay yet: on the CPUs measured so
+    /// far the lanes' rows cost about what the scalar rows cost, and
+    /// gathering eight constraints into them made a step a few percent
+    /// slower (figures in docs/engines.md).
+    ///
+    /// Not simulation state, like the worker count: peers with and without
+    /// the lanes compute the same bits, and the setting is in neither the
+    /// state hash nor snapshots (a restored world has them off).
+    pub fn set_wide(&mut self, on: bool) {
+        self.solver.set_wide(on);
+    }
+
+    /// Whether steps use the wide lanes: turned on and present on this CPU
+    /// (see [`World::set_wide`]).
+    pub fn wide(&self) -> bool {
+        self.solver.wide()
+    }
+
     /// The threads a step uses (see [`World::set_workers`]).
     pub fn workers(&self) -> usize {
         self.solver.workers()

@@ -188,6 +188,9 @@ impl World {
         n.finished(Stage::ClearForces);
         let slept = self.stage_sleep();
         n.finished(Stage::Sleep);
+        let lanes = self.solver.take_lane_counts();
+        report.wide_batches = lanes.lanes;
+        report.wide_batches_guarded = lanes.guarded;
         report.fell_asleep = slept.fell_asleep;
         report.islands = slept.islands;
         report.buffer_growths += u32::from(slept.grew);
