@@ -269,6 +269,9 @@ struct ConstraintPoint {
     /// The largest normal impulse seen this tick (restitution only applies
     /// to points that pushed).
     max_normal_impulse: Scalar,
+    /// The current separation, as the constraint's cached frame gives it
+    /// (see [`Constraint::frame_poses`]).
+    separation: Scalar,
 }
 
 /// How a constraint follows its points' current separation through the
@@ -276,7 +279,7 @@ struct ConstraintPoint {
 /// n·(ΔR_B r_B) − n·(ΔR_A r_A)`, and `n·(ΔR r) = (ΔRᵀ n)·r`, so the two
 /// rotated normals and the displacement term are formed once per
 /// constraint and visit, not two rotated anchors per point.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy, Debug, Default)]
 struct SeparationFrame {
     /// `ΔR_Aᵀ n` and `ΔR_Bᵀ n` (zero for no body).
     na: Vec3,
@@ -357,6 +360,14 @@ struct Constraint {
     patch: Patch,
     count: usize,
     points: [ConstraintPoint; MAX_MANIFOLD_POINTS],
+    /// The separation frame at the bodies' poses numbered `frame_poses`
+    /// (see [`ContactSolver::poses`]), and each point's separation from it:
+    /// the poses change once per substep (before the relax pass), but the
+    /// next substep's solve pass, and every extra pass or visit at the same
+    /// poses, would compute the same frame again. Set by a visit's first
+    /// pass at new poses; 0 (never a pose number) after `prepare`.
+    frame: SeparationFrame,
+    frame_poses: u32,
 }
 
 impl Constraint {
@@ -450,6 +461,8 @@ struct Pass<'a> {
     arrays: BodyArrays,
     /// Whether runs inside a colour go to the wide kernels.
     lanes: bool,
+    /// The solver's pose number (see [`ContactSolver::poses`]).
+    poses: u32,
 }
 
 /// One constraint's visit between its friction rows and its normal rows:
@@ -468,6 +481,9 @@ struct Visit {
     /// at the end: three products per row instead of nine.
     applied: [Scalar; 3],
     frame: SeparationFrame,
+    /// Whether `frame` and the points' separations were cached at these
+    /// poses (else the points compute and cache their separations).
+    cached: bool,
     /// The first point visited.
     start: usize,
 }
@@ -504,12 +520,18 @@ impl Pass<'_> {
             total
         };
         solve_patch(c, &mut va, &mut vb, &u, &mut applied, total);
+        let cached = c.frame_poses == self.poses;
+        if !cached {
+            c.frame = SeparationFrame::of(c, self.bodies);
+            c.frame_poses = self.poses;
+        }
         Visit {
             va,
             vb,
             u,
             applied,
-            frame: SeparationFrame::of(c, self.bodies),
+            frame: c.frame,
+            cached,
             start: if count == 0 { 0 } else { self.rot % count },
         }
     }
@@ -523,7 +545,13 @@ impl Pass<'_> {
         for kk in 0..count {
             let k = kk + v.start;
             let cp = &mut c.points[if k >= count { k - count } else { k }];
-            let s = v.frame.separation(cp);
+            let s = if v.cached {
+                cp.separation
+            } else {
+                let s = v.frame.separation(cp);
+                cp.separation = s;
+                s
+            };
             let (bias, mass_scale, impulse_scale) = if s.is_positive() {
                 (s * params.inv_h, Scalar::ONE, Scalar::ZERO)
             } else if self.use_bias {
@@ -779,6 +807,11 @@ pub(crate) struct ContactSolver {
     /// Warm starts (substeps) since `prepare`: the point each manifold's
     /// solve starts from.
     substeps: u32,
+    /// The bodies' poses as the solver last read them, numbered: 1 at
+    /// `prepare`, one more at each [`gather`](Self::gather). A constraint
+    /// whose `frame_poses` is this number has its separation frame and
+    /// point separations at these poses.
+    poses: u32,
     /// Whether the wide kernels are turned on (off by default; not
     /// simulation state: the same bits either way; see [`wide`]).
     wide_on: bool,
@@ -859,6 +892,7 @@ impl ContactSolver {
             self.coloring.capacities(),
         );
         self.substeps = 0;
+        self.poses = 1;
         for sb in &self.bodies {
             if let Some(idx) = self.body_of_slot.get_mut(sb.slot as usize) {
                 *idx = NONE;
@@ -1022,6 +1056,7 @@ impl ContactSolver {
             c.friction = pc.friction;
             c.restitution = pc.restitution;
             c.rounding = pc.rounding;
+            c.frame_poses = 0;
             let p = &pairs[c.pair as usize];
             c.a = if c.a == NONE {
                 NONE
@@ -1209,6 +1244,9 @@ impl ContactSolver {
     /// Reads the bodies' current velocities and pose changes (after the
     /// integrator touched them).
     pub(crate) fn gather(&mut self, hot: &[BodyHot]) {
+        // New poses: every cached separation frame is stale (a tick has a
+        // few gathers, so the number never wraps to 0).
+        self.poses = self.poses.wrapping_add(1).max(1);
         let len = self.bodies.len();
         let (bodies, vels) = (
             SharedMut::new(&mut self.bodies),
@@ -1360,6 +1398,7 @@ impl ContactSolver {
             bodies: &self.bodies,
             arrays,
             lanes: self.wide_on && wide::available(),
+            poses: self.poses,
         };
         let counts = &self.lane_counts;
         let run = |cs: &mut [Constraint], independent: bool| {

@@ -188,6 +188,9 @@ mod ifma {
         impulse: [Lanes; MAX_MANIFOLD_POINTS],
         max_impulse: [Lanes; MAX_MANIFOLD_POINTS],
         relative: [Lanes; MAX_MANIFOLD_POINTS],
+        /// Per visit step, each lane's point's separation (what the scalar
+        /// rows cache; the lanes always compute it, from the frame).
+        separation: [Lanes; MAX_MANIFOLD_POINTS],
         /// Per visit step, the lanes that have a point then.
         active: [u8; MAX_MANIFOLD_POINTS],
         /// The lanes whose A (B) is a body.
@@ -216,6 +219,7 @@ mod ifma {
                 impulse: [[0; LANES]; MAX_MANIFOLD_POINTS],
                 max_impulse: [[0; LANES]; MAX_MANIFOLD_POINTS],
                 relative: [[0; LANES]; MAX_MANIFOLD_POINTS],
+                separation: [[0; LANES]; MAX_MANIFOLD_POINTS],
                 active: [0; MAX_MANIFOLD_POINTS],
                 has_a: 0,
                 has_b: 0,
@@ -276,6 +280,7 @@ mod ifma {
                     cp.normal_impulse = Scalar::from_bits(self.impulse[kk][i]);
                     cp.max_normal_impulse = Scalar::from_bits(self.max_impulse[kk][i]);
                     cp.relative_velocity = Scalar::from_bits(self.relative[kk][i]);
+                    cp.separation = Scalar::from_bits(self.separation[kk][i]);
                 }
             }
             for (i, v) in visits.iter_mut().enumerate() {
@@ -559,6 +564,7 @@ mod ifma {
             }
             let s = g.round_up(&sum);
             let s = g.add(s, adjusted);
+            store(&mut stage.separation[kk], s);
             let above = _mm512_cmpgt_epi64_mask(s, zero);
             // A gap: s/h, rigid. Overlap: the spring's (or nothing).
             let factor = _mm512_mask_blend_epi64(above, rate, inv_h);
