@@ -9,10 +9,10 @@
 
 mod common;
 
-use common::{Rng, s, v};
+use common::{s, v};
 use lockstep_core::collision::ContactEvent;
 use lockstep_core::scene::{build_world_with_config, parse_scene};
-use lockstep_core::{BodyDesc, ColliderDesc, ContactOrder, Quat, StepReport, World, WorldConfig};
+use lockstep_core::{BodyDesc, ColliderDesc, ContactOrder, StepReport, World, WorldConfig};
 
 /// What a run left after each tick: the state hash, the step's report (lane
 /// counts zeroed) and its contact events.
@@ -90,52 +90,9 @@ fn lanes_on_this_cpu() -> bool {
     w.wide()
 }
 
-/// A walled pit and `n` random boxes, spheres and capsules dropped in.
+/// The shared pit (common::pile) in colour order.
 fn pile(n: usize, seed: u64) -> World {
-    let mut w = World::new(WorldConfig {
-        contact_order: ContactOrder::Colors,
-        ..WorldConfig::default()
-    })
-    .unwrap();
-    let ground = w
-        .create_body(&BodyDesc::fixed().position(v(0.0, -0.5, 0.0)))
-        .unwrap();
-    w.add_collider(ground, ColliderDesc::cuboid(s(6.0), s(0.5), s(6.0)))
-        .unwrap();
-    for (x, z, hx, hz) in [
-        (4.0, 0.0, 0.2, 4.0),
-        (-4.0, 0.0, 0.2, 4.0),
-        (0.0, 4.0, 4.0, 0.2),
-        (0.0, -4.0, 4.0, 0.2),
-    ] {
-        let wall = w
-            .create_body(&BodyDesc::fixed().position(v(x, 2.0, z)))
-            .unwrap();
-        w.add_collider(wall, ColliderDesc::cuboid(s(hx), s(2.0), s(hz)))
-            .unwrap();
-    }
-    let mut rng = Rng(seed);
-    let mut unit = || (rng.next() >> 11) as f64 / (1u64 << 53) as f64;
-    for i in 0..n {
-        let (layer, k) = (i / 36, i % 36);
-        let pos = v(
-            -3.0 + (k % 6) as f64 + 0.3 * unit(),
-            1.5 + layer as f64 * 0.9,
-            -3.0 + (k / 6) as f64 + 0.3 * unit(),
-        );
-        let rot =
-            Quat::from_axis_angle(v(unit(), 1.0, unit()).normalize_or_zero(), s(unit() * 3.0));
-        let b = w
-            .create_body(&BodyDesc::dynamic().position(pos).rotation(rot))
-            .unwrap();
-        let shape = match i % 3 {
-            0 => ColliderDesc::cuboid(s(0.2 + 0.2 * unit()), s(0.2), s(0.3)),
-            1 => ColliderDesc::sphere(s(0.25 + 0.1 * unit())),
-            _ => ColliderDesc::capsule(s(0.2), s(0.2)),
-        };
-        w.add_collider(b, shape).unwrap();
-    }
-    w
+    common::pile(ContactOrder::Colors, n, seed)
 }
 
 #[test]
