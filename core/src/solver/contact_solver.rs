@@ -488,6 +488,16 @@ struct Visit {
     start: usize,
 }
 
+impl Visit {
+    /// The point visited at step `kk` of a manifold of `count` points: the
+    /// points in order, starting at `start` and going round.
+    #[inline(always)]
+    fn point(&self, kk: usize, count: usize) -> usize {
+        let k = kk + self.start;
+        if k >= count { k - count } else { k }
+    }
+}
+
 impl Pass<'_> {
     /// One visit of constraint `c`: friction, then the normal rows.
     #[inline(always)]
@@ -543,8 +553,7 @@ impl Pass<'_> {
         let params = self.params;
         let count = c.count.min(MAX_MANIFOLD_POINTS);
         for kk in 0..count {
-            let k = kk + v.start;
-            let cp = &mut c.points[if k >= count { k - count } else { k }];
+            let cp = &mut c.points[v.point(kk, count)];
             let s = if v.cached {
                 cp.separation
             } else {

@@ -228,16 +228,11 @@ mod ifma {
                 for j in 0..3 {
                     s.wa[j][i] = v.va.w.get(j).to_bits();
                     s.wb[j][i] = v.vb.w.get(j).to_bits();
-                    // Negating a component of a rotated unit normal (at
-                    // most 1 in size) cannot overflow.
+                    // A component of a rotated unit normal is at most 1 in
+                    // size; were it i64::MIN, its wrapped negation would
+                    // fail the operand guard.
                     s.na_neg[j][i] = v.frame.na.get(j).to_bits().wrapping_neg();
                     s.nb[j][i] = v.frame.nb.get(j).to_bits();
-                }
-                if v.frame.na.get(0).to_bits() == i64::MIN
-                    || v.frame.na.get(1).to_bits() == i64::MIN
-                    || v.frame.na.get(2).to_bits() == i64::MIN
-                {
-                    return None;
                 }
                 s.u0[i] = v.u[0].to_bits();
                 s.applied0[i] = v.applied[0].to_bits();
@@ -256,8 +251,7 @@ mod ifma {
                 }
                 let count = c.count.min(MAX_MANIFOLD_POINTS);
                 for kk in 0..count {
-                    let k = kk + v.start;
-                    let k = if k >= count { k - count } else { k };
+                    let k = v.point(kk, count);
                     s.active[kk] |= 1 << i;
                     s.point[kk][i] = (i * size_of::<Constraint>()
                         + offset_of!(Constraint, points)
@@ -275,8 +269,7 @@ mod ifma {
             for (i, (c, v)) in batch.iter_mut().zip(visits.iter()).enumerate() {
                 let count = c.count.min(MAX_MANIFOLD_POINTS);
                 for kk in 0..count {
-                    let k = kk + v.start;
-                    let cp = &mut c.points[if k >= count { k - count } else { k }];
+                    let cp = &mut c.points[v.point(kk, count)];
                     cp.normal_impulse = Scalar::from_bits(self.impulse[kk][i]);
                     cp.max_normal_impulse = Scalar::from_bits(self.max_impulse[kk][i]);
                     cp.relative_velocity = Scalar::from_bits(self.relative[kk][i]);
