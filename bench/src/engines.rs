@@ -17,8 +17,8 @@ use std::time::Instant;
 use lockstep_core::shape::{ConvexHull, Cuboid, Shape, Sphere};
 use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{
-    BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, ContactOrder, JointDesc, Material, Scalar,
-    Vec3, World, WorldConfig,
+    BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, ContactOrder, ContactRows, JointDesc,
+    Material, Scalar, Vec3, World, WorldConfig,
 };
 use rapier3d::prelude::{
     ColliderBuilder, IntegrationParameters, InteractionGroups, PhysicsWorld, RigidBodyBuilder,
@@ -106,7 +106,12 @@ fn v3(p: [f64; 3]) -> Vec3 {
 /// Our world for a scene (sleep as given: off for `engines`), in pair
 /// order.
 pub fn build_ours(scene: &Scene, sleep: SleepConfig) -> (World, Vec<BodyHandle>) {
-    build_ours_in(scene, sleep, ContactOrder::Pairs)
+    build_ours_in(
+        scene,
+        sleep,
+        ContactOrder::Pairs,
+        WorldConfig::default().contact_rows,
+    )
 }
 
 /// Our world for a scene with the contact solver's order given.
@@ -114,9 +119,10 @@ pub fn build_ours_in(
     scene: &Scene,
     sleep: SleepConfig,
     order: ContactOrder,
+    rows: ContactRows,
 ) -> (World, Vec<BodyHandle>) {
     if let BodyShape::File(desc) = &scene.shape {
-        return scene_file::build_ours(desc, sleep, order);
+        return scene_file::build_ours(desc, sleep, order, rows);
     }
     let mut world = World::new(WorldConfig {
         gravity: Vec3::new(Scalar::ZERO, Scalar::from_int(-10), Scalar::ZERO),
@@ -124,6 +130,7 @@ pub fn build_ours_in(
         substeps: SUBSTEPS,
         sleep,
         contact_order: order,
+        contact_rows: rows,
         ..WorldConfig::default()
     })
     .expect("valid world config");
@@ -214,7 +221,24 @@ impl Ours {
 
     /// [`Ours::in_order`] with the solver's wide lanes on (`wide`) or off.
     fn with(scene: &Scene, order: ContactOrder, workers: usize, wide: bool) -> Ours {
-        let (mut world, bodies) = build_ours_in(scene, sleep_off(), order);
+        Ours::with_rows(
+            scene,
+            order,
+            workers,
+            wide,
+            WorldConfig::default().contact_rows,
+        )
+    }
+
+    /// [`Ours::with`] with the contact rows' number format given.
+    fn with_rows(
+        scene: &Scene,
+        order: ContactOrder,
+        workers: usize,
+        wide: bool,
+        rows: ContactRows,
+    ) -> Ours {
+        let (mut world, bodies) = build_ours_in(scene, sleep_off(), order, rows);
         world.set_workers(workers);
         world.set_wide(wide);
         Ours {

@@ -235,6 +235,33 @@ pub fn kernels(
     }
 }
 
+/// What ran our contact rows over a run: the format, the share of the
+/// constraints on the narrow rows, on the lanes and moved to the Q32.32
+/// rows by the guard (sums over the run's steps of `StepReport`'s counts).
+pub fn rows_line(
+    world: &lockstep_core::World,
+    constraints: u64,
+    narrow: u64,
+    fallbacks: u64,
+    batches: u64,
+) -> String {
+    if world.config().contact_rows == lockstep_core::ContactRows::Exact {
+        return "contact rows: Q32.32".to_owned();
+    }
+    let all = constraints.max(1) as f64;
+    let lanes = match world.lanes() {
+        Some(k) => format!("{k} lanes"),
+        None => "lanes off".to_owned(),
+    };
+    format!(
+        "contact rows: narrow, {:.1}% of constraints (Q32.32 rows from the start: {:.1}%; moved there by the guard: {:.3}%); {lanes}: {:.1}% in batches of 8",
+        100.0 * narrow as f64 / all,
+        100.0 * (constraints - narrow.min(constraints)) as f64 / all,
+        100.0 * fallbacks as f64 / all,
+        100.0 * (batches * 8) as f64 / all,
+    )
+}
+
 /// Whether this CPU has the solver's wide lanes.
 fn lanes_here() -> bool {
     let Ok(mut w) = lockstep_core::World::new(lockstep_core::WorldConfig::default()) else {

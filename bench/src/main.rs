@@ -36,6 +36,7 @@ use std::process::ExitCode;
 use clap::Parser;
 
 use harness::Budget;
+use lockstep_core::{ContactRows, WorldConfig};
 
 /// The heap high-water mark is measured in this binary (see [`alloc`]).
 #[global_allocator]
@@ -64,6 +65,10 @@ pub struct Options {
     /// `profile`; used in colour order where the CPU has them): the same
     /// bits as the scalar rows.
     pub wide: bool,
+    /// The number format of our contact rows (`engines`, `profile`).
+    pub rows: ContactRows,
+    /// Ours with the narrow rows' SIMD lanes off (the scalar twin alone).
+    pub no_lanes: bool,
 }
 
 /// What a suite produced: the printed table and the CSV text.
@@ -214,10 +219,28 @@ struct Cli {
     /// them: the same bits as the scalar rows.
     #[arg(long)]
     wide: bool,
+    /// `engines`, `profile`: the number format of our contact solver's
+    /// rows: `narrow` (32-bit operands, exact 64-bit sums) or `exact`
+    /// (Q32.32); default: the world's default.
+    #[arg(long, value_name = "FORMAT", value_parser = parse_rows)]
+    rows: Option<ContactRows>,
+    /// `engines`, `profile`: ours with the narrow rows' SIMD lanes off
+    /// (the scalar rows alone; the same bits).
+    #[arg(long)]
+    no_lanes: bool,
     /// Internal: the callgrind child of `engines --stages` (restore this
     /// snapshot, step once, then count `--steps` steps).
     #[arg(long, value_name = "FILE", hide = true)]
     count_snapshot: Option<PathBuf>,
+}
+
+/// `--rows`: `narrow` or `exact`.
+fn parse_rows(s: &str) -> Result<ContactRows, String> {
+    match s {
+        "narrow" => Ok(ContactRows::Narrow),
+        "exact" => Ok(ContactRows::Exact),
+        _ => Err(format!("expected `narrow` or `exact`, got `{s}`")),
+    }
 }
 
 fn main() -> ExitCode {
@@ -266,6 +289,8 @@ fn main() -> ExitCode {
         callgrind_dir: cli.callgrind_dir.clone(),
         threads: cli.threads.map(usize::from),
         wide: cli.wide,
+        rows: cli.rows.unwrap_or(WorldConfig::default().contact_rows),
+        no_lanes: cli.no_lanes,
     };
     // Rapier's `parallel` build splits work over the rayon pool it is called
     // in: every suite runs in a pool of one thread, and `engines --threads N`

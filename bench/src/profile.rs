@@ -51,9 +51,10 @@ pub fn run(opts: &Options) -> SuiteOutput {
         if !wanted.iter().any(|w| w == name) {
             continue;
         }
-        let (mut world, bodies) = build_ours_in(&scene, sleep_off(), order);
+        let (mut world, bodies) = build_ours_in(&scene, sleep_off(), order, opts.rows);
         world.set_workers(workers);
         world.set_wide(opts.wide);
+        world.set_lanes(!opts.no_lanes);
         // With workers, where the host had the CPUs (see
         // `harness::core_round_trip_ns`), before and after the steps.
         let trip_before =
@@ -62,6 +63,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
         let mut total = 0.0;
         let (mut points, mut tests, mut reused) = (0, 0, 0);
         let (mut wide, mut guarded) = (0u64, 0u64);
+        let (mut narrow, mut fallbacks, mut batches, mut constraints) = (0u64, 0u64, 0u64, 0u64);
         for i in 0..steps {
             let t = Instant::now();
             let r = if opts.stages {
@@ -78,6 +80,10 @@ pub fn run(opts: &Options) -> SuiteOutput {
             (points, tests, reused) = (r.contact_points, r.narrow_tests, r.reused_manifolds);
             wide += u64::from(r.wide_batches);
             guarded += u64::from(r.wide_batches_guarded);
+            narrow += u64::from(r.narrow_constraints);
+            fallbacks += u64::from(r.narrow_fallbacks);
+            batches += u64::from(r.lane_batches);
+            constraints += u64::from(r.contact_constraints);
         }
         // The final state hash: optimisations that must not change results
         // are checked by comparing it before and after.
@@ -112,6 +118,11 @@ pub fn run(opts: &Options) -> SuiteOutput {
             text,
             "    normal rows: {}",
             crate::harness::kernels(&world, order, wide, guarded)
+        );
+        let _ = writeln!(
+            text,
+            "    {}",
+            crate::harness::rows_line(&world, constraints, narrow, fallbacks, batches)
         );
         if opts.stages {
             for (stage, d) in Stage::ALL.iter().zip(clock.spent()) {

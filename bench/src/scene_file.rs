@@ -24,7 +24,9 @@ use crate::accuracy::sim::RAPIER_MOTOR_FACTOR;
 use lockstep_core::joint::{JointKind, Motor};
 use lockstep_core::scene::{GeometryDesc, SceneDesc, build_world_with_config};
 use lockstep_core::solver::sleep::SleepConfig;
-use lockstep_core::{BodyHandle, BodyKind, ContactOrder, Quat, Scalar, Vec3, World, WorldConfig};
+use lockstep_core::{
+    BodyHandle, BodyKind, ContactOrder, ContactRows, Quat, Scalar, Vec3, World, WorldConfig,
+};
 use rapier3d::prelude::{
     CoefficientCombineRule, ColliderBuilder, GenericJointBuilder, Group, InteractionGroups,
     InteractionTestMode, JointAxesMask, JointAxis, PhysicsWorld, Pose, RigidBodyBuilder,
@@ -59,10 +61,12 @@ pub fn build_ours(
     desc: &SceneDesc,
     sleep: SleepConfig,
     order: ContactOrder,
+    rows: ContactRows,
 ) -> (World, Vec<BodyHandle>) {
     let config = WorldConfig {
         sleep,
         contact_order: order,
+        contact_rows: rows,
         ..desc.world.config()
     };
     let world = build_world_with_config(desc, config, FILE_NAME).unwrap_or_else(|e| panic!("{e}"));

@@ -25,4 +25,4 @@ pub use body::{BodyDesc, BodyHandle, BodyKind};
 pub use collider::{ColliderDesc, ColliderHandle, CollisionFilter, Material};
 pub use joint::{JointDesc, JointEvent, JointHandle, JointKind, Motor, Spring};
 pub use math::{Aabb, Faults, Mat3, Quat, Scalar, SymMat3, Transform, Vec3};
-pub use world::{BodyRef, ContactOrder, StepReport, World, WorldConfig, WorldError};
+pub use world::{BodyRef, ContactOrder, ContactRows, StepReport, World, WorldConfig, WorldError};

@@ -14,7 +14,7 @@ use super::reader::{Result, TableView};
 use super::rotation::read_rotation;
 use super::shape::read_shape;
 use crate::math::{Quat, Scalar, Transform, Vec3};
-use crate::world::{ContactOrder, MAX_SOLVER_ITERATIONS};
+use crate::world::{ContactOrder, ContactRows, MAX_SOLVER_ITERATIONS};
 
 /// Keys of the root table.
 const ROOT_KEYS: &[&str] = &["world", "materials", "bodies", "joints"];
@@ -64,6 +64,7 @@ const WORLD_KEYS: &[&str] = &[
     "max_push_out",
     "restitution_threshold",
     "contact_order",
+    "contact_rows",
     "sleep",
     "sleep_linear_threshold",
     "sleep_angular_threshold",
@@ -536,6 +537,19 @@ fn read_world(t: &TableView<'_>) -> Result<WorldDesc> {
                     f.at,
                     SceneErrorKind::WrongType,
                     format!("unknown contact order \"{other}\" (expected \"pairs\" or \"colors\")"),
+                ));
+            }
+        };
+    }
+    if let Some(f) = t.get("contact_rows") {
+        settings.contact_rows = match t.string(&f)? {
+            "exact" => ContactRows::Exact,
+            "narrow" => ContactRows::Narrow,
+            other => {
+                return Err(t.error(
+                    f.at,
+                    SceneErrorKind::WrongType,
+                    format!("unknown contact rows \"{other}\" (expected \"exact\" or \"narrow\")"),
                 ));
             }
         };

@@ -75,6 +75,7 @@
 //! tick.
 
 mod color;
+mod narrow;
 mod patch;
 mod rows;
 mod shock;
@@ -82,9 +83,12 @@ mod wide;
 
 use color::{COLORS, Coloring};
 use std::ops::Range;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 use super::workers::{ColorGate, SharedMut, Workers};
 
+use narrow::NarrowRows;
+use narrow::lanes::{Batch, Kernel, LANES};
 use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
     BodyArrays, along, angular_along, apply_linear, combine3, cross, effective, inverse_or_zero,
@@ -104,15 +108,51 @@ use crate::math::{Mat3, Quat, Scalar, SymMat3, Vec3};
 const PREFETCH_AHEAD: usize = 1;
 
 /// Visits the constraints in order, asking the CPU to load the next ones
-/// first (see [`PREFETCH_AHEAD`]).
+/// first (see [`PREFETCH_AHEAD`]): the narrow rows of one on them, the
+/// Q32.32 constraint of one that is not.
 #[inline(always)]
-fn for_each_prefetched(cs: &mut [Constraint], mut f: impl FnMut(&mut Constraint)) {
-    let len = cs.len();
+fn for_each_prefetched(
+    cs: &mut [Constraint],
+    rs: &mut [NarrowRows],
+    mut f: impl FnMut(&mut Constraint, &mut NarrowRows),
+) {
+    let len = cs.len().min(rs.len());
     for i in 0..len {
         if i + PREFETCH_AHEAD < len {
-            prefetch(&cs[i + PREFETCH_AHEAD]);
+            let next = &rs[i + PREFETCH_AHEAD];
+            if next.on {
+                prefetch(next);
+            } else {
+                prefetch(&cs[i + PREFETCH_AHEAD]);
+            }
         }
-        f(&mut cs[i]);
+        f(&mut cs[i], &mut rs[i]);
+    }
+}
+
+/// The constraints and their narrow rows (same index), shared by the
+/// workers of one colour pass.
+struct Both<'a> {
+    cs: SharedMut<'a, Constraint>,
+    rs: SharedMut<'a, NarrowRows>,
+}
+
+impl<'a> Both<'a> {
+    fn new(cs: &'a mut [Constraint], rs: &'a mut [NarrowRows]) -> Both<'a> {
+        Both {
+            cs: SharedMut::new(cs),
+            rs: SharedMut::new(rs),
+        }
+    }
+
+    /// The constraints and rows of `r`.
+    ///
+    /// # Safety
+    /// No other thread touches them while the slices live.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn slices(&self, r: Range<usize>) -> (&mut [Constraint], &mut [NarrowRows]) {
+        // SAFETY: as the caller promises.
+        unsafe { (self.cs.slice(r.clone()), self.rs.slice(r)) }
     }
 }
 
@@ -145,40 +185,48 @@ const STORE_BLOCK: usize = 128;
 /// for any count.
 fn for_each_colored<F>(
     constraints: &mut [Constraint],
+    rows: &mut [NarrowRows],
     starts: &[u32; COLORS + 2],
     workers: &Workers,
     visit: F,
 ) where
-    F: Fn(&mut [Constraint], bool) + Sync,
+    F: Fn(&mut [Constraint], &mut [NarrowRows], bool) + Sync,
 {
-    let colored = (starts[COLORS] as usize).min(constraints.len());
+    let len = constraints.len().min(rows.len());
+    let colored = (starts[COLORS] as usize).min(len);
     if colored == 0 {
-        visit(constraints, false);
+        visit(constraints, rows, false);
         return;
     }
     let ranges: [Range<usize>; COLORS] = std::array::from_fn(|c| {
         (starts[c] as usize).min(colored)..(starts[c + 1] as usize).min(colored)
     });
     let (shared, overflow) = constraints.split_at_mut(colored);
+    let (shared_rows, overflow_rows) = rows.split_at_mut(colored);
     if workers.count() == 1 {
         for r in ranges {
-            visit(&mut shared[r], true);
+            visit(&mut shared[r.clone()], &mut shared_rows[r], true);
         }
     } else {
         let gate = ColorGate::<COLORS>::new(workers);
-        let shared = SharedMut::new(shared);
-        // SAFETY: each block is claimed by one worker alone (one counter per
-        // segment of a colour, every worker claiming from it).
-        let visit_block = |r| visit(unsafe { shared.slice(r) }, true);
+        let both = Both::new(shared, shared_rows);
+        let visit_block = |r| {
+            // SAFETY: each block is claimed by one worker alone (one counter
+            // per segment of a colour, every worker claiming from it).
+            let (cs, rs) = unsafe { both.slices(r) };
+            visit(cs, rs, true)
+        };
         workers.run(&|w| gate.visit(w, &ranges, BLOCK, &visit_block));
     }
-    visit(overflow, false);
+    visit(overflow, overflow_rows, false);
 }
 
 /// [`for_each_colored`]'s visitor for a pass that visits one constraint at
 /// a time.
-fn one_by_one(visit: impl Fn(&mut Constraint) + Sync) -> impl Fn(&mut [Constraint], bool) + Sync {
-    move |cs, _| for_each_prefetched(cs, &visit)
+fn one_by_one(
+    visit: impl Fn(&mut Constraint, &mut NarrowRows) + Sync,
+) -> impl Fn(&mut [Constraint], &mut [NarrowRows], bool) + Sync {
+    move |cs, rs, _| for_each_prefetched(cs, rs, &visit)
 }
 
 /// Marks "no solver body": a static or sleeping body.
@@ -292,17 +340,23 @@ impl SeparationFrame {
     /// The frame of `c` at its bodies' current pose changes.
     #[inline(always)]
     fn of(c: &Constraint, bodies: &[SolverBody]) -> SeparationFrame {
-        let n = c.normal;
-        let (na, dpa) = if c.a == NONE {
+        SeparationFrame::at(c.normal, c.a, c.b, bodies)
+    }
+
+    /// The frame of normal `n` between solver bodies `a` and `b` (or
+    /// `NONE`) at their current pose changes.
+    #[inline(always)]
+    fn at(n: Vec3, a: u32, b: u32, bodies: &[SolverBody]) -> SeparationFrame {
+        let (na, dpa) = if a == NONE {
             (Vec3::ZERO, Vec3::ZERO)
         } else {
-            let b = &bodies[c.a as usize];
+            let b = &bodies[a as usize];
             (b.dr.transpose_mul_vec(n), b.dp)
         };
-        let (nb, dpb) = if c.b == NONE {
+        let (nb, dpb) = if b == NONE {
             (Vec3::ZERO, Vec3::ZERO)
         } else {
-            let b = &bodies[c.b as usize];
+            let b = &bodies[b as usize];
             (b.dr.transpose_mul_vec(n), b.dp)
         };
         SeparationFrame {
@@ -315,11 +369,18 @@ impl SeparationFrame {
     /// The current separation of point `cp` of the constraint.
     #[inline(always)]
     fn separation(&self, cp: &ConstraintPoint) -> Scalar {
+        self.separation_at(cp.ra, cp.rb, cp.adjusted_separation)
+    }
+
+    /// The current separation of a point with anchors `ra`, `rb` and
+    /// adjusted separation `adjusted` (see [`ConstraintPoint`]).
+    #[inline(always)]
+    fn separation_at(&self, ra: Vec3, rb: Vec3, adjusted: Scalar) -> Scalar {
         round_wide(wide_sum([
             self.base,
-            self.nb.dot_wide(cp.rb),
-            -self.na.dot_wide(cp.ra),
-        ])) + cp.adjusted_separation
+            self.nb.dot_wide(rb),
+            -self.na.dot_wide(ra),
+        ])) + adjusted
     }
 }
 
@@ -463,6 +524,12 @@ struct Pass<'a> {
     lanes: bool,
     /// The solver's pose number (see [`ContactSolver::poses`]).
     poses: u32,
+    /// Where a narrow visit whose guard failed is counted.
+    fallbacks: &'a narrow::Fallbacks,
+    /// The lanes' batches, and the kernel build that runs them (`None`:
+    /// the narrow rows' lanes are off).
+    batches: &'a [Batch],
+    kernel: Option<Kernel>,
 }
 
 /// One constraint's visit between its friction rows and its normal rows:
@@ -499,9 +566,97 @@ impl Visit {
 }
 
 impl Pass<'_> {
-    /// One visit of constraint `c`: friction, then the normal rows.
+    /// One visit of constraint `c`: friction, then the normal rows, on the
+    /// narrow rows if the constraint is on them (see [`narrow`]), else on
+    /// the Q32.32 rows. A narrow visit whose guard fails writes nothing;
+    /// the constraint's impulses go back to Q32.32 and the Q32.32 rows
+    /// solve it from this visit to the end of the tick.
     #[inline(always)]
-    fn visit(&self, c: &mut Constraint) {
+    fn visit(&self, c: &mut Constraint, r: &mut NarrowRows) {
+        if r.on {
+            if narrow::visit(&self.narrow_args(), r) {
+                self.accepted(c, r);
+            } else {
+                self.refused(c, r);
+            }
+            return;
+        }
+        self.visit_exact(c);
+    }
+
+    /// What the narrow rows' visits read of this pass.
+    #[inline(always)]
+    fn narrow_args(&self) -> narrow::VisitArgs<'_> {
+        narrow::VisitArgs {
+            params: self.params,
+            bodies: self.bodies,
+            arrays: &self.arrays,
+            use_bias: self.use_bias,
+            rot: self.rot,
+            poses: self.poses,
+        }
+    }
+
+    /// After a narrow visit that its guard accepted: the next warm start,
+    /// if this pass sums it.
+    #[inline(always)]
+    fn accepted(&self, c: &Constraint, r: &mut NarrowRows) {
+        if self.fuse {
+            let (da, db) = narrow::warm_start(r);
+            self.arrays.add_warm(c.wa, c.wb, da, db);
+        }
+    }
+
+    /// After a narrow visit that its guard refused (it wrote nothing): the
+    /// impulses back in Q32.32, and the constraint on the Q32.32 rows from
+    /// this visit to the end of the tick.
+    #[inline(never)]
+    fn refused(&self, c: &mut Constraint, r: &mut NarrowRows) {
+        narrow::write_back(r, c);
+        r.on = false;
+        self.fallbacks.add();
+        self.visit_exact(c);
+    }
+
+    /// Visits a run of constraints of one colour on the narrow rows: each
+    /// batch of eight (see `narrow::lanes`) on the lanes, the others one at
+    /// a time. The same bits as visiting them in order: each constraint's
+    /// visit reads and writes only its own data and its bodies.
+    fn visit_narrow_run(&self, cs: &mut [Constraint], rs: &mut [NarrowRows], kernel: Kernel) {
+        let len = cs.len().min(rs.len());
+        let args = self.narrow_args();
+        let mut i = 0;
+        while i < len {
+            let b = rs[i].batch;
+            if b != NONE && i + LANES <= len && Batch::fits(&rs[i..i + LANES]) {
+                let refused = narrow::lanes::visit(
+                    &args,
+                    &self.batches[b as usize],
+                    &mut rs[i..i + LANES],
+                    kernel,
+                );
+                for (l, &no) in refused.iter().enumerate() {
+                    let (c, r) = (&mut cs[i + l], &mut rs[i + l]);
+                    if no {
+                        self.refused(c, r);
+                    } else {
+                        self.accepted(c, r);
+                    }
+                }
+                i += LANES;
+            } else {
+                if i + PREFETCH_AHEAD < len {
+                    prefetch(&rs[i + PREFETCH_AHEAD]);
+                }
+                self.visit(&mut cs[i], &mut rs[i]);
+                i += 1;
+            }
+        }
+    }
+
+    /// One visit of constraint `c` on the Q32.32 rows.
+    #[inline(always)]
+    fn visit_exact(&self, c: &mut Constraint) {
         let mut v = self.head(c);
         self.points(c, &mut v);
         self.tail(c, &mut v);
@@ -618,7 +773,7 @@ impl Pass<'_> {
     /// constraint at a time), then the rest one at a time. The same bits as
     /// visiting them in order: each constraint's visit reads and writes
     /// only its own data and its bodies.
-    fn visit_batches(&self, cs: &mut [Constraint]) -> wide::Counts {
+    fn visit_batches(&self, cs: &mut [Constraint], rs: &mut [NarrowRows]) -> wide::Counts {
         let mut counts = wide::Counts::default();
         let whole = cs.len() / wide::LANES * wide::LANES;
         for first in (0..whole).step_by(wide::LANES) {
@@ -645,8 +800,7 @@ impl Pass<'_> {
                 self.tail(c, v);
             }
         }
-        let rest = &mut cs[whole..];
-        for_each_prefetched(rest, |c| self.visit(c));
+        for_each_prefetched(&mut cs[whole..], &mut rs[whole..], |c, r| self.visit(c, r));
         counts
     }
 }
@@ -752,6 +906,9 @@ pub(crate) struct SolverParams {
     /// Whether the constraints are solved in colour order (see [`color`])
     /// rather than pair order.
     pub colored: bool,
+    /// Whether the passes solve the contacts on the narrow rows (see
+    /// [`narrow`]) where they fit, rather than on the Q32.32 rows.
+    pub narrow: bool,
 }
 
 /// Counters from one tick's solve.
@@ -765,6 +922,10 @@ pub(crate) struct SolverStats {
     pub overflow: u32,
     /// Times a buffer grew.
     pub growths: u32,
+    /// Constraints that start the tick on the narrow rows.
+    pub narrow: u32,
+    /// Batches of eight of them that the lanes may visit together.
+    pub lane_batches: u32,
 }
 
 /// The solver's buffers, kept by the world and reused every tick.
@@ -788,6 +949,9 @@ pub(crate) struct ContactSolver {
     touched: Vec<u32>,
     /// This tick's constraints in colour order (see [`color`]).
     constraints: Vec<Constraint>,
+    /// Their narrow rows (same index; see [`narrow`]); entries past the
+    /// constraints' count are stale.
+    rows: Vec<NarrowRows>,
     /// The colouring's buffers.
     coloring: Coloring,
     /// Per candidate pair, in pair order, what the first scan found
@@ -827,6 +991,16 @@ pub(crate) struct ContactSolver {
     /// Batches on the wide kernels and batches their guard refused, since
     /// the last [`take_lane_counts`](Self::take_lane_counts).
     lane_counts: wide::Tally,
+    /// Narrow visits whose guard failed, since the last
+    /// [`take_fallbacks`](Self::take_fallbacks).
+    fallbacks: narrow::Fallbacks,
+    /// The lanes' batches of this tick (entries past `lane_batches` are
+    /// stale), and their count.
+    batches: Vec<Batch>,
+    lane_batches: u32,
+    /// Whether the narrow rows' lanes are turned off (the default is on;
+    /// not simulation state).
+    lanes_off: bool,
 }
 
 /// What `prepare`'s first scan found for one candidate pair, before its
@@ -891,7 +1065,7 @@ impl ContactSolver {
             self.vels.capacity(),
             (self.dls.capacity(), self.warm.capacity()),
             self.body_of_slot.capacity(),
-            self.constraints.capacity(),
+            (self.constraints.capacity(), self.rows.capacity()),
             self.touched.capacity(),
             self.heaviest.capacity(),
             self.heavy.capacity(),
@@ -1001,10 +1175,46 @@ impl ContactSolver {
         self.placed.resize(used, 0);
         let mut next = self.starts;
         let found = pending.iter().enumerate().filter(|(_, pc)| pc.used);
-        for (j, (k, _)) in found.enumerate() {
-            let color = self.coloring.color_of(j);
-            self.placed[next[color] as usize] = k as u32;
-            next[color] += 1;
+        if params.narrow && params.colored {
+            // Each colour's constraints by point count (then pair order),
+            // so that runs of eight with the same count can go to the
+            // lanes together (see `narrow::lanes`). The order inside a
+            // colour does not change a bit: its constraints share no
+            // moving body. The overflow, visited in order, keeps pair
+            // order.
+            let count_of = |k: usize| {
+                let points = pairs[pending[k].pair as usize].manifold.points().len();
+                points.clamp(1, MAX_MANIFOLD_POINTS) - 1
+            };
+            let mut at = [[0u32; MAX_MANIFOLD_POINTS]; COLORS + 1];
+            for (j, (k, _)) in found.clone().enumerate() {
+                let color = self.coloring.color_of(j);
+                if color < COLORS {
+                    at[color][count_of(k)] += 1;
+                }
+            }
+            for (c, at) in at.iter_mut().enumerate().take(COLORS) {
+                let mut place = self.starts[c];
+                for n in at.iter_mut() {
+                    (*n, place) = (place, place + *n);
+                }
+            }
+            for (j, (k, _)) in found.enumerate() {
+                let color = self.coloring.color_of(j);
+                let slot = if color < COLORS {
+                    &mut at[color][count_of(k)]
+                } else {
+                    &mut next[color]
+                };
+                self.placed[*slot as usize] = k as u32;
+                *slot += 1;
+            }
+        } else {
+            for (j, (k, _)) in found.enumerate() {
+                let color = self.coloring.color_of(j);
+                self.placed[next[color] as usize] = k as u32;
+                next[color] += 1;
+            }
         }
         // 2. Solver bodies in slot order, and the range of their inverse
         //    masses (for step 4).
@@ -1099,6 +1309,7 @@ impl ContactSolver {
             c.normal = n;
             c.tangent = [t0, t1];
             c.count = p.manifold.points().len();
+            let mut ks = [Scalar::ZERO; MAX_MANIFOLD_POINTS];
             for (k, (mp, imp)) in p.manifold.points().iter().zip(&p.impulses).enumerate() {
                 let cp = &mut c.points[k];
                 // Static bodies contribute nothing through their anchor, so
@@ -1139,8 +1350,8 @@ impl ContactSolver {
                 cp.rb_n = cross(rb, n);
                 cp.ia_n = ba.inv_inertia_mul(cp.ra_n);
                 cp.ib_n = bb.inv_inertia_mul(cp.rb_n);
-                cp.normal_mass =
-                    inverse_or_zero(effective(ba, bb, cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n));
+                ks[k] = effective(ba, bb, cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n);
+                cp.normal_mass = inverse_or_zero(ks[k]);
                 cp.relative_velocity = along(&va, &vb, n, cp.ra_n, cp.rb_n);
                 cp.normal_impulse = imp.normal;
                 cp.mark = imp.normal;
@@ -1151,13 +1362,20 @@ impl ContactSolver {
             if uniform {
                 c.softness = params.softness;
             }
+            ks
         };
         let placed = &self.placed;
-        let shared = SharedMut::new(&mut self.constraints);
+        // Only grows; every entry below `used` is written next.
+        if self.rows.len() < used {
+            self.rows.resize(used, NarrowRows::default());
+        }
+        let both = Both::new(&mut self.constraints, &mut self.rows[..used]);
+        let on_narrow = AtomicU32::new(0);
         self.workers.for_each_block(used, BLOCK, |r| {
             // SAFETY: each block goes to one worker alone.
-            let block = unsafe { shared.slice(r.clone()) };
+            let (block, rows) = unsafe { both.slices(r.clone()) };
             let placed = &placed[r];
+            let mut narrow_here = 0;
             for (i, &k) in placed.iter().enumerate() {
                 if let Some(&ahead) = placed.get(i + PREFETCH_AHEAD) {
                     prefetch(&block[i + PREFETCH_AHEAD]);
@@ -1168,9 +1386,15 @@ impl ContactSolver {
                         prefetch(&p.impulses);
                     }
                 }
-                constants(&mut block[i], k);
+                let ks = constants(&mut block[i], k);
+                let row = &mut rows[i];
+                row.on = params.narrow && narrow::prepare(row, &block[i], &ks);
+                narrow_here += u32::from(row.on);
             }
+            // An exact count, whatever the order the blocks add in.
+            on_narrow.fetch_add(narrow_here, Ordering::Relaxed);
         });
+        let mut on_narrow = on_narrow.into_inner();
         // 4. The heaviest body each solver body touches (smallest inverse
         //    mass, its own included), then each contact's spring from the
         //    ratio of that to its lighter body, and the high-ratio list.
@@ -1180,16 +1404,19 @@ impl ContactSolver {
         //    spring in step 3: the same result without the two walks.
         self.heavy.clear();
         if !uniform {
-            self.assign_ratio_springs(params);
+            on_narrow -= self.assign_ratio_springs(params);
         }
         // 5. The shock pass's order over the high-ratio contacts.
         self.order_shock();
+        // 6. The lanes' batches: runs of eight constraints of one colour on
+        //    the narrow rows with one point count, from each colour's start.
+        self.batch_lanes(params);
         let grew = (
             self.bodies.capacity(),
             self.vels.capacity(),
             (self.dls.capacity(), self.warm.capacity()),
             self.body_of_slot.capacity(),
-            self.constraints.capacity(),
+            (self.constraints.capacity(), self.rows.capacity()),
             self.touched.capacity(),
             self.heaviest.capacity(),
             self.heavy.capacity(),
@@ -1204,7 +1431,77 @@ impl ContactSolver {
             colors,
             overflow,
             growths: grew as u32,
+            narrow: on_narrow,
+            lane_batches: self.lane_batches,
         }
+    }
+
+    /// Step 6 of [`prepare`](Self::prepare): copies the constants of every
+    /// run of eight constraints that can go to the lanes together (one
+    /// colour, all on the narrow rows, one point count; each run starts at
+    /// its colour's start plus a multiple of eight, as the worker blocks
+    /// do) into a batch, and marks its first constraint's rows with it.
+    fn batch_lanes(&mut self, params: &SolverParams) {
+        let n = self.constraints.len();
+        let mut used = 0;
+        if params.narrow && params.colored && !self.lanes_off && self.kernel() != Kernel::Plain {
+            for c in 0..COLORS {
+                let (start, end) = (
+                    self.starts[c] as usize,
+                    (self.starts[c + 1] as usize).min(n),
+                );
+                let mut i = start;
+                while i + LANES <= end {
+                    let rows = &mut self.rows[i..i + LANES];
+                    if Batch::fits(rows) {
+                        if used == self.batches.len() {
+                            self.batches.push(Batch::default());
+                        }
+                        self.batches[used].fill(rows);
+                        rows[0].batch = used as u32;
+                        for r in &mut rows[1..] {
+                            r.batch = NONE;
+                        }
+                        used += 1;
+                    } else {
+                        for r in rows {
+                            r.batch = NONE;
+                        }
+                    }
+                    i += LANES;
+                }
+                for r in &mut self.rows[i..end] {
+                    r.batch = NONE;
+                }
+            }
+            let colored = (self.starts[COLORS] as usize).min(n);
+            for r in &mut self.rows[colored..n] {
+                r.batch = NONE;
+            }
+        } else {
+            for r in &mut self.rows[..n] {
+                r.batch = NONE;
+            }
+        }
+        self.lane_batches = used as u32;
+    }
+
+    /// The build of the lane kernel the passes use.
+    fn kernel(&self) -> Kernel {
+        Kernel::best()
+    }
+
+    /// Turns the narrow rows' lanes on where the CPU has them (`true`, the
+    /// default), or off (the scalar twin alone). Not simulation state: the
+    /// same bits either way.
+    pub(crate) fn set_lanes(&mut self, on: bool) {
+        self.lanes_off = !on;
+    }
+
+    /// Whether the narrow rows' lanes are on and the CPU has them, and
+    /// which build runs.
+    pub(crate) fn lanes(&self) -> Option<Kernel> {
+        (!self.lanes_off && self.kernel() != Kernel::Plain).then(|| self.kernel())
     }
 
     /// Sets the number of threads the colour passes use (1: this thread
@@ -1232,6 +1529,12 @@ impl ContactSolver {
     /// the last call.
     pub(crate) fn take_lane_counts(&self) -> wide::Counts {
         self.lane_counts.take()
+    }
+
+    /// The constraints moved from the narrow rows to the Q32.32 rows by a
+    /// failed guard since the last call.
+    pub(crate) fn take_fallbacks(&self) -> u32 {
+        self.fallbacks.take()
     }
 
     /// The number of threads the colour passes use.
@@ -1359,13 +1662,20 @@ impl ContactSolver {
         }
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
         let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
-        let visit = |c: &mut Constraint| {
+        let visit = |c: &mut Constraint, r: &mut NarrowRows| {
             let (mut va, mut vb) = arrays.load(c.a, c.b);
-            c.warm_start(&mut va, &mut vb);
+            if r.on {
+                let (da, db) = narrow::warm_start(r);
+                (va.v, va.w, vb.v, vb.w) = (va.v + da.v, va.w + da.w, vb.v + db.v, vb.w + db.w);
+            } else {
+                c.warm_start(&mut va, &mut vb);
+            }
             arrays.store(c.wa, c.wb, va, vb);
         };
+        let n = self.constraints.len();
         for_each_colored(
             &mut self.constraints,
+            &mut self.rows[..n],
             &self.starts,
             &self.workers,
             one_by_one(visit),
@@ -1406,30 +1716,52 @@ impl ContactSolver {
             rot: self.substeps as usize,
             bodies: &self.bodies,
             arrays,
-            lanes: self.wide_on && wide::available(),
+            // The wide kernels are the Q32.32 rows' lanes.
+            lanes: self.wide_on && wide::available() && !params.narrow,
             poses: self.poses,
+            fallbacks: &self.fallbacks,
+            batches: &self.batches[..self.lane_batches as usize],
+            kernel: if params.narrow && self.lane_batches > 0 {
+                self.lanes()
+            } else {
+                None
+            },
         };
         let counts = &self.lane_counts;
-        let run = |cs: &mut [Constraint], independent: bool| {
+        let run = |cs: &mut [Constraint], rs: &mut [NarrowRows], independent: bool| {
             if independent && pass.lanes {
-                counts.add(pass.visit_batches(cs));
+                counts.add(pass.visit_batches(cs, rs));
+            } else if let (true, Some(kernel)) = (independent, pass.kernel) {
+                pass.visit_narrow_run(cs, rs, kernel);
             } else {
-                for_each_prefetched(cs, |c| pass.visit(c));
+                for_each_prefetched(cs, rs, |c, r| pass.visit(c, r));
             }
         };
-        for_each_colored(&mut self.constraints, &self.starts, &self.workers, run);
+        let n = self.constraints.len();
+        let rows = &mut self.rows[..n];
+        for_each_colored(
+            &mut self.constraints,
+            rows,
+            &self.starts,
+            &self.workers,
+            run,
+        );
         self.warm_ready = fuse;
         for _ in 0..HIGH_RATIO_PASSES {
             for &i in &self.heavy {
-                pass.visit(&mut self.constraints[i as usize]);
+                // The high-ratio constraints are on the Q32.32 rows.
+                pass.visit_exact(&mut self.constraints[i as usize]);
             }
         }
     }
 
     /// Step 4 of [`prepare`](Self::prepare) for a scene with high mass
     /// ratios: each contact's spring and the high-ratio list (see
-    /// [`RATIO_KEPT`]).
-    fn assign_ratio_springs(&mut self, params: &SolverParams) {
+    /// [`RATIO_KEPT`]). The high-ratio contacts go to the Q32.32 rows (the
+    /// shock pass and their extra visits work on their Q32.32 impulses):
+    /// returns how many of them were on the narrow rows.
+    fn assign_ratio_springs(&mut self, params: &SolverParams) -> u32 {
+        let mut left_narrow = 0;
         self.heaviest.clear();
         self.heaviest.extend(
             self.bodies
@@ -1463,8 +1795,10 @@ impl ContactSolver {
             c.softness = if both { soft } else { params.softness };
             if high {
                 self.heavy.push(i as u32);
+                left_narrow += u32::from(std::mem::take(&mut self.rows[i].on));
             }
         }
+        left_narrow
     }
 
     /// After the substeps: points that approached faster than the threshold
@@ -1473,7 +1807,13 @@ impl ContactSolver {
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
         let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         let threshold = -params.restitution_threshold;
-        let visit = |c: &mut Constraint| {
+        let visit = |c: &mut Constraint, r: &mut NarrowRows| {
+            // The narrow rows' impulses back in Q32.32 (here, where the
+            // constraint is at hand anyway): restitution and the stored
+            // impulses read them.
+            if std::mem::take(&mut r.on) {
+                narrow::write_back(r, c);
+            }
             if c.restitution.is_zero() {
                 return;
             }
@@ -1501,8 +1841,10 @@ impl ContactSolver {
             arrays.store(c.wa, c.wb, va, vb);
             c.collect_angular(&arrays);
         };
+        let n = self.constraints.len();
         for_each_colored(
             &mut self.constraints,
+            &mut self.rows[..n],
             &self.starts,
             &self.workers,
             one_by_one(visit),

@@ -56,6 +56,30 @@ pub struct WorldConfig {
     /// threads ([`World::set_workers`](crate::World::set_workers)).
     #[serde(default)]
     pub contact_order: ContactOrder,
+    /// The number format of the contact solver's rows: Q32.32 (the
+    /// default) or the narrow exact format (32-bit operands, exact 64-bit
+    /// sums), which is about twice as fast and rounds velocities in the
+    /// rows to 2⁻²⁰ m/s.
+    #[serde(default)]
+    pub contact_rows: ContactRows,
+}
+
+/// The number format the contact solver's rows compute in. The two give
+/// different (each deterministic) results, so it is a world setting, in the
+/// state hash and in snapshots.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum ContactRows {
+    /// Q32.32 operands, 128-bit products, one rounding per sum.
+    #[default]
+    Exact,
+    /// Velocities and impulses as 32-bit integers of 2⁻²⁰ m/s (impulses in
+    /// velocity units, `λ/m_eff`), Jacobian and response entries as 32-bit
+    /// integers with one exponent each per constraint, every product
+    /// 32 × 32 → 64 bits and every sum exact in 64 bits. A constraint whose
+    /// values do not fit (a velocity past ±512 m/s, a high mass ratio, an
+    /// extreme lever arm) is solved on the Q32.32 rows instead, alike on
+    /// every machine; [`StepReport`] counts both.
+    Narrow,
 }
 
 /// The order the contact solver visits its constraints in each pass. The
@@ -96,6 +120,7 @@ impl Default for WorldConfig {
             max_push_out: Scalar::from_int(3),
             restitution_threshold: Scalar::ONE,
             contact_order: ContactOrder::Pairs,
+            contact_rows: ContactRows::Exact,
         }
     }
 }
@@ -233,6 +258,19 @@ pub struct StepReport {
     /// Batches the lanes' range guard sent to the scalar rows instead
     /// (a value too large for the lanes to be exact).
     pub wide_batches_guarded: u32,
+    /// Contact constraints that started the step on the narrow rows
+    /// ([`ContactRows::Narrow`]); the others of `contact_constraints` were
+    /// solved on the Q32.32 rows (a value that does not fit, a high mass
+    /// ratio, or the setting off).
+    pub narrow_constraints: u32,
+    /// Of those, the constraints a narrow visit's guard moved to the
+    /// Q32.32 rows during the step (a value past the format's range).
+    pub narrow_fallbacks: u32,
+    /// Batches of eight narrow constraints that the step's solve and relax
+    /// passes could visit on the SIMD lanes (see
+    /// [`World::set_lanes`](crate::World::set_lanes)): zero in pair order,
+    /// with the lanes off, and on CPUs without them.
+    pub lane_batches: u32,
     /// Bodies whose motion continuous collision swept this step: fast ones
     /// (moved more than a quarter of their smallest extent) and bullets.
     /// Zero while everything is slow.

@@ -14,8 +14,8 @@ pub use crate::solver::workers::MAX_WORKERS;
 pub use body_ref::BodyRef;
 pub use ccd::{CCD_MAX_ITERATIONS, CCD_TARGET_GAP, CCD_TOLERANCE};
 pub use config::{
-    ContactOrder, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MAX_TICK_RATE, StepReport, WorldConfig,
-    WorldError,
+    ContactOrder, ContactRows, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MAX_TICK_RATE, StepReport,
+    WorldConfig, WorldError,
 };
 pub use observe::{Stage, StepObserver};
 pub use state_hash::{BodyField, FieldKind, STATE_HASH_VERSION};
@@ -185,6 +185,27 @@ impl World {
     /// (see [`World::set_wide`]).
     pub fn wide(&self) -> bool {
         self.solver.wide()
+    }
+
+    /// Turns the narrow contact rows' SIMD lanes on (`true`, the default)
+    /// or off. With [`ContactRows::Narrow`] in colour order
+    /// ([`ContactOrder::Colors`]), eight constraints of one colour with the
+    /// same point count then go through the rows together on the widest
+    /// lanes this CPU has (AVX-512 or AVX2 on x86_64, found at run time;
+    /// see [`StepReport::lane_batches`]); elsewhere the scalar rows run.
+    ///
+    /// Not simulation state: the lanes compute the scalar rows' bits, so
+    /// the setting is in neither the state hash nor snapshots (a restored
+    /// world has them on).
+    pub fn set_lanes(&mut self, on: bool) {
+        self.solver.set_lanes(on);
+    }
+
+    /// The build of the narrow rows' lanes that steps use (`"AVX-512"` or
+    /// `"AVX2"`), or `None` when they are off or this CPU has none (see
+    /// [`World::set_lanes`]).
+    pub fn lanes(&self) -> Option<&'static str> {
+        self.solver.lanes().map(|k| k.name())
     }
 
     /// The threads a step uses (see [`World::set_workers`]).

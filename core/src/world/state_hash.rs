@@ -5,7 +5,7 @@ use crate::body::{BodyCold, BodyHandle, BodyHot};
 use crate::collider::MassSpec;
 use crate::hash::StateHasher;
 
-use super::{ContactOrder, World};
+use super::{ContactOrder, ContactRows, World};
 
 /// Version of the hashed layout; bumped whenever the list of hashed words
 /// changes, so hashes from different layouts never compare equal by
@@ -68,6 +68,9 @@ impl World {
         // stay valid.
         if c.contact_order == ContactOrder::Colors {
             h.word(u64::from_le_bytes(*b"colours\0"));
+        }
+        if c.contact_rows == ContactRows::Narrow {
+            h.word(u64::from_le_bytes(*b"narrow\0\0"));
         }
         h.word(self.bodies.len() as u64);
         for (handle, hot, cold) in self.bodies.iter() {

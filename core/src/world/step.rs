@@ -17,7 +17,7 @@ use crate::solver::sleep;
 use crate::solver::workers::Workers;
 
 use super::observe::{Guarded, Notify, Quiet, Stage, StepObserver};
-use super::{ContactOrder, StepReport, World, rotation_delta};
+use super::{ContactOrder, ContactRows, StepReport, World, rotation_delta};
 
 impl World {
     /// Advances the world by one tick (`1/tick_rate` seconds).
@@ -118,6 +118,8 @@ impl World {
         report.contact_constraints = prep.constraints;
         report.contact_colors = prep.colors;
         report.contact_overflow = prep.overflow;
+        report.narrow_constraints = prep.narrow;
+        report.lane_batches = prep.lane_batches;
         report.buffer_growths += prep.growths;
 
         report.buffer_growths += self.stage_ccd_begin();
@@ -191,6 +193,7 @@ impl World {
         let lanes = self.solver.take_lane_counts();
         report.wide_batches = lanes.lanes;
         report.wide_batches_guarded = lanes.guarded;
+        report.narrow_fallbacks = self.solver.take_fallbacks();
         report.fell_asleep = slept.fell_asleep;
         report.islands = slept.islands;
         report.buffer_growths += u32::from(slept.grew);
@@ -299,6 +302,7 @@ impl World {
             max_push_out: cfg.max_push_out,
             restitution_threshold: cfg.restitution_threshold,
             colored: cfg.contact_order == ContactOrder::Colors,
+            narrow: cfg.contact_rows == ContactRows::Narrow,
         }
     }
 

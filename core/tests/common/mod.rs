@@ -76,11 +76,19 @@ pub fn ground(w: &mut World, m: Material) -> BodyHandle {
 /// boxes, spheres and capsules dropped in (seeded: the same pile every
 /// run).
 pub fn pile(order: ContactOrder, n: usize, seed: u64) -> World {
-    let mut w = World::new(WorldConfig {
-        contact_order: order,
-        ..WorldConfig::default()
-    })
-    .unwrap();
+    pile_in(
+        WorldConfig {
+            contact_order: order,
+            ..WorldConfig::default()
+        },
+        n,
+        seed,
+    )
+}
+
+/// [`pile`] in a world of the given configuration.
+pub fn pile_in(config: WorldConfig, n: usize, seed: u64) -> World {
+    let mut w = World::new(config).unwrap();
     let ground = w
         .create_body(&BodyDesc::fixed().position(v(0.0, -0.5, 0.0)))
         .unwrap();

@@ -38,7 +38,7 @@ fn unknown_keys_are_rejected_with_a_suggestion() {
     );
     assert_error(
         "[world]\n  tickrate = 60\n",
-        "test.toml:2:3: world: unknown key \"tickrate\" in [world] (did you mean \"tick_rate\"? expected one of: gravity, tick_rate, substeps, solver_iterations, relax_iterations, contact_hertz, contact_damping_ratio, contact_margin, broad_phase_margin, max_push_out, restitution_threshold, contact_order, sleep, sleep_linear_threshold, sleep_angular_threshold, time_to_sleep)",
+        "test.toml:2:3: world: unknown key \"tickrate\" in [world] (did you mean \"tick_rate\"? expected one of: gravity, tick_rate, substeps, solver_iterations, relax_iterations, contact_hertz, contact_damping_ratio, contact_margin, broad_phase_margin, max_push_out, restitution_threshold, contact_order, contact_rows, sleep, sleep_linear_threshold, sleep_angular_threshold, time_to_sleep)",
     );
     assert_error(
         "[physics]\n",

@@ -39,6 +39,9 @@ pub(super) struct Patch {
     /// μ times the points' mean distance from the centre: the twist bound
     /// per unit of total normal impulse.
     pub(super) twist_reach: Scalar,
+    /// `1/m_eff` of the two tangent rows and of the twist row (what the
+    /// narrow rows' impulses are scaled by, see `narrow`).
+    pub(super) k: [Scalar; 3],
     /// Accumulated tangent and twist impulses.
     pub(super) tangent_impulse: [Scalar; 2],
     pub(super) twist_impulse: Scalar,
@@ -110,17 +113,14 @@ pub(super) fn prepare_patch(
         f.rb_t[j] = cross(rb, t);
         f.ia_t[j] = ba.inv_inertia_mul(f.ra_t[j]);
         f.ib_t[j] = bb.inv_inertia_mul(f.rb_t[j]);
-        f.tangent_mass[j] = inverse_or_zero(effective(
-            ba, bb, f.ra_t[j], f.rb_t[j], f.ia_t[j], f.ib_t[j],
-        ));
+        f.k[j] = effective(ba, bb, f.ra_t[j], f.rb_t[j], f.ia_t[j], f.ib_t[j]);
+        f.tangent_mass[j] = inverse_or_zero(f.k[j]);
     }
     // The twist row has no linear part: k = n·I⁻¹A n + n·I⁻¹B n.
     f.ia_w = ba.inv_inertia_mul(n);
     f.ib_w = bb.inv_inertia_mul(n);
-    f.twist_mass = inverse_or_zero(round_wide(wide_sum([
-        n.dot_wide(f.ia_w),
-        n.dot_wide(f.ib_w),
-    ])));
+    f.k[2] = round_wide(wide_sum([n.dot_wide(f.ia_w), n.dot_wide(f.ib_w)]));
+    f.twist_mass = inverse_or_zero(f.k[2]);
     f
 }
 

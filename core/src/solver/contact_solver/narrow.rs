@@ -1,0 +1,1083 @@
+//! The narrow exact rows: the contact rows on 32-bit operands with exact
+//! 64-bit sums. The functions here are the scalar twin: the definition that
+//! any lane kernel must reproduce bit for bit.
+//!
+//! # The format
+//!
+//! Each accumulated row impulse is kept in velocity units, `Λ = λ·k` with
+//! `k = 1/m_eff` (the relative velocity change the impulse causes along its
+//! row), so that every row quantity is dimensionless or a lever arm:
+//!
+//! - velocities (`V`, `Ω`) and impulses (`Λ`) are integers of 2⁻²⁰ m/s
+//!   (rad/s) ([`S`]): a quantum of 9.5e-7 m/s, ±512 m/s within the guard;
+//! - Jacobian entries (`n`, `t₀`, `t₁`, `r×n`, `r×t`) are integers at
+//!   `2^je`, one exponent per constraint (`je ≤ 30`, so `|entry| ≤ 2³⁰`);
+//! - response entries (`e = m_eff·m⁻¹·d`, at most 1, and `c =
+//!   m_eff·I⁻¹(r×d)`, 1/m) are integers at `2^ae`, one exponent per
+//!   constraint; angular-momentum entries (`g = m_eff·(r×d)`, kg·m) at
+//!   `2^ge`; the tangent effective masses (the friction disc) at `2^me`.
+//!
+//! A normal row is then `vn = J·V` (nine products, one rounding),
+//! `Λ' = max(ms·(Λ − vn − bias), 0)` (one product and one rounding in the
+//! soft pass, `ms` the spring's mass scale in Q1.30; none in the rigid
+//! one: `ms + is = 1` turns the soft step's two terms into one), and each
+//! body's velocity moves by `d·e` and `d·c` (`d = Λ' − Λ`, each product
+//! rounded once). A tangent row is `Λ' = Λ − vt` held in the friction disc
+//! `|Λ'·m_t| ≤ μ·total` (an exact integer comparison; a sliding patch is
+//! scaled onto the rim), the twist row `Λ' = clamp(Λ − spin, ±limit)`.
+//! The warm start applies each `Λ` through the same responses; the angular
+//! write-back adds `Σ g·ΔΛ` to each body's angular momentum (one exact sum
+//! per body and visit, rounded once to Q32.32).
+//!
+//! Every product is of two integers below 2³¹ in magnitude (an `i32 × i32
+//! → i64`), and every sum is exact in `i64`: the bound is written at each
+//! sum, and it holds because a guard checks, at each visit, that every
+//! velocity read and written and every impulse stays below 2²⁹ and every
+//! row's unclamped value below 2³¹. One rounding rule everywhere: add half,
+//! shift right (to nearest, ties toward +∞).
+//!
+//! # What stays Q32.32
+//!
+//! The bodies' velocities between visits (a visit reads them rounded to the
+//! quantum and adds back the exact change it made, so a body's low bits are
+//! never lost) and angular momenta, positions and orientations, the
+//! separation frame (once per pose change), the accumulated impulses the
+//! pairs store (`λ = Λ·m_eff`, rounded once, written back before
+//! restitution), restitution, and the high-mass-ratio contacts (their rows
+//! and the shock pass).
+//!
+//! # The guard
+//!
+//! A constraint whose numbers do not fit at `prepare` (a mass ratio above
+//! the solver's kept ratio, a lever arm or response beyond the exponents'
+//! range, an impulse past the guard) is solved on the Q32.32 rows for the
+//! whole tick. A visit whose guard fails writes nothing; the constraint's
+//! impulses go back to Q32.32 and the Q32.32 rows solve it from that visit
+//! to the end of the tick, alike on every machine. `StepReport` counts
+//! both.
+
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use super::rows::{BodyArrays, mul};
+use super::{
+    BodyVel, Constraint, MAX_MANIFOLD_POINTS, NONE, SeparationFrame, SolverBody, SolverParams,
+};
+use crate::math::lanes::narrow as narrow_q32;
+use crate::math::{Scalar, Vec3};
+
+pub(super) mod lanes;
+
+/// The velocity quantum's exponent: rows hold velocities and impulses as
+/// integers of `2^-S` m/s (rad/s).
+pub(crate) const S: u32 = 20;
+
+/// Q32.32 bits to quanta: a right shift by this many bits.
+const TO_Q: u32 = 32 - S;
+
+/// The guard on every velocity component and accumulated impulse, in
+/// quanta (exclusive): ±512 m/s at [`S`] = 20.
+const LIMIT: i64 = 1 << 29;
+
+/// The guard on a row's unclamped value (`Λ − vn − bias`, `Λ − vt`).
+const ROW_LIMIT: i64 = 1 << 31;
+
+/// The largest entry exponent: entries at `2^30` hold magnitudes up to 1
+/// exactly in 31 bits.
+const MAX_EXP: i32 = 30;
+
+/// The smallest entry exponent accepted: a constraint whose largest lever
+/// arm, response or angular-momentum entry would need less (a lever over
+/// 16 km, an angular response over 16,384 /m, an effective mass times
+/// lever over 16,384 kg·m) is solved on the Q32.32 rows instead, whose
+/// entries keep their precision.
+const MIN_EXP: i32 = 16;
+
+/// One row's entries: Jacobian (`ja`, `jb`: `r×d` at `2^je`), responses
+/// (`ea`, `eb`, `ca`, `cb` at `2^ae`) and angular-momentum entries (`ga`,
+/// `gb` at `2^ge`), with its accumulated impulse Λ and its value at the
+/// last angular write-back.
+#[derive(Clone, Copy, Debug, Default)]
+struct Row {
+    ja: [i32; 3],
+    jb: [i32; 3],
+    ea: [i32; 3],
+    eb: [i32; 3],
+    ca: [i32; 3],
+    cb: [i32; 3],
+    ga: [i32; 3],
+    gb: [i32; 3],
+    impulse: i32,
+    mark: i32,
+}
+
+/// One contact point's narrow row and its per-tick bookkeeping.
+#[derive(Clone, Copy, Debug, Default)]
+struct NarrowPoint {
+    row: Row,
+    /// The anchors and adjusted separation the separation is followed
+    /// through (see `ConstraintPoint`), Q32.32.
+    ra: Vec3,
+    rb: Vec3,
+    adjusted: Scalar,
+    /// The effective mass (Q32.32): `λ = Λ·m`.
+    mass: Scalar,
+    /// The largest Λ this tick (restitution applies only to points that
+    /// pushed).
+    max_impulse: i32,
+    /// The normal velocity at the first push this tick, quanta
+    /// (`i32::MAX`: no push yet).
+    first_vn: i32,
+    /// The point's bias at the cached separation (see
+    /// [`NarrowRows::bias_poses`]): the speculative `s/h` for a gap, else
+    /// the soft push-out, quanta, saturated at ±2³⁰.
+    bias: i32,
+    /// Whether `bias` was saturated.
+    bias_saturated: bool,
+    /// Whether the cached separation is a gap (a rigid, speculative row).
+    speculative: bool,
+}
+
+/// One constraint's narrow rows: everything its passes read and write but
+/// the separation frame (see the module docs), about 900 bytes against the
+/// Q32.32 constraint's 2 KB.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct NarrowRows {
+    /// Whether the constraint is solved on these rows this tick (else on
+    /// the Q32.32 rows).
+    pub(super) on: bool,
+    count: u8,
+    /// Exponents of the Jacobian, response, angular-momentum entries and
+    /// of the tangent masses.
+    je: u8,
+    ae: u8,
+    ge: u8,
+    me: i8,
+    /// Whether `disc_limit`/`twist_limit` hold the bounds of the warm
+    /// start's total normal impulse (else each visit takes the current
+    /// one).
+    limits_set: bool,
+    /// Solver bodies (or `NONE`) and the dynamic ones the passes write.
+    a: u32,
+    b: u32,
+    wa: u32,
+    wb: u32,
+    /// The normal at `2^je`, and in Q32.32 (for the separations).
+    n: [i32; 3],
+    normal: Vec3,
+    points: [NarrowPoint; MAX_MANIFOLD_POINTS],
+    /// The tangent rows at the patch centre (their `ja`/`jb` are `r×t`),
+    /// with the tangents at `2^je` and their effective masses at `2^me`.
+    tangent: [Row; 2],
+    t: [[i32; 3]; 2],
+    mass_t: [i32; 2],
+    /// The twist row (Jacobian: `n` on the angular velocities alone).
+    twist: Row,
+    /// The Q32.32 effective masses of the tangent and twist rows, the
+    /// friction coefficient, the twist reach and `1/m` of the twist.
+    mass_tw: [Scalar; 3],
+    friction: Scalar,
+    twist_reach: Scalar,
+    k_w: Scalar,
+    /// The friction disc's radius at `2^(S+me)` and the twist bound in
+    /// quanta, from the warm start's total (see `limits_set`).
+    disc_limit: i64,
+    twist_limit: i64,
+    /// The warm start's total normal impulse (Q32.32; zero before one).
+    warm_total: Scalar,
+    /// The pose number (see `ContactSolver::poses`) the points' `bias` was
+    /// computed at; 0: never.
+    bias_poses: u32,
+    /// The lanes' batch this constraint starts (see [`lanes`]), or `NONE`.
+    pub(super) batch: u32,
+}
+
+/// Visits whose guard failed since the counts were last taken.
+#[derive(Debug, Default)]
+pub(crate) struct Fallbacks(AtomicU32);
+
+impl Clone for Fallbacks {
+    fn clone(&self) -> Fallbacks {
+        Fallbacks(AtomicU32::new(self.0.load(Ordering::Relaxed)))
+    }
+}
+
+impl Fallbacks {
+    /// Counts one.
+    pub(super) fn add(&self) {
+        self.0.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// The count, reset to zero.
+    pub(super) fn take(&self) -> u32 {
+        self.0.swap(0, Ordering::Relaxed)
+    }
+}
+
+/// `x / 2^e` rounded to nearest, ties toward +∞ (`1 ≤ e ≤ 62`). Wrapping:
+/// exact whenever `|x| < 2⁶³ − 2^(e−1)`, which every caller's bound gives
+/// (a guard-failed visit may compute garbage here; it is thrown away).
+#[inline(always)]
+fn rsh(x: i64, e: u32) -> i64 {
+    x.wrapping_add(1 << (e - 1)) >> e
+}
+
+/// Q32.32 bits to quanta, rounded as [`rsh`]; cannot overflow
+/// (`⌊(⌊x/2⌋ + 2¹⁰)/2¹¹⌋ = ⌊(x + 2¹¹)/2¹²⌋`).
+#[inline(always)]
+fn quanta(x: Scalar) -> i64 {
+    ((x.to_bits() >> 1) + (1 << (TO_Q - 2))) >> (TO_Q - 1)
+}
+
+/// A velocity in quanta, per component.
+#[inline(always)]
+fn quanta3(v: Vec3) -> [i64; 3] {
+    [quanta(v.x), quanta(v.y), quanta(v.z)]
+}
+
+/// A change in quanta as Q32.32 (exact: `|q| < 2⁵¹`).
+#[inline(always)]
+fn from_quanta3(q: &[i64; 3]) -> Vec3 {
+    Vec3::new(
+        Scalar::from_bits(q[0] << TO_Q),
+        Scalar::from_bits(q[1] << TO_Q),
+        Scalar::from_bits(q[2] << TO_Q),
+    )
+}
+
+/// Whether every component is inside the guard.
+#[inline(always)]
+fn fits(v: &[i64; 3]) -> bool {
+    v[0].abs() < LIMIT && v[1].abs() < LIMIT && v[2].abs() < LIMIT
+}
+
+/// `Σ a_i·b_i` over three components, exact (each `|a_i| ≤ 2³⁰`,
+/// `|b_i| < 2³⁰`: the sum is below 3·2⁶⁰).
+#[inline(always)]
+fn dot(a: &[i32; 3], b: &[i64; 3]) -> i64 {
+    (a[0] as i64)
+        .wrapping_mul(b[0])
+        .wrapping_add((a[1] as i64).wrapping_mul(b[1]))
+        .wrapping_add((a[2] as i64).wrapping_mul(b[2]))
+}
+
+/// `v += d·e` per component (`v −= d·e` for `sub`), each product rounded
+/// once at `2^e` (`|d| < 2³²`, `|e| ≤ 2³⁰`: each product below 2⁶²).
+#[inline(always)]
+fn add_scaled(v: &mut [i64; 3], e: &[i32; 3], d: i64, exp: u32) {
+    for i in 0..3 {
+        v[i] = v[i].wrapping_add(rsh(d.wrapping_mul(e[i] as i64), exp));
+    }
+}
+
+#[inline(always)]
+fn sub_scaled(v: &mut [i64; 3], e: &[i32; 3], d: i64, exp: u32) {
+    for i in 0..3 {
+        v[i] = v[i].wrapping_sub(rsh(d.wrapping_mul(e[i] as i64), exp));
+    }
+}
+
+/// The two bodies' velocities (or velocity changes) in quanta during one
+/// visit.
+#[derive(Clone, Copy, Default)]
+struct Bodies {
+    va: [i64; 3],
+    wa: [i64; 3],
+    vb: [i64; 3],
+    wb: [i64; 3],
+}
+
+impl Bodies {
+    #[inline(always)]
+    fn of(va: &BodyVel, vb: &BodyVel) -> Bodies {
+        Bodies {
+            va: quanta3(va.v),
+            wa: quanta3(va.w),
+            vb: quanta3(vb.v),
+            wb: quanta3(vb.w),
+        }
+    }
+
+    #[inline(always)]
+    fn fit(&self) -> bool {
+        fits(&self.va) && fits(&self.wa) && fits(&self.vb) && fits(&self.wb)
+    }
+
+    /// The relative velocity of the anchors along a row, quanta: `d·(V_B −
+    /// V_A) + jb·Ω_B − ja·Ω_A` at `2^je`, rounded once. With every
+    /// component below 2²⁹ (the guard), the linear sum is below 3·2⁶⁰ and
+    /// the angular one below 3·2⁶⁰: the whole sum below 2⁶³.
+    #[inline(always)]
+    fn along(&self, d: &[i32; 3], row: &Row, je: u32) -> i64 {
+        let dv = [
+            self.vb[0].wrapping_sub(self.va[0]),
+            self.vb[1].wrapping_sub(self.va[1]),
+            self.vb[2].wrapping_sub(self.va[2]),
+        ];
+        rsh(
+            dot(d, &dv)
+                .wrapping_add(dot(&row.jb, &self.wb))
+                .wrapping_sub(dot(&row.ja, &self.wa)),
+            je,
+        )
+    }
+
+    /// Applies `d` along a row to both bodies: A loses `d·e_A` and `d·c_A`,
+    /// B gains `d·e_B` and `d·c_B`.
+    #[inline(always)]
+    fn apply(&mut self, d: i64, row: &Row, ae: u32) {
+        sub_scaled(&mut self.va, &row.ea, d, ae);
+        sub_scaled(&mut self.wa, &row.ca, d, ae);
+        add_scaled(&mut self.vb, &row.eb, d, ae);
+        add_scaled(&mut self.wb, &row.cb, d, ae);
+    }
+}
+
+/// A Q32.32 value at `2^e` (`e ≤ 62`), rounded as [`rsh`]; the caller
+/// chose `e` so that it fits in 31 bits.
+fn at_exp(x: Scalar, e: i32) -> i32 {
+    let bits = x.to_bits() as i128;
+    let v = if e >= 32 {
+        bits << (e - 32)
+    } else {
+        let sh = (32 - e) as u32;
+        (bits + (1i128 << (sh - 1))) >> sh
+    };
+    v as i32
+}
+
+fn at_exp3(v: Vec3, e: i32) -> [i32; 3] {
+    [at_exp(v.x, e), at_exp(v.y, e), at_exp(v.z, e)]
+}
+
+/// The largest exponent (at most [`MAX_EXP`]) at which values up to
+/// `max_bits` (Q32.32 bits) are at most 2³⁰ in magnitude.
+fn exponent_for(max_bits: u64) -> i32 {
+    if max_bits <= 1 {
+        return MAX_EXP;
+    }
+    // ⌈log₂ max_bits⌉
+    let ceil_log2 = 64 - (max_bits - 1).leading_zeros() as i32;
+    (62 - ceil_log2).min(MAX_EXP)
+}
+
+fn max_abs(v: Vec3) -> u64 {
+    v.x.to_bits()
+        .unsigned_abs()
+        .max(v.y.to_bits().unsigned_abs())
+        .max(v.z.to_bits().unsigned_abs())
+}
+
+/// `λ·k` in quanta (Q32.32 λ and k), rounded as [`rsh`]; `None` if it is
+/// past the guard.
+fn to_velocity_units(lambda: Scalar, k: Scalar) -> Option<i32> {
+    let p = lambda.to_bits() as i128 * k.to_bits() as i128;
+    let sh = 64 - S;
+    let v = (p + (1i128 << (sh - 1))) >> sh;
+    (v.unsigned_abs() < LIMIT as u128).then_some(v as i32)
+}
+
+/// `Λ·m` in Q32.32 (Λ in quanta, m Q32.32), rounded as [`rsh`] (saturated
+/// with the overflow fault past Q32.32).
+#[inline(always)]
+fn impulse(big: i32, m: Scalar) -> Scalar {
+    narrow_q32((big as i128 * m.to_bits() as i128 + (1i128 << (S - 1))) >> S)
+}
+
+/// A row's Q32.32 terms (references into the constraint), before the
+/// exponents are known.
+struct WideRow<'a> {
+    /// The unit direction (Q32.32).
+    d: Vec3,
+    /// `r×d` of each anchor (zero for the twist row).
+    ja: Vec3,
+    jb: Vec3,
+    /// `I⁻¹(r×d)` of each anchor (`I⁻¹d` for the twist).
+    ia: &'a Vec3,
+    ib: &'a Vec3,
+    /// The effective mass.
+    m: Scalar,
+    /// `m·m_A⁻¹`, `m·m_B⁻¹` (zero for the twist row, which has no linear
+    /// part).
+    em: [Scalar; 2],
+    /// Whether this is the twist row (its angular momentum is along `d`).
+    twist: bool,
+}
+
+/// `x·y` (Q32.32 bits each) at `2^e`, rounded as [`rsh`] (`e ≤ 30`: a
+/// shift of at least 34 bits; the caller's exponent keeps it in 31 bits).
+#[inline(always)]
+fn product_at(x: Scalar, y: Scalar, e: i32) -> i32 {
+    let sh = (64 - e) as u32;
+    ((x.to_bits() as i128 * y.to_bits() as i128 + (1i128 << (sh - 1))) >> sh) as i32
+}
+
+#[inline(always)]
+fn product_at3(v: &Vec3, y: Scalar, e: i32) -> [i32; 3] {
+    [
+        product_at(v.x, y, e),
+        product_at(v.y, y, e),
+        product_at(v.z, y, e),
+    ]
+}
+
+/// `a·b` for magnitudes in Q32.32 bits, as Q32.32 bits (an upper bound
+/// for choosing an exponent: truncated, then one more).
+#[inline(always)]
+fn bound_product(a: u64, b: u64) -> u64 {
+    ((a as u128 * b as u128) >> 32).min(u64::MAX as u128 - 1) as u64 + 1
+}
+
+impl WideRow<'_> {
+    /// The largest Jacobian entry (Q32.32 bits).
+    fn max_j(&self) -> u64 {
+        max_abs(self.ja).max(max_abs(self.jb))
+    }
+
+    /// The largest response entry: `e` is at most `em` (a unit `d`), `c`
+    /// at most `m` times the largest entry of `I⁻¹(r×d)`.
+    fn max_resp(&self) -> u64 {
+        let m = self.m.to_bits() as u64;
+        let em = self.em[0].to_bits().max(self.em[1].to_bits()) as u64;
+        em.max(bound_product(m, max_abs(*self.ia).max(max_abs(*self.ib))))
+    }
+
+    /// The largest angular-momentum entry: `m` times the largest of `r×d`
+    /// (of `d` for the twist).
+    fn max_g(&self) -> u64 {
+        let m = self.m.to_bits() as u64;
+        let j = if self.twist {
+            max_abs(self.d)
+        } else {
+            self.max_j()
+        };
+        bound_product(m, j)
+    }
+
+    fn narrow(&self, je: i32, ae: i32, ge: i32, impulse: i32) -> Row {
+        let (ga, gb) = if self.twist {
+            let g = product_at3(&self.d, self.m, ge);
+            (g, g)
+        } else {
+            (
+                product_at3(&self.ja, self.m, ge),
+                product_at3(&self.jb, self.m, ge),
+            )
+        };
+        Row {
+            ja: at_exp3(self.ja, je),
+            jb: at_exp3(self.jb, je),
+            ea: product_at3(&self.d, self.em[0], ae),
+            eb: product_at3(&self.d, self.em[1], ae),
+            ca: product_at3(self.ia, self.m, ae),
+            cb: product_at3(self.ib, self.m, ae),
+            ga,
+            gb,
+            impulse,
+            mark: 0,
+        }
+    }
+}
+
+/// Fills `r` from constraint `c`'s Q32.32 terms (set just before by
+/// `prepare`), with `k` the points' `1/m_eff` along the normal; returns
+/// whether the constraint fits the narrow rows (see the module docs).
+pub(super) fn prepare(r: &mut NarrowRows, c: &Constraint, k: &[Scalar]) -> bool {
+    let count = c.count.min(MAX_MANIFOLD_POINTS);
+    let f = &c.patch;
+    let n = c.normal;
+    let (ima, imb) = (c.inv_mass_a, c.inv_mass_b);
+    if f.tangent_mass.iter().any(|m| !m.is_positive())
+        || !f.twist_mass.is_positive()
+        || c.points[..count]
+            .iter()
+            .any(|cp| !cp.normal_mass.is_positive())
+    {
+        return false;
+    }
+    fn row<'a>(
+        d: Vec3,
+        ja: Vec3,
+        jb: Vec3,
+        ia: &'a Vec3,
+        ib: &'a Vec3,
+        m: Scalar,
+        im: [Scalar; 2],
+    ) -> WideRow<'a> {
+        WideRow {
+            d,
+            ja,
+            jb,
+            ia,
+            ib,
+            m,
+            em: [mul(m, im[0]), mul(m, im[1])],
+            twist: false,
+        }
+    }
+    let im = [ima, imb];
+    let twist = WideRow {
+        d: n,
+        ja: Vec3::ZERO,
+        jb: Vec3::ZERO,
+        ia: &f.ia_w,
+        ib: &f.ib_w,
+        m: f.twist_mass,
+        em: [Scalar::ZERO; 2],
+        twist: true,
+    };
+    let tangents = [0, 1].map(|j| {
+        row(
+            c.tangent[j],
+            f.ra_t[j],
+            f.rb_t[j],
+            &f.ia_t[j],
+            &f.ib_t[j],
+            f.tangent_mass[j],
+            im,
+        )
+    });
+    let point =
+        |cp: &super::ConstraintPoint| (n, cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n, cp.normal_mass);
+    // The exponents, from the largest entries of every row (the normal and
+    // tangents are unit vectors: at most 1).
+    let (mut jmax, mut amax, mut gmax) = (1u64 << 32, 0u64, 0u64);
+    let mut widen = |w: &WideRow| {
+        jmax = jmax.max(w.max_j());
+        amax = amax.max(w.max_resp());
+        gmax = gmax.max(w.max_g());
+    };
+    for cp in &c.points[..count] {
+        let (d, ja, jb, ia, ib, m) = point(cp);
+        widen(&row(d, ja, jb, &ia, &ib, m, im));
+    }
+    for w in tangents.iter().chain([&twist]) {
+        widen(w);
+    }
+    let (je, ae, ge) = (exponent_for(jmax), exponent_for(amax), exponent_for(gmax));
+    if je < MIN_EXP || ae < MIN_EXP || ge < MIN_EXP {
+        return false;
+    }
+    let mmax = f.tangent_mass[0].to_bits().max(f.tangent_mass[1].to_bits()) as u64;
+    let me = exponent_for(mmax).max(-1);
+    // The accumulated impulses in velocity units.
+    let mut impulses = [0i32; MAX_MANIFOLD_POINTS];
+    for (i, cp) in c.points[..count].iter().enumerate() {
+        match to_velocity_units(cp.normal_impulse, k[i]) {
+            Some(v) => impulses[i] = v,
+            None => return false,
+        }
+    }
+    let (Some(t0), Some(t1), Some(w)) = (
+        to_velocity_units(f.tangent_impulse[0], f.k[0]),
+        to_velocity_units(f.tangent_impulse[1], f.k[1]),
+        to_velocity_units(f.twist_impulse, f.k[2]),
+    ) else {
+        return false;
+    };
+    r.count = count as u8;
+    r.je = je as u8;
+    r.ae = ae as u8;
+    r.ge = ge as u8;
+    r.me = me as i8;
+    r.limits_set = false;
+    r.warm_total = Scalar::ZERO;
+    (r.a, r.b, r.wa, r.wb) = (c.a, c.b, c.wa, c.wb);
+    r.n = at_exp3(n, je);
+    r.normal = n;
+    for (i, cp) in c.points[..count].iter().enumerate() {
+        let np = &mut r.points[i];
+        let (d, ja, jb, ia, ib, m) = point(cp);
+        np.row = row(d, ja, jb, &ia, &ib, m, im).narrow(je, ae, ge, impulses[i]);
+        np.ra = cp.ra;
+        np.rb = cp.rb;
+        np.adjusted = cp.adjusted_separation;
+        np.mass = cp.normal_mass;
+        np.max_impulse = 0;
+        np.first_vn = i32::MAX;
+    }
+    let t_imp = [t0, t1];
+    for j in 0..2 {
+        r.tangent[j] = tangents[j].narrow(je, ae, ge, t_imp[j]);
+        r.t[j] = at_exp3(c.tangent[j], je);
+        r.mass_t[j] = at_exp(f.tangent_mass[j], me);
+    }
+    r.twist = twist.narrow(je, ae, ge, w);
+    r.mass_tw = [f.tangent_mass[0], f.tangent_mass[1], f.twist_mass];
+    r.friction = c.friction;
+    r.twist_reach = f.twist_reach;
+    r.k_w = f.k[2];
+    r.bias_poses = 0;
+    true
+}
+
+/// Writes the narrow impulses back to the constraint's Q32.32 impulses
+/// (`λ = Λ·m_eff`, rounded once), with the angular write-back's marks at
+/// them and restitution's bookkeeping: what restitution, the stored
+/// impulses and the Q32.32 rows (after a failed guard) read. The angular
+/// impulses of every narrow change up to the last write-back are in the
+/// momenta (see [`collect_angular`]).
+pub(super) fn write_back(r: &NarrowRows, c: &mut Constraint) {
+    let count = c.count.min(MAX_MANIFOLD_POINTS);
+    for (cp, np) in c.points[..count].iter_mut().zip(&r.points) {
+        cp.normal_impulse = impulse(np.row.impulse, np.mass);
+        cp.mark = impulse(np.row.mark, np.mass);
+        if np.max_impulse > 0 {
+            // At least one ulp: restitution tells a point that pushed by a
+            // non-zero largest impulse.
+            let max = impulse(np.max_impulse, np.mass).max(Scalar::from_bits(1));
+            cp.max_normal_impulse = cp.max_normal_impulse.max(max);
+        }
+        if np.first_vn != i32::MAX {
+            let vn = Scalar::from_bits((np.first_vn as i64) << TO_Q);
+            cp.relative_velocity = cp.relative_velocity.min(vn);
+        }
+    }
+    let f = &mut c.patch;
+    let [m0, m1, mw] = r.mass_tw;
+    f.tangent_impulse = [
+        impulse(r.tangent[0].impulse, m0),
+        impulse(r.tangent[1].impulse, m1),
+    ];
+    f.twist_impulse = impulse(r.twist.impulse, mw);
+    f.mark = [
+        impulse(r.tangent[0].mark, m0),
+        impulse(r.tangent[1].mark, m1),
+        impulse(r.twist.mark, mw),
+    ];
+    c.warm_total = r.warm_total;
+}
+
+/// The total normal impulse (Q32.32) of the current Λ.
+fn normal_total(r: &NarrowRows) -> Scalar {
+    let mut total = Scalar::ZERO;
+    for np in &r.points[..r.count as usize] {
+        total += impulse(np.row.impulse, np.mass);
+    }
+    total
+}
+
+/// The friction disc's radius (at `2^(S+me)`) and the twist bound (quanta)
+/// for a total normal impulse (Q32.32).
+fn limits_for(r: &NarrowRows, total: Scalar) -> (i64, i64) {
+    let limit = mul(r.friction, total);
+    // Saturated at the guard: a bound past it refuses only a visit whose
+    // impulse would reach it.
+    let twist = quanta(mul(r.twist_reach, total) * r.k_w).min(LIMIT);
+    (disc_limit(limit, r.me as i32), twist)
+}
+
+/// A Q32.32 bound as an impulse at `2^(S+me)` (the disc's scale),
+/// saturated at 2⁶² (no impulse within the guard comes near it).
+fn disc_limit(limit: Scalar, me: i32) -> i64 {
+    let bits = limit.to_bits().max(0) as i128;
+    let e = me + S as i32 - 32;
+    let v = if e >= 0 {
+        bits.checked_shl(e as u32).unwrap_or(i128::MAX)
+    } else {
+        let sh = (-e) as u32;
+        (bits + (1i128 << (sh - 1))) >> sh
+    };
+    v.min(1 << 62) as i64
+}
+
+/// The friction disc: `want` (quanta) held so that `|want_j·m_j|` (the
+/// impulses, at `2^(S+me)`) lies within `limit` (at that scale, ≥ 0).
+/// Exact in integers, as the Q32.32 rows' disc: inside, kept; outside,
+/// scaled by `limit/⌈|λ|⌉` (Q0.64, below one), each component truncated
+/// toward zero, so the result never leaves the disc.
+#[inline(always)]
+fn clamp_to_disc(want: [i64; 2], mass: &[i32; 2], limit: i64) -> [i64; 2] {
+    // |want| < 2³¹ (guarded), |mass| ≤ 2³⁰: each λ below 2⁶¹, each square
+    // below 2¹²², their sum below 2¹²³ (and below 2¹²⁸ whatever the input).
+    let l0 = (want[0].wrapping_mul(mass[0] as i64)).unsigned_abs() as u128;
+    let l1 = (want[1].wrapping_mul(mass[1] as i64)).unsigned_abs() as u128;
+    let len2 = l0 * l0 + l1 * l1;
+    let lim = limit as u128;
+    if len2 <= lim * lim {
+        return want;
+    }
+    let root = crate::math::elem::isqrt_u128(len2) as u128;
+    let len = if root * root < len2 { root + 1 } else { root };
+    // limit < len ≤ 2⁶⁴: the factor is below 2⁶⁴, limit·2⁶⁴ below 2¹²⁶.
+    let factor = (lim << 64) / len;
+    let scaled = |w: i64| {
+        let m = ((w.unsigned_abs() as u128 * factor) >> 64) as i64;
+        if w < 0 { -m } else { m }
+    };
+    [scaled(want[0]), scaled(want[1])]
+}
+
+/// The points' separations at the current poses and their biases in
+/// quanta (from the rows' own copy of the separation terms: the Q32.32
+/// constraint is not read).
+#[inline(always)]
+fn update_biases(r: &mut NarrowRows, bodies: &[SolverBody], params: &SolverParams, poses: u32) {
+    let count = r.count as usize;
+    let frame = SeparationFrame::at(r.normal, r.a, r.b, bodies);
+    r.bias_poses = poses;
+    let rate = params.softness.bias_rate;
+    for np in &mut r.points[..count] {
+        let s = frame.separation_at(np.ra, np.rb, np.adjusted);
+        np.speculative = s.is_positive();
+        let bias = if np.speculative {
+            s * params.inv_h
+        } else {
+            (rate * s).max(-params.max_push_out)
+        };
+        let q = quanta(bias);
+        np.bias_saturated = q.abs() > 1 << 30;
+        np.bias = q.clamp(-(1 << 30), 1 << 30) as i32;
+    }
+}
+
+/// What one visit needs beside the constraint.
+pub(super) struct VisitArgs<'a> {
+    pub params: &'a SolverParams,
+    pub bodies: &'a [SolverBody],
+    pub arrays: &'a BodyArrays,
+    pub use_bias: bool,
+    pub rot: usize,
+    pub poses: u32,
+}
+
+/// One visit of a constraint on the narrow rows: friction at the patch
+/// centre, then the normal rows from point `rot mod count`, as the Q32.32
+/// visit does. Returns `false`, having written nothing but the biases at
+/// the current poses, when the guard fails. With `!use_bias` (relax) it
+/// also adds the angular impulses since the last write-back to the bodies'
+/// momenta.
+#[inline(always)]
+pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
+    if r.bias_poses != args.poses {
+        update_biases(r, args.bodies, args.params, args.poses);
+    }
+    let (va0, vb0) = args.arrays.load(r.a, r.b);
+    let mut b = Bodies::of(&va0, &vb0);
+    if !b.fit() {
+        return false;
+    }
+    let begin = b;
+    let (je, ae) = (r.je as u32, r.ae as u32);
+    let count = r.count as usize;
+    let mut ok = true;
+    // Friction at the patch centre (see `patch::solve_patch`), bounded by
+    // the warm start's total normal impulse, or the current one.
+    let (disc, twist_limit) = if r.limits_set {
+        (r.disc_limit, r.twist_limit)
+    } else {
+        limits_for(r, normal_total(r))
+    };
+    let mut impulse_t = [r.tangent[0].impulse, r.tangent[1].impulse];
+    let mut impulse_w = r.twist.impulse;
+    if !(disc == 0 && impulse_t == [0; 2] && impulse_w == 0) {
+        let vt0 = b.along(&r.t[0], &r.tangent[0], je);
+        let vt1 = b.along(&r.t[1], &r.tangent[1], je);
+        let want = [
+            (impulse_t[0] as i64).wrapping_sub(vt0),
+            (impulse_t[1] as i64).wrapping_sub(vt1),
+        ];
+        ok &= want[0].abs() < ROW_LIMIT && want[1].abs() < ROW_LIMIT;
+        let new = clamp_to_disc(want, &r.mass_t, disc);
+        for j in 0..2 {
+            ok &= new[j].abs() < LIMIT;
+            let d = new[j].wrapping_sub(impulse_t[j] as i64);
+            impulse_t[j] = new[j] as i32;
+            if d != 0 {
+                b.apply(d, &r.tangent[j], ae);
+                ok &= b.fit();
+            }
+        }
+        // Twist: the relative spin about the normal.
+        let spin = rsh(dot(&r.n, &b.wb).wrapping_sub(dot(&r.n, &b.wa)), je);
+        let want = (impulse_w as i64).wrapping_sub(spin);
+        ok &= want.abs() < ROW_LIMIT;
+        let new = want.clamp(-twist_limit, twist_limit);
+        ok &= new.abs() < LIMIT;
+        let d = new.wrapping_sub(impulse_w as i64);
+        impulse_w = new as i32;
+        if d != 0 {
+            b.apply(d, &r.twist, ae);
+            ok &= b.fit();
+        }
+    }
+    // The normal rows. Soft: Λ' = ms·(Λ − vn − bias), ms in Q1.30.
+    let ms = rsh(args.params.softness.mass_scale.to_bits(), 2);
+    let first = if count == 0 { 0 } else { args.rot % count };
+    let mut impulses = [0i32; MAX_MANIFOLD_POINTS];
+    let mut first_vn = [0i32; MAX_MANIFOLD_POINTS];
+    for (i, np) in r.points[..count].iter().enumerate() {
+        impulses[i] = np.row.impulse;
+        first_vn[i] = np.first_vn;
+    }
+    for kk in 0..count {
+        let i = if kk + first >= count {
+            kk + first - count
+        } else {
+            kk + first
+        };
+        let np = &r.points[i];
+        let vn = b.along(&r.n, &np.row, je);
+        let old = impulses[i] as i64;
+        let (bias, soft) = if np.speculative {
+            (np.bias as i64, false)
+        } else if args.use_bias {
+            (np.bias as i64, true)
+        } else {
+            (0, false)
+        };
+        // |old| < 2²⁹, |bias| ≤ 2³⁰ and |vn| < 2⁶³/2¹⁶: no wrap.
+        let x = old.wrapping_sub(vn).wrapping_sub(bias);
+        ok &= x.abs() < ROW_LIMIT;
+        // A saturated bias is exact only where it clamps to zero anyway.
+        ok &= !(np.bias_saturated && x > 0);
+        // |ms| ≤ 2³⁰, |x| < 2³¹: the product is below 2⁶¹.
+        let new = if soft { rsh(ms.wrapping_mul(x), 30) } else { x }.max(0);
+        ok &= new < LIMIT;
+        let d = new.wrapping_sub(old);
+        if first_vn[i] == i32::MAX && new > 0 {
+            // First push this tick: the approach speed restitution
+            // reflects (|vn| < 2³² here when the guard passes).
+            first_vn[i] = vn.clamp(i32::MIN as i64, i32::MAX as i64 - 1) as i32;
+        }
+        impulses[i] = new as i32;
+        if d != 0 {
+            b.apply(d, &np.row, ae);
+            ok &= b.fit();
+        }
+    }
+    if !ok {
+        return false;
+    }
+    let out = Outcome {
+        impulse_t,
+        impulse_w,
+        impulses,
+        first_vn,
+        moved: [
+            sub3(&b.va, &begin.va),
+            sub3(&b.wa, &begin.wa),
+            sub3(&b.vb, &begin.vb),
+            sub3(&b.wb, &begin.wb),
+        ],
+    };
+    commit(args, r, &out, &va0, &vb0);
+    true
+}
+
+/// What one accepted visit computed: the new impulses, restitution's
+/// bookkeeping and each body's change in velocity (quanta: `dv_A`, `dω_A`,
+/// `dv_B`, `dω_B`).
+#[derive(Clone, Copy, Default)]
+struct Outcome {
+    impulse_t: [i32; 2],
+    impulse_w: i32,
+    impulses: [i32; MAX_MANIFOLD_POINTS],
+    first_vn: [i32; MAX_MANIFOLD_POINTS],
+    moved: [[i64; 3]; 4],
+}
+
+#[inline(always)]
+fn sub3(a: &[i64; 3], b: &[i64; 3]) -> [i64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Writes an accepted visit: impulses, restitution's bookkeeping, each
+/// body's exact change in velocity added to its Q32.32 velocity (`va0`,
+/// `vb0` as the visit read them) and, in a relax pass, the angular
+/// write-back.
+#[inline(always)]
+fn commit(args: &VisitArgs<'_>, r: &mut NarrowRows, out: &Outcome, va0: &BodyVel, vb0: &BodyVel) {
+    r.tangent[0].impulse = out.impulse_t[0];
+    r.tangent[1].impulse = out.impulse_t[1];
+    r.twist.impulse = out.impulse_w;
+    let count = r.count as usize;
+    for (i, np) in r.points[..count].iter_mut().enumerate() {
+        np.row.impulse = out.impulses[i];
+        np.max_impulse = np.max_impulse.max(out.impulses[i]);
+        np.first_vn = out.first_vn[i];
+    }
+    let [dva, dwa, dvb, dwb] = &out.moved;
+    let va = BodyVel {
+        v: va0.v + from_quanta3(dva),
+        w: va0.w + from_quanta3(dwa),
+    };
+    let vb = BodyVel {
+        v: vb0.v + from_quanta3(dvb),
+        w: vb0.w + from_quanta3(dwb),
+    };
+    args.arrays.store(r.wa, r.wb, va, vb);
+    if !args.use_bias {
+        collect_angular(r, args.arrays);
+    }
+}
+
+/// Adds the angular impulse of every impulse change since its mark to the
+/// write-back sums of A (negated) and B: `Σ g·ΔΛ` over the rows, one
+/// exact sum per body (each `|g| ≤ 2³⁰`, `|ΔΛ| < 2³⁰`, seven rows: below
+/// 7·2⁶⁰), rounded once to Q32.32; and moves the marks.
+#[inline(always)]
+fn collect_angular(r: &mut NarrowRows, arrays: &BodyArrays) {
+    let mut la = [0i64; 3];
+    let mut lb = [0i64; 3];
+    let mut any = false;
+    let count = r.count as usize;
+    let rows = r.points[..count]
+        .iter_mut()
+        .map(|p| &mut p.row)
+        .chain(r.tangent.iter_mut())
+        .chain([&mut r.twist]);
+    for row in rows {
+        let d = (row.impulse - row.mark) as i64;
+        if d == 0 {
+            continue;
+        }
+        row.mark = row.impulse;
+        any = true;
+        for i in 0..3 {
+            la[i] += d * row.ga[i] as i64;
+            lb[i] += d * row.gb[i] as i64;
+        }
+    }
+    if !any {
+        return;
+    }
+    // S + ge ≥ 36: a right shift to Q32.32.
+    let sh = S + r.ge as u32 - 32;
+    let q32 = |x: &[i64; 3]| {
+        Vec3::new(
+            Scalar::from_bits(rsh(x[0], sh)),
+            Scalar::from_bits(rsh(x[1], sh)),
+            Scalar::from_bits(rsh(x[2], sh)),
+        )
+    };
+    if r.wa != NONE {
+        arrays.add_dl(r.wa, -q32(&la));
+    }
+    if r.wb != NONE {
+        arrays.add_dl(r.wb, q32(&lb));
+    }
+}
+
+/// The warm start of a constraint on the narrow rows: every accumulated Λ
+/// applied through its responses (the changes do not depend on the
+/// velocities, so they are summed from zero), returned as Q32.32 velocity
+/// changes of A and B; the marks go to zero (the angular write-back takes
+/// the whole impulses again) and the friction bounds are set from the total
+/// normal impulse.
+#[inline(always)]
+pub(super) fn warm_start(r: &mut NarrowRows) -> (BodyVel, BodyVel) {
+    let mut b = Bodies::default();
+    let (ae, count) = (r.ae as u32, r.count as usize);
+    for np in &mut r.points[..count] {
+        np.row.mark = 0;
+        let d = np.row.impulse as i64;
+        if d != 0 {
+            b.apply(d, &np.row, ae);
+        }
+    }
+    for row in r.tangent.iter_mut().chain([&mut r.twist]) {
+        row.mark = 0;
+        let d = row.impulse as i64;
+        if d != 0 {
+            b.apply(d, row, ae);
+        }
+    }
+    let total = normal_total(r);
+    r.warm_total = total;
+    r.limits_set = total.is_positive();
+    if r.limits_set {
+        (r.disc_limit, r.twist_limit) = limits_for(r, total);
+    }
+    (
+        BodyVel {
+            v: from_quanta3(&b.va),
+            w: from_quanta3(&b.wa),
+        },
+        BodyVel {
+            v: from_quanta3(&b.vb),
+            w: from_quanta3(&b.wb),
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rounding_is_to_nearest_ties_up() {
+        assert_eq!(rsh(5, 1), 3);
+        assert_eq!(rsh(-5, 1), -2);
+        assert_eq!(rsh(6, 2), 2);
+        assert_eq!(rsh(-6, 2), -1);
+        assert_eq!(rsh(-7, 2), -2);
+        // Q32.32 to quanta: 2⁻²⁰ m/s is 4096 bits.
+        assert_eq!(quanta(Scalar::from_bits(4096)), 1);
+        assert_eq!(quanta(Scalar::from_bits(2048)), 1);
+        assert_eq!(quanta(Scalar::from_bits(2047)), 0);
+        assert_eq!(quanta(Scalar::from_bits(-2048)), 0);
+        assert_eq!(quanta(Scalar::from_bits(-2049)), -1);
+        assert_eq!(quanta(Scalar::MAX), 1 << 51);
+        assert_eq!(quanta(Scalar::MIN), -(1 << 51));
+    }
+
+    #[test]
+    fn exponents_keep_entries_within_31_bits() {
+        for bits in [
+            0u64,
+            1,
+            2,
+            3,
+            1 << 31,
+            (1 << 32) - 1,
+            1 << 32,
+            (1 << 32) + 1,
+            5 << 40,
+            i64::MAX as u64,
+        ] {
+            let e = exponent_for(bits);
+            assert!(e <= MAX_EXP);
+            let v = at_exp(Scalar::from_bits(bits as i64), e) as i64;
+            assert!(v.abs() <= 1 << 30, "{bits} at 2^{e} is {v}");
+            if bits > 1 && e < MAX_EXP {
+                // One more bit of exponent would not fit.
+                assert!((bits as i128) << (e + 1) > 1i128 << 62, "{bits} at 2^{e}");
+            }
+        }
+        assert_eq!(exponent_for(1 << 32), 30);
+        assert_eq!(exponent_for((1 << 32) + 1), 29);
+    }
+
+    #[test]
+    fn impulses_convert_both_ways_within_a_quantum() {
+        // λ = 3.25 N·s, m_eff = 2 kg: Λ = 1.625 m/s.
+        let lambda = Scalar::from_ratio(13, 4);
+        let (m, k) = (Scalar::from_int(2), Scalar::from_ratio(1, 2));
+        let big = to_velocity_units(lambda, k).unwrap();
+        assert_eq!(big, 13 << (S - 3));
+        assert_eq!(impulse(big, m), lambda);
+        // 4,096 m/s is past the guard.
+        assert_eq!(
+            to_velocity_units(Scalar::from_int(1 << 12), Scalar::ONE),
+            None
+        );
+    }
+
+    #[test]
+    fn the_disc_keeps_inside_and_scales_outside_onto_it() {
+        let mass = [1 << 30, 1 << 29];
+        assert_eq!(clamp_to_disc([3, -4], &mass, 10 << 30), [3, -4]);
+        let want = [1_000_000, -2_000_000];
+        let limit = 500_000i64 << 30;
+        let q = clamp_to_disc(want, &mass, limit);
+        let l = |w: i64, m: i32| (w * m as i64) as f64;
+        let len = (l(q[0], mass[0]).powi(2) + l(q[1], mass[1]).powi(2)).sqrt();
+        // Within the truncation of each component (about 3e-6 here).
+        assert!(
+            len <= limit as f64 && len >= limit as f64 * (1.0 - 1e-5),
+            "{q:?}"
+        );
+        assert!(q[0] > 0 && q[1] < 0 && q[0] <= want[0] && q[1] >= want[1]);
+        assert_eq!(clamp_to_disc(want, &mass, 0), [0, 0]);
+    }
+}
