@@ -67,8 +67,9 @@ pub struct Options {
     pub wide: bool,
     /// The number format of our contact rows (`engines`, `profile`).
     pub rows: ContactRows,
-    /// Ours with the narrow rows' SIMD lanes off (the scalar twin alone).
-    pub no_lanes: bool,
+    /// Ours with the narrow rows' SIMD lanes on (off by default; the same
+    /// bits).
+    pub lanes: bool,
 }
 
 /// What a suite produced: the printed table and the CSV text.
@@ -224,10 +225,11 @@ struct Cli {
     /// (Q32.32); default: the world's default.
     #[arg(long, value_name = "FORMAT", value_parser = parse_rows)]
     rows: Option<ContactRows>,
-    /// `engines`, `profile`: ours with the narrow rows' SIMD lanes off
-    /// (the scalar rows alone; the same bits).
+    /// `engines`, `profile`: ours with the narrow rows' SIMD lanes on (in
+    /// colour order, where the CPU has AVX2 or AVX-512; the same bits as
+    /// the scalar rows).
     #[arg(long)]
-    no_lanes: bool,
+    lanes: bool,
     /// Internal: the callgrind child of `engines --stages` (restore this
     /// snapshot, step once, then count `--steps` steps).
     #[arg(long, value_name = "FILE", hide = true)]
@@ -290,7 +292,7 @@ fn main() -> ExitCode {
         threads: cli.threads.map(usize::from),
         wide: cli.wide,
         rows: cli.rows.unwrap_or(WorldConfig::default().contact_rows),
-        no_lanes: cli.no_lanes,
+        lanes: cli.lanes,
     };
     // Rapier's `parallel` build splits work over the rayon pool it is called
     // in: every suite runs in a pool of one thread, and `engines --threads N`

@@ -54,7 +54,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
         let (mut world, bodies) = build_ours_in(&scene, sleep_off(), order, opts.rows);
         world.set_workers(workers);
         world.set_wide(opts.wide);
-        world.set_lanes(!opts.no_lanes);
+        world.set_lanes(opts.lanes);
         // With workers, where the host had the CPUs (see
         // `harness::core_round_trip_ns`), before and after the steps.
         let trip_before =

@@ -271,3 +271,50 @@ fn scene_files_name_the_rows_and_a_bad_name_is_refused() {
         "{msg}"
     );
 }
+
+/// The narrow rows' SIMD lanes (where this CPU has them) give the scalar
+/// rows' bits every tick, on one worker and on three, on a random pile of
+/// boxes, spheres and capsules (constraints of one to four points) and on
+/// the pyramid scene, whose crates go to sleep on the way.
+#[test]
+fn the_lanes_step_to_the_scalar_rows_hashes_and_reports() {
+    let pile = || pile_in(narrow(ContactOrder::Colors), 150, 9);
+    let pyramid = || {
+        let path = format!("{}/../scenes/pyramid.toml", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let desc = parse_scene(&text, "pyramid.toml").unwrap();
+        let config = WorldConfig {
+            contact_order: ContactOrder::Colors,
+            contact_rows: ContactRows::Narrow,
+            ..desc.world.config()
+        };
+        build_world_with_config(&desc, config, "pyramid.toml").unwrap()
+    };
+    let builds: [&dyn Fn() -> World; 2] = [&pile, &pyramid];
+    for (b, build) in builds.iter().enumerate() {
+        let reference = trace(build(), 150);
+        assert!(reference.iter().all(|t| t.1.lane_batches == 0));
+        for workers in [1, 3] {
+            let mut w = build();
+            w.set_lanes(true);
+            w.set_workers(workers);
+            let has_lanes = w.lanes().is_some();
+            let got = trace(w, 150);
+            if has_lanes && b == 0 {
+                assert!(got.iter().any(|t| t.1.lane_batches > 10), "batches");
+            }
+            if !has_lanes {
+                eprintln!("this CPU has no narrow-row lanes: the scalar rows ran both times");
+            }
+            for t in 0..got.len() {
+                let (mut want, mut have) = (reference[t].1, got[t].1);
+                (want.lane_batches, have.lane_batches) = (0, 0);
+                assert_eq!(
+                    (reference[t].0, want),
+                    (got[t].0, have),
+                    "scene {b}, {workers} workers, tick {t}"
+                );
+            }
+        }
+    }
+}

@@ -234,7 +234,7 @@ const NONE: u32 = u32::MAX;
 
 /// The solver's per-body velocity state, the only body data the iteration
 /// loops read and write (48 bytes).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct BodyVel {
     /// Linear velocity.
     v: Vec3,
@@ -629,18 +629,32 @@ impl Pass<'_> {
         while i < len {
             let b = rs[i].batch;
             if b != NONE && i + LANES <= len && Batch::fits(&rs[i..i + LANES]) {
-                let refused = narrow::lanes::visit(
-                    &args,
-                    &self.batches[b as usize],
-                    &mut rs[i..i + LANES],
-                    kernel,
-                );
-                for (l, &no) in refused.iter().enumerate() {
-                    let (c, r) = (&mut cs[i + l], &mut rs[i + l]);
-                    if no {
-                        self.refused(c, r);
-                    } else {
-                        self.accepted(c, r);
+                // Ask for the next batch's rows while this one runs (the
+                // lanes read their state, and the biases their terms).
+                for r in rs.iter().skip(i + LANES).take(LANES) {
+                    prefetch(r);
+                }
+                let next = rs.get(i + LANES).map(|r| r.batch as usize);
+                if let Some(next) = next.and_then(|b| self.batches.get(b)) {
+                    prefetch(next);
+                }
+                let batch = &self.batches[b as usize];
+                let rows = &mut rs[i..i + LANES];
+                let refused = narrow::lanes::visit(&args, batch, rows, kernel);
+                if self.fuse && !refused.contains(&true) {
+                    // The next warm start of the whole batch on the lanes.
+                    let warm = narrow::lanes::warm_start(batch, rows);
+                    for (c, (da, db)) in cs[i..i + LANES].iter().zip(warm) {
+                        self.arrays.add_warm(c.wa, c.wb, da, db);
+                    }
+                } else {
+                    for (l, &no) in refused.iter().enumerate() {
+                        let (c, r) = (&mut cs[i + l], &mut rs[i + l]);
+                        if no {
+                            self.refused(c, r);
+                        } else {
+                            self.accepted(c, r);
+                        }
                     }
                 }
                 i += LANES;
@@ -998,9 +1012,9 @@ pub(crate) struct ContactSolver {
     /// stale), and their count.
     batches: Vec<Batch>,
     lane_batches: u32,
-    /// Whether the narrow rows' lanes are turned off (the default is on;
-    /// not simulation state).
-    lanes_off: bool,
+    /// Whether the narrow rows' lanes are turned on (off by default; not
+    /// simulation state: the same bits either way).
+    lanes_on: bool,
 }
 
 /// What `prepare`'s first scan found for one candidate pair, before its
@@ -1444,7 +1458,7 @@ impl ContactSolver {
     fn batch_lanes(&mut self, params: &SolverParams) {
         let n = self.constraints.len();
         let mut used = 0;
-        if params.narrow && params.colored && !self.lanes_off && self.kernel() != Kernel::Plain {
+        if params.narrow && params.colored && self.lanes_on && self.kernel() != Kernel::Plain {
             for c in 0..COLORS {
                 let (start, end) = (
                     self.starts[c] as usize,
@@ -1491,17 +1505,17 @@ impl ContactSolver {
         Kernel::best()
     }
 
-    /// Turns the narrow rows' lanes on where the CPU has them (`true`, the
-    /// default), or off (the scalar twin alone). Not simulation state: the
+    /// Turns the narrow rows' lanes on where the CPU has them (`true`), or
+    /// off (the default: the scalar twin alone). Not simulation state: the
     /// same bits either way.
     pub(crate) fn set_lanes(&mut self, on: bool) {
-        self.lanes_off = !on;
+        self.lanes_on = on;
     }
 
     /// Whether the narrow rows' lanes are on and the CPU has them, and
     /// which build runs.
     pub(crate) fn lanes(&self) -> Option<Kernel> {
-        (!self.lanes_off && self.kernel() != Kernel::Plain).then(|| self.kernel())
+        (self.lanes_on && self.kernel() != Kernel::Plain).then(|| self.kernel())
     }
 
     /// Sets the number of threads the colour passes use (1: this thread

@@ -187,16 +187,21 @@ impl World {
         self.solver.wide()
     }
 
-    /// Turns the narrow contact rows' SIMD lanes on (`true`, the default)
-    /// or off. With [`ContactRows::Narrow`] in colour order
+    /// Turns the narrow contact rows' SIMD lanes on (`true`) or off (the
+    /// default). With [`ContactRows::Narrow`] in colour order
     /// ([`ContactOrder::Colors`]), eight constraints of one colour with the
     /// same point count then go through the rows together on the widest
     /// lanes this CPU has (AVX-512 or AVX2 on x86_64, found at run time;
     /// see [`StepReport::lane_batches`]); elsewhere the scalar rows run.
     ///
+    /// Off by default because they do not pay yet: on the CPU measured so
+    /// far (docs/engines.md) the passes took about twice as long on the
+    /// lanes as on the scalar rows, their time going to loading eight
+    /// constraints' constants and state.
+    ///
     /// Not simulation state: the lanes compute the scalar rows' bits, so
     /// the setting is in neither the state hash nor snapshots (a restored
-    /// world has them on).
+    /// world has them off).
     pub fn set_lanes(&mut self, on: bool) {
         self.solver.set_lanes(on);
     }

@@ -92,11 +92,17 @@ const MAX_EXP: i32 = 30;
 /// entries keep their precision.
 const MIN_EXP: i32 = 16;
 
-/// One row's entries: Jacobian (`ja`, `jb`: `r×d` at `2^je`), responses
-/// (`ea`, `eb`, `ca`, `cb` at `2^ae`) and angular-momentum entries (`ga`,
-/// `gb` at `2^ge`), with its accumulated impulse Λ and its value at the
-/// last angular write-back.
-#[derive(Clone, Copy, Debug, Default)]
+/// Row indices: the normal rows of the points first, then the two tangent
+/// rows and the twist row of the patch.
+const T0: usize = MAX_MANIFOLD_POINTS;
+const TW: usize = MAX_MANIFOLD_POINTS + 2;
+/// Rows per constraint.
+const ROWS: usize = MAX_MANIFOLD_POINTS + 3;
+
+/// One row's constant entries: Jacobian (`ja`, `jb`: `r×d` at `2^je`),
+/// responses (`ea`, `eb`, `ca`, `cb` at `2^ae`) and angular-momentum
+/// entries (`ga`, `gb` at `2^ge`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Row {
     ja: [i32; 3],
     jb: [i32; 3],
@@ -106,45 +112,22 @@ struct Row {
     cb: [i32; 3],
     ga: [i32; 3],
     gb: [i32; 3],
-    impulse: i32,
-    mark: i32,
-}
-
-/// One contact point's narrow row and its per-tick bookkeeping.
-#[derive(Clone, Copy, Debug, Default)]
-struct NarrowPoint {
-    row: Row,
-    /// The anchors and adjusted separation the separation is followed
-    /// through (see `ConstraintPoint`), Q32.32.
-    ra: Vec3,
-    rb: Vec3,
-    adjusted: Scalar,
-    /// The effective mass (Q32.32): `λ = Λ·m`.
-    mass: Scalar,
-    /// The largest Λ this tick (restitution applies only to points that
-    /// pushed).
-    max_impulse: i32,
-    /// The normal velocity at the first push this tick, quanta
-    /// (`i32::MAX`: no push yet).
-    first_vn: i32,
-    /// The point's bias at the cached separation (see
-    /// [`NarrowRows::bias_poses`]): the speculative `s/h` for a gap, else
-    /// the soft push-out, quanta, saturated at ±2³⁰.
-    bias: i32,
-    /// Whether `bias` was saturated.
-    bias_saturated: bool,
-    /// Whether the cached separation is a gap (a rigid, speculative row).
-    speculative: bool,
 }
 
 /// One constraint's narrow rows: everything its passes read and write but
-/// the separation frame (see the module docs), about 900 bytes against the
-/// Q32.32 constraint's 2 KB.
-#[derive(Clone, Copy, Debug, Default)]
+/// the bodies' poses (see the module docs). The state a visit reads and
+/// writes comes first, in the first three cache lines; the constants
+/// after it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
 pub(super) struct NarrowRows {
     /// Whether the constraint is solved on these rows this tick (else on
     /// the Q32.32 rows).
     pub(super) on: bool,
+    /// Whether `disc_limit`/`twist_limit` hold the bounds of the warm
+    /// start's total normal impulse (else each visit takes the current
+    /// one).
+    limits_set: bool,
     count: u8,
     /// Exponents of the Jacobian, response, angular-momentum entries and
     /// of the tangent masses.
@@ -152,43 +135,57 @@ pub(super) struct NarrowRows {
     ae: u8,
     ge: u8,
     me: i8,
-    /// Whether `disc_limit`/`twist_limit` hold the bounds of the warm
-    /// start's total normal impulse (else each visit takes the current
-    /// one).
-    limits_set: bool,
+    /// Per point: whether the cached separation is a gap (a rigid,
+    /// speculative row), and whether `bias` was saturated.
+    speculative: [bool; MAX_MANIFOLD_POINTS],
+    saturated: [bool; MAX_MANIFOLD_POINTS],
+    /// The lanes' batch this constraint starts (see [`lanes`]), or `NONE`.
+    pub(super) batch: u32,
     /// Solver bodies (or `NONE`) and the dynamic ones the passes write.
     a: u32,
     b: u32,
     wa: u32,
     wb: u32,
-    /// The normal at `2^je`, and in Q32.32 (for the separations).
-    n: [i32; 3],
-    normal: Vec3,
-    points: [NarrowPoint; MAX_MANIFOLD_POINTS],
-    /// The tangent rows at the patch centre (their `ja`/`jb` are `r×t`),
-    /// with the tangents at `2^je` and their effective masses at `2^me`.
-    tangent: [Row; 2],
-    t: [[i32; 3]; 2],
-    mass_t: [i32; 2],
-    /// The twist row (Jacobian: `n` on the angular velocities alone).
-    twist: Row,
-    /// The Q32.32 effective masses of the tangent and twist rows, the
-    /// friction coefficient, the twist reach and `1/m` of the twist.
-    mass_tw: [Scalar; 3],
-    friction: Scalar,
-    twist_reach: Scalar,
-    k_w: Scalar,
+    /// The pose number (see `ContactSolver::poses`) the points' `bias` was
+    /// computed at; 0: never.
+    bias_poses: u32,
+    /// Accumulated impulses Λ (quanta) of every row, and their values at
+    /// the last angular write-back.
+    impulse: [i32; ROWS],
+    mark: [i32; ROWS],
+    /// Per point: the largest Λ this tick (restitution applies only to
+    /// points that pushed); the normal velocity at the first push
+    /// (`i32::MAX`: none yet); the bias at the cached separation (the
+    /// speculative `s/h` for a gap, else the soft push-out, quanta,
+    /// saturated at ±2³⁰).
+    max_impulse: [i32; MAX_MANIFOLD_POINTS],
+    first_vn: [i32; MAX_MANIFOLD_POINTS],
+    bias: [i32; MAX_MANIFOLD_POINTS],
     /// The friction disc's radius at `2^(S+me)` and the twist bound in
     /// quanta, from the warm start's total (see `limits_set`).
     disc_limit: i64,
     twist_limit: i64,
     /// The warm start's total normal impulse (Q32.32; zero before one).
     warm_total: Scalar,
-    /// The pose number (see `ContactSolver::poses`) the points' `bias` was
-    /// computed at; 0: never.
-    bias_poses: u32,
-    /// The lanes' batch this constraint starts (see [`lanes`]), or `NONE`.
-    pub(super) batch: u32,
+    /// The effective masses (Q32.32) of every row: `λ = Λ·m`.
+    mass: [Scalar; ROWS],
+    /// The friction coefficient, the twist reach and `1/m` of the twist.
+    friction: Scalar,
+    twist_reach: Scalar,
+    k_w: Scalar,
+    /// The tangent effective masses at `2^me` (the friction disc).
+    mass_t: [i32; 2],
+    /// The normal and tangents at `2^je`.
+    n: [i32; 3],
+    t: [[i32; 3]; 2],
+    rows: [Row; ROWS],
+    /// The normal (Q32.32) and, per point, the anchors and adjusted
+    /// separation the separation is followed through (see
+    /// `ConstraintPoint`).
+    normal: Vec3,
+    ra: [Vec3; MAX_MANIFOLD_POINTS],
+    rb: [Vec3; MAX_MANIFOLD_POINTS],
+    adjusted: [Scalar; MAX_MANIFOLD_POINTS],
 }
 
 /// Visits whose guard failed since the counts were last taken.
@@ -453,7 +450,7 @@ impl WideRow<'_> {
         bound_product(m, j)
     }
 
-    fn narrow(&self, je: i32, ae: i32, ge: i32, impulse: i32) -> Row {
+    fn narrow(&self, je: i32, ae: i32, ge: i32) -> Row {
         let (ga, gb) = if self.twist {
             let g = product_at3(&self.d, self.m, ge);
             (g, g)
@@ -472,8 +469,6 @@ impl WideRow<'_> {
             cb: product_at3(self.ib, self.m, ae),
             ga,
             gb,
-            impulse,
-            mark: 0,
         }
     }
 }
@@ -582,31 +577,35 @@ pub(super) fn prepare(r: &mut NarrowRows, c: &Constraint, k: &[Scalar]) -> bool 
     r.limits_set = false;
     r.warm_total = Scalar::ZERO;
     (r.a, r.b, r.wa, r.wb) = (c.a, c.b, c.wa, c.wb);
+    r.bias_poses = 0;
+    r.impulse = [0; ROWS];
+    r.impulse[..count].copy_from_slice(&impulses[..count]);
+    r.impulse[T0..].copy_from_slice(&[t0, t1, w]);
+    r.mark = [0; ROWS];
+    r.max_impulse = [0; MAX_MANIFOLD_POINTS];
+    r.first_vn = [i32::MAX; MAX_MANIFOLD_POINTS];
+    r.mass = [Scalar::ZERO; ROWS];
     r.n = at_exp3(n, je);
     r.normal = n;
     for (i, cp) in c.points[..count].iter().enumerate() {
-        let np = &mut r.points[i];
         let (d, ja, jb, ia, ib, m) = point(cp);
-        np.row = row(d, ja, jb, &ia, &ib, m, im).narrow(je, ae, ge, impulses[i]);
-        np.ra = cp.ra;
-        np.rb = cp.rb;
-        np.adjusted = cp.adjusted_separation;
-        np.mass = cp.normal_mass;
-        np.max_impulse = 0;
-        np.first_vn = i32::MAX;
+        r.rows[i] = row(d, ja, jb, &ia, &ib, m, im).narrow(je, ae, ge);
+        r.ra[i] = cp.ra;
+        r.rb[i] = cp.rb;
+        r.adjusted[i] = cp.adjusted_separation;
+        r.mass[i] = cp.normal_mass;
     }
-    let t_imp = [t0, t1];
-    for j in 0..2 {
-        r.tangent[j] = tangents[j].narrow(je, ae, ge, t_imp[j]);
+    for (j, tangent) in tangents.iter().enumerate() {
+        r.rows[T0 + j] = tangent.narrow(je, ae, ge);
         r.t[j] = at_exp3(c.tangent[j], je);
         r.mass_t[j] = at_exp(f.tangent_mass[j], me);
+        r.mass[T0 + j] = f.tangent_mass[j];
     }
-    r.twist = twist.narrow(je, ae, ge, w);
-    r.mass_tw = [f.tangent_mass[0], f.tangent_mass[1], f.twist_mass];
+    r.rows[TW] = twist.narrow(je, ae, ge);
+    r.mass[TW] = f.twist_mass;
     r.friction = c.friction;
     r.twist_reach = f.twist_reach;
     r.k_w = f.k[2];
-    r.bias_poses = 0;
     true
 }
 
@@ -618,40 +617,40 @@ pub(super) fn prepare(r: &mut NarrowRows, c: &Constraint, k: &[Scalar]) -> bool 
 /// momenta (see [`collect_angular`]).
 pub(super) fn write_back(r: &NarrowRows, c: &mut Constraint) {
     let count = c.count.min(MAX_MANIFOLD_POINTS);
-    for (cp, np) in c.points[..count].iter_mut().zip(&r.points) {
-        cp.normal_impulse = impulse(np.row.impulse, np.mass);
-        cp.mark = impulse(np.row.mark, np.mass);
-        if np.max_impulse > 0 {
+    for (i, cp) in c.points[..count].iter_mut().enumerate() {
+        let m = r.mass[i];
+        cp.normal_impulse = impulse(r.impulse[i], m);
+        cp.mark = impulse(r.mark[i], m);
+        if r.max_impulse[i] > 0 {
             // At least one ulp: restitution tells a point that pushed by a
             // non-zero largest impulse.
-            let max = impulse(np.max_impulse, np.mass).max(Scalar::from_bits(1));
+            let max = impulse(r.max_impulse[i], m).max(Scalar::from_bits(1));
             cp.max_normal_impulse = cp.max_normal_impulse.max(max);
         }
-        if np.first_vn != i32::MAX {
-            let vn = Scalar::from_bits((np.first_vn as i64) << TO_Q);
+        if r.first_vn[i] != i32::MAX {
+            let vn = Scalar::from_bits((r.first_vn[i] as i64) << TO_Q);
             cp.relative_velocity = cp.relative_velocity.min(vn);
         }
     }
     let f = &mut c.patch;
-    let [m0, m1, mw] = r.mass_tw;
-    f.tangent_impulse = [
-        impulse(r.tangent[0].impulse, m0),
-        impulse(r.tangent[1].impulse, m1),
-    ];
-    f.twist_impulse = impulse(r.twist.impulse, mw);
-    f.mark = [
-        impulse(r.tangent[0].mark, m0),
-        impulse(r.tangent[1].mark, m1),
-        impulse(r.twist.mark, mw),
-    ];
+    let q32 = |k: usize| {
+        (
+            impulse(r.impulse[k], r.mass[k]),
+            impulse(r.mark[k], r.mass[k]),
+        )
+    };
+    let [(t0, m0), (t1, m1), (w, mw)] = [q32(T0), q32(T0 + 1), q32(TW)];
+    f.tangent_impulse = [t0, t1];
+    f.twist_impulse = w;
+    f.mark = [m0, m1, mw];
     c.warm_total = r.warm_total;
 }
 
 /// The total normal impulse (Q32.32) of the current Λ.
 fn normal_total(r: &NarrowRows) -> Scalar {
     let mut total = Scalar::ZERO;
-    for np in &r.points[..r.count as usize] {
-        total += impulse(np.row.impulse, np.mass);
+    for i in 0..r.count as usize {
+        total += impulse(r.impulse[i], r.mass[i]);
     }
     total
 }
@@ -716,17 +715,17 @@ fn update_biases(r: &mut NarrowRows, bodies: &[SolverBody], params: &SolverParam
     let frame = SeparationFrame::at(r.normal, r.a, r.b, bodies);
     r.bias_poses = poses;
     let rate = params.softness.bias_rate;
-    for np in &mut r.points[..count] {
-        let s = frame.separation_at(np.ra, np.rb, np.adjusted);
-        np.speculative = s.is_positive();
-        let bias = if np.speculative {
+    for i in 0..count {
+        let s = frame.separation_at(r.ra[i], r.rb[i], r.adjusted[i]);
+        r.speculative[i] = s.is_positive();
+        let bias = if r.speculative[i] {
             s * params.inv_h
         } else {
             (rate * s).max(-params.max_push_out)
         };
         let q = quanta(bias);
-        np.bias_saturated = q.abs() > 1 << 30;
-        np.bias = q.clamp(-(1 << 30), 1 << 30) as i32;
+        r.saturated[i] = q.abs() > 1 << 30;
+        r.bias[i] = q.clamp(-(1 << 30), 1 << 30) as i32;
     }
 }
 
@@ -767,11 +766,11 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
     } else {
         limits_for(r, normal_total(r))
     };
-    let mut impulse_t = [r.tangent[0].impulse, r.tangent[1].impulse];
-    let mut impulse_w = r.twist.impulse;
+    let mut impulse_t = [r.impulse[T0], r.impulse[T0 + 1]];
+    let mut impulse_w = r.impulse[TW];
     if !(disc == 0 && impulse_t == [0; 2] && impulse_w == 0) {
-        let vt0 = b.along(&r.t[0], &r.tangent[0], je);
-        let vt1 = b.along(&r.t[1], &r.tangent[1], je);
+        let vt0 = b.along(&r.t[0], &r.rows[T0], je);
+        let vt1 = b.along(&r.t[1], &r.rows[T0 + 1], je);
         let want = [
             (impulse_t[0] as i64).wrapping_sub(vt0),
             (impulse_t[1] as i64).wrapping_sub(vt1),
@@ -783,7 +782,7 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
             let d = new[j].wrapping_sub(impulse_t[j] as i64);
             impulse_t[j] = new[j] as i32;
             if d != 0 {
-                b.apply(d, &r.tangent[j], ae);
+                b.apply(d, &r.rows[T0 + j], ae);
                 ok &= b.fit();
             }
         }
@@ -796,7 +795,7 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
         let d = new.wrapping_sub(impulse_w as i64);
         impulse_w = new as i32;
         if d != 0 {
-            b.apply(d, &r.twist, ae);
+            b.apply(d, &r.rows[TW], ae);
             ok &= b.fit();
         }
     }
@@ -804,24 +803,20 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
     let ms = rsh(args.params.softness.mass_scale.to_bits(), 2);
     let first = if count == 0 { 0 } else { args.rot % count };
     let mut impulses = [0i32; MAX_MANIFOLD_POINTS];
-    let mut first_vn = [0i32; MAX_MANIFOLD_POINTS];
-    for (i, np) in r.points[..count].iter().enumerate() {
-        impulses[i] = np.row.impulse;
-        first_vn[i] = np.first_vn;
-    }
+    impulses[..count].copy_from_slice(&r.impulse[..count]);
+    let mut first_vn = r.first_vn;
     for kk in 0..count {
         let i = if kk + first >= count {
             kk + first - count
         } else {
             kk + first
         };
-        let np = &r.points[i];
-        let vn = b.along(&r.n, &np.row, je);
+        let vn = b.along(&r.n, &r.rows[i], je);
         let old = impulses[i] as i64;
-        let (bias, soft) = if np.speculative {
-            (np.bias as i64, false)
+        let (bias, soft) = if r.speculative[i] {
+            (r.bias[i] as i64, false)
         } else if args.use_bias {
-            (np.bias as i64, true)
+            (r.bias[i] as i64, true)
         } else {
             (0, false)
         };
@@ -829,7 +824,7 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
         let x = old.wrapping_sub(vn).wrapping_sub(bias);
         ok &= x.abs() < ROW_LIMIT;
         // A saturated bias is exact only where it clamps to zero anyway.
-        ok &= !(np.bias_saturated && x > 0);
+        ok &= !(r.saturated[i] && x > 0);
         // |ms| ≤ 2³⁰, |x| < 2³¹: the product is below 2⁶¹.
         let new = if soft { rsh(ms.wrapping_mul(x), 30) } else { x }.max(0);
         ok &= new < LIMIT;
@@ -841,7 +836,7 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
         }
         impulses[i] = new as i32;
         if d != 0 {
-            b.apply(d, &np.row, ae);
+            b.apply(d, &r.rows[i], ae);
             ok &= b.fit();
         }
     }
@@ -861,6 +856,9 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
         ],
     };
     commit(args, r, &out, &va0, &vb0);
+    if !args.use_bias {
+        collect_angular(r, args.arrays);
+    }
     true
 }
 
@@ -881,20 +879,19 @@ fn sub3(a: &[i64; 3], b: &[i64; 3]) -> [i64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-/// Writes an accepted visit: impulses, restitution's bookkeeping, each
+/// Writes an accepted visit: impulses, restitution's bookkeeping and each
 /// body's exact change in velocity added to its Q32.32 velocity (`va0`,
-/// `vb0` as the visit read them) and, in a relax pass, the angular
-/// write-back.
+/// `vb0` as the visit read them).
 #[inline(always)]
 fn commit(args: &VisitArgs<'_>, r: &mut NarrowRows, out: &Outcome, va0: &BodyVel, vb0: &BodyVel) {
-    r.tangent[0].impulse = out.impulse_t[0];
-    r.tangent[1].impulse = out.impulse_t[1];
-    r.twist.impulse = out.impulse_w;
+    r.impulse[T0] = out.impulse_t[0];
+    r.impulse[T0 + 1] = out.impulse_t[1];
+    r.impulse[TW] = out.impulse_w;
     let count = r.count as usize;
-    for (i, np) in r.points[..count].iter_mut().enumerate() {
-        np.row.impulse = out.impulses[i];
-        np.max_impulse = np.max_impulse.max(out.impulses[i]);
-        np.first_vn = out.first_vn[i];
+    for i in 0..count {
+        r.impulse[i] = out.impulses[i];
+        r.max_impulse[i] = r.max_impulse[i].max(out.impulses[i]);
+        r.first_vn[i] = out.first_vn[i];
     }
     let [dva, dwa, dvb, dwb] = &out.moved;
     let va = BodyVel {
@@ -906,9 +903,6 @@ fn commit(args: &VisitArgs<'_>, r: &mut NarrowRows, out: &Outcome, va0: &BodyVel
         w: vb0.w + from_quanta3(dwb),
     };
     args.arrays.store(r.wa, r.wb, va, vb);
-    if !args.use_bias {
-        collect_angular(r, args.arrays);
-    }
 }
 
 /// Adds the angular impulse of every impulse change since its mark to the
@@ -921,27 +915,28 @@ fn collect_angular(r: &mut NarrowRows, arrays: &BodyArrays) {
     let mut lb = [0i64; 3];
     let mut any = false;
     let count = r.count as usize;
-    let rows = r.points[..count]
-        .iter_mut()
-        .map(|p| &mut p.row)
-        .chain(r.tangent.iter_mut())
-        .chain([&mut r.twist]);
-    for row in rows {
-        let d = (row.impulse - row.mark) as i64;
+    for k in (0..count).chain(T0..ROWS) {
+        let d = (r.impulse[k] - r.mark[k]) as i64;
         if d == 0 {
             continue;
         }
-        row.mark = row.impulse;
+        r.mark[k] = r.impulse[k];
         any = true;
+        let row = &r.rows[k];
         for i in 0..3 {
             la[i] += d * row.ga[i] as i64;
             lb[i] += d * row.gb[i] as i64;
         }
     }
-    if !any {
-        return;
+    if any {
+        add_momenta(r, arrays, &la, &lb);
     }
-    // S + ge ≥ 36: a right shift to Q32.32.
+}
+
+/// Adds `−la` and `lb` (at `2^-(S+ge)`) to the write-back sums of A and B,
+/// rounded once to Q32.32 (`S + ge ≥ 36`: a right shift).
+#[inline(always)]
+fn add_momenta(r: &NarrowRows, arrays: &BodyArrays, la: &[i64; 3], lb: &[i64; 3]) {
     let sh = S + r.ge as u32 - 32;
     let q32 = |x: &[i64; 3]| {
         Vec3::new(
@@ -951,10 +946,10 @@ fn collect_angular(r: &mut NarrowRows, arrays: &BodyArrays) {
         )
     };
     if r.wa != NONE {
-        arrays.add_dl(r.wa, -q32(&la));
+        arrays.add_dl(r.wa, -q32(la));
     }
     if r.wb != NONE {
-        arrays.add_dl(r.wb, q32(&lb));
+        arrays.add_dl(r.wb, q32(lb));
     }
 }
 
@@ -968,36 +963,42 @@ fn collect_angular(r: &mut NarrowRows, arrays: &BodyArrays) {
 pub(super) fn warm_start(r: &mut NarrowRows) -> (BodyVel, BodyVel) {
     let mut b = Bodies::default();
     let (ae, count) = (r.ae as u32, r.count as usize);
-    for np in &mut r.points[..count] {
-        np.row.mark = 0;
-        let d = np.row.impulse as i64;
+    r.mark = [0; ROWS];
+    for k in (0..count).chain(T0..ROWS) {
+        let d = r.impulse[k] as i64;
         if d != 0 {
-            b.apply(d, &np.row, ae);
+            b.apply(d, &r.rows[k], ae);
         }
     }
-    for row in r.tangent.iter_mut().chain([&mut r.twist]) {
-        row.mark = 0;
-        let d = row.impulse as i64;
-        if d != 0 {
-            b.apply(d, row, ae);
-        }
-    }
+    set_limits(r);
+    b.as_changes()
+}
+
+/// The friction bounds from the total normal impulse of the warm start.
+#[inline(always)]
+fn set_limits(r: &mut NarrowRows) {
     let total = normal_total(r);
     r.warm_total = total;
     r.limits_set = total.is_positive();
     if r.limits_set {
         (r.disc_limit, r.twist_limit) = limits_for(r, total);
     }
-    (
-        BodyVel {
-            v: from_quanta3(&b.va),
-            w: from_quanta3(&b.wa),
-        },
-        BodyVel {
-            v: from_quanta3(&b.vb),
-            w: from_quanta3(&b.wb),
-        },
-    )
+}
+
+impl Bodies {
+    /// These quanta as Q32.32 velocity changes of A and B.
+    fn as_changes(&self) -> (BodyVel, BodyVel) {
+        (
+            BodyVel {
+                v: from_quanta3(&self.va),
+                w: from_quanta3(&self.wa),
+            },
+            BodyVel {
+                v: from_quanta3(&self.vb),
+                w: from_quanta3(&self.wb),
+            },
+        )
+    }
 }
 
 #[cfg(test)]

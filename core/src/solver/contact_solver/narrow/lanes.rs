@@ -24,9 +24,11 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{
-    Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NarrowRows, Outcome, ROW_LIMIT, Row, VisitArgs,
-    clamp_to_disc, commit, limits_for, normal_total, update_biases,
+    Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NarrowRows, Outcome, ROW_LIMIT, ROWS, Row, T0, TW,
+    VisitArgs, add_momenta, clamp_to_disc, commit, limits_for, normal_total, set_limits,
+    update_biases,
 };
+use crate::solver::contact_solver::rows::BodyArrays;
 
 /// Constraints per batch.
 pub(in crate::solver::contact_solver) const LANES: usize = 8;
@@ -44,6 +46,8 @@ struct LaneRow {
     eb: [L32; 3],
     ca: [L32; 3],
     cb: [L32; 3],
+    ga: [L32; 3],
+    gb: [L32; 3],
 }
 
 impl LaneRow {
@@ -55,6 +59,8 @@ impl LaneRow {
             self.eb[c][l] = r.eb[c];
             self.ca[c][l] = r.ca[c];
             self.cb[c][l] = r.cb[c];
+            self.ga[c][l] = r.ga[c];
+            self.gb[c][l] = r.gb[c];
         }
     }
 }
@@ -71,9 +77,9 @@ pub(in crate::solver::contact_solver) struct Batch {
     n: [L32; 3],
     t: [[L32; 3]; 2],
     mass_t: [L32; 2],
-    points: [LaneRow; MAX_MANIFOLD_POINTS],
-    tangent: [LaneRow; 2],
-    twist: LaneRow,
+    /// The rows: the points' normal rows, the two tangents, the twist (as
+    /// the twin's `rows`).
+    rows: [LaneRow; ROWS],
 }
 
 impl Batch {
@@ -96,28 +102,30 @@ impl Batch {
             }
             self.mass_t[0][l] = r.mass_t[0];
             self.mass_t[1][l] = r.mass_t[1];
-            for (p, np) in self.points.iter_mut().zip(&r.points[..self.count]) {
-                p.set(l, &np.row);
+            for k in (0..self.count).chain(T0..ROWS) {
+                self.rows[k].set(l, &r.rows[k]);
             }
-            self.tangent[0].set(l, &r.tangent[0]);
-            self.tangent[1].set(l, &r.tangent[1]);
-            self.twist.set(l, &r.twist);
         }
     }
 }
 
-/// The two bodies' velocities of every lane, quanta.
+/// The two bodies' velocities of every lane, quanta, as 32-bit integers:
+/// exact while the guard passes (every component below 2²⁹), so every
+/// product in the rows is a 32 × 32 → 64-bit one, as in the twin; a lane
+/// whose guard fails is thrown away whatever its values.
 #[derive(Clone, Copy, Default)]
 struct Vels {
-    va: [L64; 3],
-    wa: [L64; 3],
-    vb: [L64; 3],
-    wb: [L64; 3],
+    va: [L32; 3],
+    wa: [L32; 3],
+    vb: [L32; 3],
+    wb: [L32; 3],
 }
 
 /// One visit's state of every lane, gathered from the twin's rows.
 #[derive(Clone, Copy, Default)]
 struct State {
+    /// Whether each lane's velocities fit the guard as gathered.
+    ok: Mask,
     v: Vels,
     disc: L64,
     twist_limit: L64,
@@ -136,7 +144,14 @@ fn rsh(x: i64, e: i64) -> i64 {
     x.wrapping_add(1 << (e - 1)) >> e
 }
 
-/// `Bodies::along` per lane.
+/// A 32 × 32 → 64-bit product.
+#[inline(always)]
+fn mul(a: i32, b: i32) -> i64 {
+    a as i64 * b as i64
+}
+
+/// `Bodies::along` per lane (`V_B − V_A` below 2³⁰ while the guard
+/// passes, so it is a 32-bit difference).
 #[inline(always)]
 fn along(d: &[L32; 3], ja: &[L32; 3], jb: &[L32; 3], v: &Vels, je: &L64) -> L64 {
     let mut out = [0i64; LANES];
@@ -144,41 +159,36 @@ fn along(d: &[L32; 3], ja: &[L32; 3], jb: &[L32; 3], v: &Vels, je: &L64) -> L64 
         let mut s = 0i64;
         for c in 0..3 {
             let dv = v.vb[c][l].wrapping_sub(v.va[c][l]);
-            s = s.wrapping_add((d[c][l] as i64).wrapping_mul(dv));
-            s = s.wrapping_add((jb[c][l] as i64).wrapping_mul(v.wb[c][l]));
-            s = s.wrapping_sub((ja[c][l] as i64).wrapping_mul(v.wa[c][l]));
+            s = s.wrapping_add(mul(d[c][l], dv));
+            s = s.wrapping_add(mul(jb[c][l], v.wb[c][l]));
+            s = s.wrapping_sub(mul(ja[c][l], v.wa[c][l]));
         }
         out[l] = rsh(s, je[l]);
     }
     out
 }
 
-/// `Bodies::apply` per lane.
+/// `Bodies::apply` per lane, then `Bodies::fit` and-ed into `ok` (on the
+/// 64-bit sums, before they are kept in 32 bits). `d` is below 2³¹ in
+/// magnitude while the guard passes.
 #[inline(always)]
-fn apply(d: &L64, row: &LaneRow, ae: &L64, v: &mut Vels) {
+fn apply(d: &L64, row: &LaneRow, ae: &L64, v: &mut Vels, ok: &mut Mask) {
+    let mut fits = [true; LANES];
     for c in 0..3 {
         for l in 0..LANES {
-            let p = |e: i32| rsh(d[l].wrapping_mul(e as i64), ae[l]);
-            v.va[c][l] = v.va[c][l].wrapping_sub(p(row.ea[c][l]));
-            v.wa[c][l] = v.wa[c][l].wrapping_sub(p(row.ca[c][l]));
-            v.vb[c][l] = v.vb[c][l].wrapping_add(p(row.eb[c][l]));
-            v.wb[c][l] = v.wb[c][l].wrapping_add(p(row.cb[c][l]));
+            let d = d[l] as i32;
+            let p = |e: i32| rsh(mul(d, e), ae[l]);
+            let va = (v.va[c][l] as i64).wrapping_sub(p(row.ea[c][l]));
+            let wa = (v.wa[c][l] as i64).wrapping_sub(p(row.ca[c][l]));
+            let vb = (v.vb[c][l] as i64).wrapping_add(p(row.eb[c][l]));
+            let wb = (v.wb[c][l] as i64).wrapping_add(p(row.cb[c][l]));
+            fits[l] &= va.abs() < LIMIT && wa.abs() < LIMIT && vb.abs() < LIMIT && wb.abs() < LIMIT;
+            (v.va[c][l], v.wa[c][l], v.vb[c][l], v.wb[c][l]) =
+                (va as i32, wa as i32, vb as i32, wb as i32);
         }
     }
-}
-
-/// `Bodies::fit` per lane, and-ed into `ok`.
-#[inline(always)]
-fn fit(v: &Vels, ok: &mut Mask) {
     for l in 0..LANES {
-        let mut f = true;
-        for c in 0..3 {
-            f &= v.va[c][l].abs() < LIMIT
-                && v.wa[c][l].abs() < LIMIT
-                && v.vb[c][l].abs() < LIMIT
-                && v.wb[c][l].abs() < LIMIT;
-        }
-        ok[l] &= f;
+        ok[l] &= fits[l];
     }
 }
 
@@ -210,8 +220,8 @@ fn clamp_lanes(want: &[L64; 2], mass: &[L32; 2], disc: &L64, active: &Mask) -> [
 /// rows, step by step. Returns each lane's guard.
 #[inline(always)]
 fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> Mask {
-    let mut ok = [true; LANES];
-    fit(&st.v, &mut ok);
+    // The velocities were checked as they were gathered (`st.ok`).
+    let mut ok = st.ok;
     let mut active = [false; LANES];
     for l in 0..LANES {
         active[l] = !(st.disc[l] == 0
@@ -221,8 +231,9 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> M
     }
     // Friction at the patch centre: both tangents from the same
     // velocities, held in the disc, then the twist.
-    let vt0 = along(&b.t[0], &b.tangent[0].ja, &b.tangent[0].jb, &st.v, &b.je);
-    let vt1 = along(&b.t[1], &b.tangent[1].ja, &b.tangent[1].jb, &st.v, &b.je);
+    let (t0, t1) = (&b.rows[T0], &b.rows[T0 + 1]);
+    let vt0 = along(&b.t[0], &t0.ja, &t0.jb, &st.v, &b.je);
+    let vt1 = along(&b.t[1], &t1.ja, &t1.jb, &st.v, &b.je);
     let mut want = [[0i64; LANES]; 2];
     for l in 0..LANES {
         want[0][l] = st.impulse_t[0][l].wrapping_sub(vt0[l]);
@@ -242,15 +253,14 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> M
             d[l] = n.wrapping_sub(st.impulse_t[j][l]);
             st.impulse_t[j][l] = n as i32 as i64;
         }
-        apply(&d, &b.tangent[j], &b.ae, &mut st.v);
-        fit(&st.v, &mut ok);
+        apply(&d, &b.rows[T0 + j], &b.ae, &mut st.v, &mut ok);
     }
     let mut d = [0i64; LANES];
     for l in 0..LANES {
         let mut s = 0i64;
         for c in 0..3 {
-            s = s.wrapping_add((b.n[c][l] as i64).wrapping_mul(st.v.wb[c][l]));
-            s = s.wrapping_sub((b.n[c][l] as i64).wrapping_mul(st.v.wa[c][l]));
+            s = s.wrapping_add(mul(b.n[c][l], st.v.wb[c][l]));
+            s = s.wrapping_sub(mul(b.n[c][l], st.v.wa[c][l]));
         }
         let spin = rsh(s, b.je[l]);
         let want = st.impulse_w[l].wrapping_sub(spin);
@@ -264,8 +274,7 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> M
         d[l] = n.wrapping_sub(st.impulse_w[l]);
         st.impulse_w[l] = n as i32 as i64;
     }
-    apply(&d, &b.twist, &b.ae, &mut st.v);
-    fit(&st.v, &mut ok);
+    apply(&d, &b.rows[TW], &b.ae, &mut st.v, &mut ok);
     // The normal rows from point `first`.
     let count = b.count;
     for kk in 0..count {
@@ -274,7 +283,7 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> M
         } else {
             kk + first
         };
-        let p = &b.points[i];
+        let p = &b.rows[i];
         let vn = along(&b.n, &p.ja, &p.jb, &st.v, &b.je);
         let mut d = [0i64; LANES];
         for l in 0..LANES {
@@ -284,7 +293,13 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> M
             let old = st.impulses[i][l];
             let x = old.wrapping_sub(vn[l]).wrapping_sub(bias);
             ok[l] &= x.abs() < ROW_LIMIT && !(st.saturated[i][l] && x > 0);
-            let new = if soft { rsh(ms.wrapping_mul(x), 30) } else { x }.max(0);
+            // |x| < 2³¹ while the guard passes: a 32-bit operand.
+            let new = if soft {
+                rsh(mul(ms as i32, x as i32), 30)
+            } else {
+                x
+            }
+            .max(0);
             ok[l] &= new < LIMIT;
             d[l] = new.wrapping_sub(old);
             if st.first_vn[i][l] == i32::MAX as i64 && new > 0 {
@@ -292,8 +307,7 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> M
             }
             st.impulses[i][l] = new as i32 as i64;
         }
-        apply(&d, p, &b.ae, &mut st.v);
-        fit(&st.v, &mut ok);
+        apply(&d, p, &b.ae, &mut st.v, &mut ok);
     }
     ok
 }
@@ -400,26 +414,27 @@ pub(in crate::solver::contact_solver) fn visit(
         let (va0, vb0) = args.arrays.load(r.a, r.b);
         let b = Bodies::of(&va0, &vb0);
         begin[l] = [va0, vb0];
+        st.ok[l] = b.fit();
         for c in 0..3 {
-            st.v.va[c][l] = b.va[c];
-            st.v.wa[c][l] = b.wa[c];
-            st.v.vb[c][l] = b.vb[c];
-            st.v.wb[c][l] = b.wb[c];
+            st.v.va[c][l] = b.va[c] as i32;
+            st.v.wa[c][l] = b.wa[c] as i32;
+            st.v.vb[c][l] = b.vb[c] as i32;
+            st.v.wb[c][l] = b.wb[c] as i32;
         }
         (st.disc[l], st.twist_limit[l]) = if r.limits_set {
             (r.disc_limit, r.twist_limit)
         } else {
             limits_for(r, normal_total(r))
         };
-        st.impulse_t[0][l] = r.tangent[0].impulse as i64;
-        st.impulse_t[1][l] = r.tangent[1].impulse as i64;
-        st.impulse_w[l] = r.twist.impulse as i64;
-        for (i, np) in r.points[..batch.count].iter().enumerate() {
-            st.impulses[i][l] = np.row.impulse as i64;
-            st.first_vn[i][l] = np.first_vn as i64;
-            st.bias[i][l] = np.bias as i64;
-            st.speculative[i][l] = np.speculative;
-            st.saturated[i][l] = np.bias_saturated;
+        st.impulse_t[0][l] = r.impulse[T0] as i64;
+        st.impulse_t[1][l] = r.impulse[T0 + 1] as i64;
+        st.impulse_w[l] = r.impulse[TW] as i64;
+        for i in 0..batch.count {
+            st.impulses[i][l] = r.impulse[i] as i64;
+            st.first_vn[i][l] = r.first_vn[i] as i64;
+            st.bias[i][l] = r.bias[i] as i64;
+            st.speculative[i][l] = r.speculative[i];
+            st.saturated[i][l] = r.saturated[i];
         }
     }
     let start = st.v;
@@ -441,13 +456,305 @@ pub(in crate::solver::contact_solver) fn visit(
             out.first_vn[i] = st.first_vn[i][l] as i32;
         }
         for c in 0..3 {
-            out.moved[0][c] = st.v.va[c][l] - start.va[c][l];
-            out.moved[1][c] = st.v.wa[c][l] - start.wa[c][l];
-            out.moved[2][c] = st.v.vb[c][l] - start.vb[c][l];
-            out.moved[3][c] = st.v.wb[c][l] - start.wb[c][l];
+            out.moved[0][c] = st.v.va[c][l] as i64 - start.va[c][l] as i64;
+            out.moved[1][c] = st.v.wa[c][l] as i64 - start.wa[c][l] as i64;
+            out.moved[2][c] = st.v.vb[c][l] as i64 - start.vb[c][l] as i64;
+            out.moved[3][c] = st.v.wb[c][l] as i64 - start.wb[c][l] as i64;
         }
         let [va0, vb0] = &begin[l];
         commit(args, r, &out, va0, vb0);
     }
+    if !args.use_bias {
+        collect_angular(batch, rows, &refused, args.arrays);
+    }
     refused
+}
+
+/// The twin's `collect_angular` for the accepted lanes: `Σ g·ΔΛ` per body
+/// since the marks (each lane's sum exact in `i64`, as the twin's), then
+/// the marks moved and the sums added to the bodies' write-back.
+fn collect_angular(batch: &Batch, rows: &mut [NarrowRows], refused: &Mask, arrays: &BodyArrays) {
+    let mut la = [[0i64; LANES]; 3];
+    let mut lb = [[0i64; LANES]; 3];
+    let mut any = [false; LANES];
+    for k in (0..batch.count).chain(T0..ROWS) {
+        let mut d = [0i64; LANES];
+        for (l, r) in rows.iter_mut().enumerate().take(LANES) {
+            if refused[l] {
+                continue;
+            }
+            d[l] = (r.impulse[k] - r.mark[k]) as i64;
+            r.mark[k] = r.impulse[k];
+            any[l] |= d[l] != 0;
+        }
+        let g = &batch.rows[k];
+        for c in 0..3 {
+            for l in 0..LANES {
+                la[c][l] += d[l] * g.ga[c][l] as i64;
+                lb[c][l] += d[l] * g.gb[c][l] as i64;
+            }
+        }
+    }
+    for (l, r) in rows.iter().enumerate().take(LANES) {
+        if any[l] {
+            let a = [la[0][l], la[1][l], la[2][l]];
+            let b = [lb[0][l], lb[1][l], lb[2][l]];
+            add_momenta(r, arrays, &a, &b);
+        }
+    }
+}
+
+/// The twin's `warm_start` of eight constraints (one batch): each lane's
+/// velocity changes of A and B, with the marks cleared and the friction
+/// bounds set in the twin's rows.
+pub(in crate::solver::contact_solver) fn warm_start(
+    batch: &Batch,
+    rows: &mut [NarrowRows],
+) -> [(BodyVel, BodyVel); LANES] {
+    let mut v = Vels64::default();
+    for k in (0..batch.count).chain(T0..ROWS) {
+        let mut d = [0i64; LANES];
+        for (l, r) in rows.iter().enumerate().take(LANES) {
+            d[l] = r.impulse[k] as i64;
+        }
+        let g = &batch.rows[k];
+        for c in 0..3 {
+            for l in 0..LANES {
+                let p = |e: i32| rsh(mul(d[l] as i32, e), batch.ae[l]);
+                v.va[c][l] = v.va[c][l].wrapping_sub(p(g.ea[c][l]));
+                v.wa[c][l] = v.wa[c][l].wrapping_sub(p(g.ca[c][l]));
+                v.vb[c][l] = v.vb[c][l].wrapping_add(p(g.eb[c][l]));
+                v.wb[c][l] = v.wb[c][l].wrapping_add(p(g.cb[c][l]));
+            }
+        }
+    }
+    std::array::from_fn(|l| {
+        let r = &mut rows[l];
+        r.mark = [0; ROWS];
+        set_limits(r);
+        let b = Bodies {
+            va: [v.va[0][l], v.va[1][l], v.va[2][l]],
+            wa: [v.wa[0][l], v.wa[1][l], v.wa[2][l]],
+            vb: [v.vb[0][l], v.vb[1][l], v.vb[2][l]],
+            wb: [v.wb[0][l], v.wb[1][l], v.wb[2][l]],
+        };
+        b.as_changes()
+    })
+}
+
+/// Velocity changes of every lane, quanta, summed from zero.
+#[derive(Clone, Copy, Default)]
+struct Vels64 {
+    va: [L64; 3],
+    wa: [L64; 3],
+    vb: [L64; 3],
+    wb: [L64; 3],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{LIMIT, ROWS, S};
+    use super::*;
+    use crate::math::{Scalar, Vec3};
+    use crate::solver::contact_solver::rows::BodyArrays;
+    use crate::solver::contact_solver::{NONE, Softness, SolverParams};
+
+    /// SplitMix64.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            z ^ (z >> 31)
+        }
+
+        /// A value in `[-m, m]`.
+        fn within(&mut self, m: i64) -> i64 {
+            (self.next() % (2 * m as u64 + 1)) as i64 - m
+        }
+
+        fn i32s(&mut self, m: i64) -> [i32; 3] {
+            [0; 3].map(|_| self.within(m) as i32)
+        }
+    }
+
+    fn params() -> SolverParams {
+        let h = Scalar::from_ratio(1, 240);
+        SolverParams {
+            h,
+            inv_h: Scalar::from_int(240),
+            softness: Softness::new(Scalar::from_int(60), Scalar::from_int(10), h),
+            omega: Scalar::ZERO,
+            zeta: Scalar::from_int(10),
+            omega_max: Scalar::ZERO,
+            max_push_out: Scalar::from_int(3),
+            restitution_threshold: Scalar::ONE,
+            colored: true,
+            narrow: true,
+        }
+    }
+
+    /// Eight constraints' rows and sixteen bodies' velocities at a scale:
+    /// `v` the velocities' and `j` the entries' largest magnitude (quanta,
+    /// and at `2^30`). Lane `l` holds bodies `2l` and `2l + 1`, some of
+    /// them `NONE` (static) or not written (kinematic).
+    fn inputs(rng: &mut Rng, count: usize, v: i64, j: i64) -> ([NarrowRows; LANES], Vec<BodyVel>) {
+        let rows = std::array::from_fn(|l| {
+            let mut r = NarrowRows {
+                on: true,
+                count: count as u8,
+                je: 24 + (rng.next() % 7) as u8,
+                ae: 22 + (rng.next() % 9) as u8,
+                ge: 20 + (rng.next() % 11) as u8,
+                me: (rng.next() % 40) as i8,
+                limits_set: !rng.next().is_multiple_of(4),
+                ..NarrowRows::default()
+            };
+            r.a = if l % 3 == 0 { NONE } else { 2 * l as u32 };
+            r.b = 2 * l as u32 + 1;
+            r.wa = r.a;
+            r.wb = if l % 4 == 1 { NONE } else { r.b };
+            r.bias_poses = 7;
+            r.n = rng.i32s(1 << 30);
+            r.t = [rng.i32s(1 << 30), rng.i32s(1 << 30)];
+            r.mass_t = [0; 2].map(|_| rng.within(1 << 30).abs() as i32);
+            for k in 0..ROWS {
+                let row = &mut r.rows[k];
+                row.ja = rng.i32s(j);
+                row.jb = rng.i32s(j);
+                row.ea = rng.i32s(j);
+                row.eb = rng.i32s(j);
+                row.ca = rng.i32s(j);
+                row.cb = rng.i32s(j);
+                row.ga = rng.i32s(j);
+                row.gb = rng.i32s(j);
+                r.mass[k] = Scalar::from_bits(rng.within(1 << 40).abs() + 1);
+                r.impulse[k] = rng.within(v.min(LIMIT - 1)) as i32;
+                r.mark[k] = rng.within(v.min(LIMIT - 1)) as i32;
+            }
+            for i in 0..MAX_MANIFOLD_POINTS {
+                r.impulse[i] = r.impulse[i].abs();
+                r.max_impulse[i] = r.impulse[i];
+                r.first_vn[i] = if rng.next().is_multiple_of(2) {
+                    i32::MAX
+                } else {
+                    rng.within(v) as i32
+                };
+                r.bias[i] = rng.within((2 * v).min(1 << 30)) as i32;
+                r.speculative[i] = rng.next().is_multiple_of(3);
+                r.saturated[i] = rng.next().is_multiple_of(16);
+            }
+            r.disc_limit = rng.within(1 << 62).abs();
+            r.twist_limit = rng.within(LIMIT).abs();
+            r.friction = Scalar::from_bits(rng.within(1 << 32).abs());
+            r.twist_reach = Scalar::from_bits(rng.within(1 << 32).abs());
+            r.k_w = Scalar::from_bits(rng.within(1 << 36).abs());
+            if rng.next().is_multiple_of(8) {
+                // Inactive friction: nothing to bound, nothing held.
+                r.disc_limit = 0;
+                r.limits_set = true;
+                r.impulse[T0..].copy_from_slice(&[0; 3]);
+            }
+            r
+        });
+        let q = |x: i64| Scalar::from_bits(x << (32 - S));
+        let vels = (0..2 * LANES)
+            .map(|_| BodyVel {
+                v: Vec3::new(q(rng.within(v)), q(rng.within(v)), q(rng.within(v))),
+                w: Vec3::new(q(rng.within(v)), q(rng.within(v)), q(rng.within(v))),
+            })
+            .collect();
+        (rows, vels)
+    }
+
+    /// Runs the twin on each row, then every lane kernel this CPU has on
+    /// the same inputs, and compares rows, velocities, momenta and
+    /// refusals.
+    fn compare(rows: [NarrowRows; LANES], vels: Vec<BodyVel>, use_bias: bool, rot: usize) -> usize {
+        let params = params();
+        let n = vels.len();
+        let run = |visit: &dyn Fn(&VisitArgs<'_>, &mut [NarrowRows]) -> Mask| {
+            let (mut rows, mut vels) = (rows, vels.clone());
+            let (mut dls, mut warm) = (vec![Vec3::ZERO; n], vec![BodyVel::default(); n]);
+            // SAFETY: one thread; the vectors outlive the arrays.
+            let arrays = unsafe { BodyArrays::new(&mut vels, &mut dls, &mut warm) };
+            let args = VisitArgs {
+                params: &params,
+                bodies: &[],
+                arrays: &arrays,
+                use_bias,
+                rot,
+                poses: 7,
+            };
+            let refused = visit(&args, &mut rows);
+            (refused, rows, vels, dls)
+        };
+        let twin =
+            run(&|args, rows| std::array::from_fn(|l| !super::super::visit(args, &mut rows[l])));
+        let mut batch = Batch::default();
+        batch.fill(&rows);
+        let mut kernels = vec![Kernel::Plain];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                kernels.push(Kernel::Avx2);
+            }
+            if Kernel::best() == Kernel::Avx512 {
+                kernels.push(Kernel::Avx512);
+            }
+        }
+        for kernel in kernels {
+            let lanes = run(&|args, rows| visit(args, &batch, rows, kernel));
+            assert_eq!(lanes.0, twin.0, "{kernel:?}: refusals");
+            for l in 0..LANES {
+                assert_eq!(lanes.1[l], twin.1[l], "{kernel:?}: lane {l}'s rows");
+            }
+            assert_eq!(lanes.2, twin.2, "{kernel:?}: velocities");
+            assert_eq!(lanes.3, twin.3, "{kernel:?}: momenta");
+        }
+        twin.0.iter().filter(|&&r| !r).count()
+    }
+
+    #[test]
+    fn every_lane_kernel_gives_the_twins_bits_and_refusals() {
+        let mut rng = Rng(17);
+        let (mut accepted, mut refused) = (0, 0);
+        for round in 0..600 {
+            let count = 1 + round % MAX_MANIFOLD_POINTS;
+            // Small values (accepted), values near the guard, and values
+            // past it (refused).
+            let (v, j) = match round % 4 {
+                0 | 1 => (1 << 18, 1 << 28),
+                2 => (1 << 27, 1 << 30),
+                _ => (1 << 30, 1 << 30),
+            };
+            let (rows, vels) = inputs(&mut rng, count, v, j);
+            let ok = compare(rows, vels, round % 2 == 0, round);
+            accepted += ok;
+            refused += LANES - ok;
+        }
+        assert!(
+            accepted > 1000 && refused > 1000,
+            "{accepted} accepted, {refused} refused"
+        );
+    }
+
+    #[test]
+    fn the_lanes_warm_start_is_the_twins() {
+        let mut rng = Rng(5);
+        for round in 0..200 {
+            let (rows, _) = inputs(&mut rng, 1 + round % MAX_MANIFOLD_POINTS, 1 << 20, 1 << 30);
+            let mut batch = Batch::default();
+            batch.fill(&rows);
+            let (mut a, mut b) = (rows, rows);
+            let lanes = warm_start(&batch, &mut a);
+            for l in 0..LANES {
+                assert_eq!(lanes[l], super::super::warm_start(&mut b[l]), "lane {l}");
+                assert_eq!(a[l], b[l], "lane {l}'s rows");
+            }
+        }
+    }
 }
