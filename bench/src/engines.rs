@@ -92,6 +92,9 @@ struct Ours {
     /// Batches the wide lanes took and batches their guard refused, summed
     /// over the steps.
     lanes: (u64, u64),
+    /// Constraint-ticks, those on the narrow rows and those the guard
+    /// moved to the Q32.32 rows, summed over the steps.
+    rows_count: (u64, u64, u64),
     faulted: bool,
 }
 
@@ -246,6 +249,7 @@ impl Ours {
             bodies,
             contact_points: 0,
             lanes: (0, 0),
+            rows_count: (0, 0, 0),
             faulted: false,
         }
     }
@@ -257,6 +261,9 @@ impl Sim for Ours {
         self.contact_points = r.contact_points as usize;
         self.lanes.0 += u64::from(r.wide_batches);
         self.lanes.1 += u64::from(r.wide_batches_guarded);
+        self.rows_count.0 += u64::from(r.contact_constraints);
+        self.rows_count.1 += u64::from(r.narrow_constraints);
+        self.rows_count.2 += u64::from(r.narrow_fallbacks);
         self.faulted |= !r.faults.is_empty();
     }
 
@@ -596,6 +603,23 @@ pub struct SceneResult {
     pub threaded: Option<Threaded>,
     /// Rapier.
     pub rapier: EngineResult,
+    /// Ours on each contact-row format (pair order, one worker), measured
+    /// in the same runs: the A/B of the rows.
+    pub rows: RowsAb,
+}
+
+/// Ours with the Q32.32 rows and with the narrow rows (pair order, one
+/// worker), in the same runs.
+#[derive(Clone, Debug)]
+pub struct RowsAb {
+    /// On the Q32.32 rows.
+    pub exact: EngineResult,
+    /// On the narrow rows.
+    pub narrow: EngineResult,
+    /// The share of constraint-ticks the narrow rows solved, and the share
+    /// moved to the Q32.32 rows by the guard (last run).
+    pub narrow_share: f64,
+    pub fallback_share: f64,
 }
 
 /// Ours on N workers in pair order, and in colour order on one worker and
@@ -631,6 +655,8 @@ pub struct Threaded {
 /// With `wide`, the colour-order runs turn the solver's wide lanes on.
 pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>, wide: bool) -> SceneResult {
     let mut ours = Vec::new();
+    let (mut exact, mut narrow) = (Vec::new(), Vec::new());
+    let mut shares = (0.0, 0.0);
     let mut theirs = Vec::new();
     let (mut pairs_many, mut one, mut many) = (Vec::new(), Vec::new(), Vec::new());
     let mut rapier_many = Vec::new();
@@ -643,6 +669,21 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>, wide: bool)
         faulted |= sim.faulted;
         drop(sim);
         ours.push(run);
+        for (rows, out) in [
+            (ContactRows::Exact, &mut exact),
+            (ContactRows::Narrow, &mut narrow),
+        ] {
+            let (run, sim) = measure(scene, |s| {
+                Ours::with_rows(s, ContactOrder::Pairs, 1, false, rows)
+            });
+            faulted |= sim.faulted;
+            if rows == ContactRows::Narrow {
+                let all = sim.rows_count.0.max(1) as f64;
+                shares = (sim.rows_count.1 as f64 / all, sim.rows_count.2 as f64 / all);
+            }
+            drop(sim);
+            out.push(run);
+        }
         let (run, sim) = measure(scene, Rapier::new);
         let rapier_end = sim.positions();
         drop(sim);
@@ -688,7 +729,57 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>, wide: bool)
         runs: runs.max(1),
         ours: EngineResult::from_runs(&ours, has_tops, faulted),
         rapier: EngineResult::from_runs(&theirs, has_tops, false),
+        rows: RowsAb {
+            exact: EngineResult::from_runs(&exact, has_tops, faulted),
+            narrow: EngineResult::from_runs(&narrow, has_tops, faulted),
+            narrow_share: shares.0,
+            fallback_share: shares.1,
+        },
     }
+}
+
+/// The A/B of our contact rows: ms/step on the Q32.32 rows and on the
+/// narrow rows (pair order, one worker, the same runs), beside Rapier.
+pub fn rows_table(results: &[SceneResult]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "\ncontact rows: ours on the Q32.32 rows and on the narrow rows (pair order, one worker; median ms/step of the same runs)"
+    );
+    let _ = writeln!(
+        out,
+        "{:<14} {:>10} {:>10} {:>8} {:>10} {:>9} {:>9}  {:>8} {:>9}",
+        "scene",
+        "Q32.32",
+        "narrow",
+        "nar/Q32",
+        "rapier",
+        "Q32/rap",
+        "nar/rap",
+        "narrow%",
+        "fallback%"
+    );
+    for r in results {
+        let (e, n, rap) = (
+            r.rows.exact.median_ms,
+            r.rows.narrow.median_ms,
+            r.rapier.median_ms,
+        );
+        let _ = writeln!(
+            out,
+            "{:<14} {:>10.3} {:>10.3} {:>8.2} {:>10.3} {:>9.2} {:>9.2}  {:>8.1} {:>9.3}",
+            r.name,
+            e,
+            n,
+            n / e,
+            rap,
+            e / rap,
+            n / rap,
+            100.0 * r.rows.narrow_share,
+            100.0 * r.rows.fallback_share,
+        );
+    }
+    out
 }
 
 /// Whether two lists of positions are the same to the bit.
@@ -1032,6 +1123,7 @@ pub fn run(opts: &Options) -> SuiteOutput {
     }
     let mut text = format!("{}\n\n", settings_text());
     text.push_str(&table(&results, &skipped));
+    text.push_str(&rows_table(&results));
     text.push_str(&threads_table(&results));
     let mut csv = csv(&results);
     if opts.stages {

@@ -7,11 +7,10 @@
 
 mod common;
 
-use common::{ground, pile_in, s, v};
+use common::{ground, pile_in, s, step_pile, v};
 use lockstep_core::scene::{build_world_with_config, parse_scene};
 use lockstep_core::{
-    BodyDesc, ColliderDesc, ContactOrder, ContactRows, Material, Quat, StepReport, Transform,
-    World, WorldConfig,
+    BodyDesc, ColliderDesc, ContactOrder, ContactRows, Material, StepReport, World, WorldConfig,
 };
 
 fn narrow(order: ContactOrder) -> WorldConfig {
@@ -25,19 +24,9 @@ fn narrow(order: ContactOrder) -> WorldConfig {
 /// Steps `w` (turning its kinematic "paddle", if any) and returns each
 /// tick's state hash and report, checking for faults.
 fn trace(mut w: World, ticks: u64) -> Vec<(u64, StepReport)> {
-    let paddle = w.find_body("paddle");
     (0..ticks)
         .map(|t| {
-            if let Some(k) = paddle {
-                let a = s(t as f64 / 40.0);
-                w.set_kinematic_target(
-                    k,
-                    Transform::new(v(0.0, 0.6, 0.0), Quat::from_axis_angle(v(0.0, 1.0, 0.0), a)),
-                )
-                .unwrap();
-            }
-            let r = w.step();
-            assert!(r.faults.is_empty(), "tick {t}: {}", r.faults);
+            let r = step_pile(&mut w, t);
             (w.state_hash(), r)
         })
         .collect()

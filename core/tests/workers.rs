@@ -7,10 +7,10 @@
 
 mod common;
 
-use common::{pile, s, v};
+use common::{pile, step_pile};
 use lockstep_core::collision::ContactEvent;
 use lockstep_core::scene::{build_world_with_config, parse_scene};
-use lockstep_core::{ContactOrder, Quat, StepReport, Transform, World, WorldConfig};
+use lockstep_core::{ContactOrder, StepReport, World, WorldConfig};
 
 const COUNTS: [usize; 5] = [1, 2, 3, 4, 8];
 
@@ -28,20 +28,10 @@ fn run(w: World, ticks: u64) -> (Vec<u64>, u32, u32) {
 
 /// [`run`] with every tick's report and events too.
 fn trace(mut w: World, ticks: u64) -> (Trace, u32, u32) {
-    let paddle = w.find_body("paddle");
     let (mut most, mut colors) = (0, 0);
     let trace = (0..ticks)
         .map(|t| {
-            if let Some(k) = paddle {
-                let a = s(t as f64 / 40.0);
-                w.set_kinematic_target(
-                    k,
-                    Transform::new(v(0.0, 0.6, 0.0), Quat::from_axis_angle(v(0.0, 1.0, 0.0), a)),
-                )
-                .unwrap();
-            }
-            let r = w.step();
-            assert!(r.faults.is_empty(), "tick {t}: {}", r.faults);
+            let r = step_pile(&mut w, t);
             most = most.max(r.contact_constraints);
             colors = colors.max(r.contact_colors);
             (w.state_hash(), r, w.contact_events().to_vec())

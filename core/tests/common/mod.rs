@@ -86,6 +86,26 @@ pub fn pile(order: ContactOrder, n: usize, seed: u64) -> World {
     )
 }
 
+/// Steps tick `t` of a world from [`pile`]: first its kinematic "paddle"
+/// (if it has one) is sent to turn about y by `t/40` rad, then the world
+/// steps; panics on a fault.
+pub fn step_pile(w: &mut World, t: u64) -> lockstep_core::StepReport {
+    if let Some(k) = w.find_body("paddle") {
+        let a = s(t as f64 / 40.0);
+        w.set_kinematic_target(
+            k,
+            lockstep_core::Transform::new(
+                v(0.0, 0.6, 0.0),
+                Quat::from_axis_angle(v(0.0, 1.0, 0.0), a),
+            ),
+        )
+        .unwrap();
+    }
+    let r = w.step();
+    assert!(r.faults.is_empty(), "tick {t}: {}", r.faults);
+    r
+}
+
 /// [`pile`] in a world of the given configuration.
 pub fn pile_in(config: WorldConfig, n: usize, seed: u64) -> World {
     let mut w = World::new(config).unwrap();
