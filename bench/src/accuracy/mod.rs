@@ -207,6 +207,7 @@ pub fn case_names() -> Vec<&'static str> {
 
 /// Runs the suite.
 pub fn run(opts: &Options) -> SuiteOutput {
+    sim::set_rows(opts.rows);
     let mut sweep = if opts.quick {
         Sweep::quick()
     } else {

@@ -221,7 +221,7 @@ pub fn csv(ms: &[Measurement]) -> String {
 pub fn settings_text(sweep: &Sweep) -> String {
     format!(
         "sweep: tick rate {:?} Hz × substeps {:?} × solver iterations {:?}; {}\n\
-         ours: lockstep-core (Q32.32), WorldConfig {{ tick_rate, substeps, solver_iterations = iterations, \
+         ours: lockstep-core ({}), WorldConfig {{ tick_rate, substeps, solver_iterations = iterations, \
          relax_iterations = 1, sleep off, the rest default }}: contacts 60 Hz / damping ratio 10, margin 2 cm, \
          restitution threshold 1 m/s; fast bodies are swept by its CCD on their own\n\
          rapier3d 0.36.1 (f32) and rapier3d-f64 0.36.1 (enhanced-determinism, one thread): IntegrationParameters \
@@ -233,7 +233,11 @@ pub fn settings_text(sweep: &Sweep) -> String {
         sweep.tick_rates,
         sweep.substeps,
         sweep.iterations,
-        sweep.runs_note()
+        sweep.runs_note(),
+        match super::sim::rows() {
+            lockstep_core::ContactRows::Exact => "Q32.32 contact rows",
+            lockstep_core::ContactRows::Narrow => "narrow contact rows",
+        }
     )
 }
 

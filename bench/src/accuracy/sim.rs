@@ -13,7 +13,8 @@ use lockstep_core::joint::{JointDesc, JointKind, Motor};
 use lockstep_core::shape::{Capsule, ConvexHull, Cuboid, Shape, Sphere};
 use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{
-    BodyDesc, BodyHandle, ColliderDesc, Material, Quat, Scalar, Transform, Vec3, World, WorldConfig,
+    BodyDesc, BodyHandle, ColliderDesc, ContactRows, Material, Quat, Scalar, Transform, Vec3,
+    World, WorldConfig,
 };
 
 /// The engines compared, in the order they are run and listed.
@@ -38,6 +39,30 @@ impl Engine {
             Engine::RapierF32 => "rapier-f32",
             Engine::RapierF64 => "rapier-f64",
         }
+    }
+}
+
+/// The contact rows every [`Ours`] world of this process uses (`--rows`;
+/// 0: the world's default, 1: Q32.32, 2: narrow). One setting per
+/// process: the suites compare engines within a run, and a run of the
+/// other format is a second run.
+static ROWS: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
+
+/// Sets the contact rows of every [`Ours`] world built after it.
+pub fn set_rows(rows: ContactRows) {
+    let code = match rows {
+        ContactRows::Exact => 1,
+        ContactRows::Narrow => 2,
+    };
+    ROWS.store(code, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// The contact rows [`Ours`] worlds are built with.
+pub fn rows() -> ContactRows {
+    match ROWS.load(std::sync::atomic::Ordering::Relaxed) {
+        1 => ContactRows::Exact,
+        2 => ContactRows::Narrow,
+        _ => WorldConfig::default().contact_rows,
     }
 }
 
@@ -355,6 +380,7 @@ impl Ours {
                 enabled: spec.sleep,
                 ..SleepConfig::default()
             },
+            contact_rows: rows(),
             ..WorldConfig::default()
         })
         .expect("valid world config");

@@ -114,6 +114,7 @@ fn html_escape(s: &str) -> String {
 
 /// Runs the suite.
 pub fn run(opts: &Options) -> SuiteOutput {
+    crate::accuracy::sim::set_rows(opts.rows);
     let quick = opts.quick;
     let wanted = |name: &str| {
         opts.scenes
