@@ -9,8 +9,8 @@ use std::cell::Cell;
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
 use lockstep_core::world::{Stage, StepObserver};
 use lockstep_core::{
-    BodyDesc, BodyHandle, ColliderDesc, ContactOrder, Quat, Scalar, StepReport, Transform, Vec3,
-    World, WorldConfig,
+    BodyDesc, BodyHandle, ColliderDesc, ContactOrder, ContactRows, Quat, Scalar, StepReport,
+    Transform, Vec3, World, WorldConfig,
 };
 
 struct Counting;
@@ -57,9 +57,14 @@ fn scene(sleep: bool) -> (World, BodyHandle) {
 }
 
 fn scene_in(sleep: bool, order: ContactOrder) -> (World, BodyHandle) {
+    scene_with(sleep, order, ContactRows::Exact)
+}
+
+fn scene_with(sleep: bool, order: ContactOrder, rows: ContactRows) -> (World, BodyHandle) {
     let mut cfg = WorldConfig::default();
     cfg.sleep.enabled = sleep;
     cfg.contact_order = order;
+    cfg.contact_rows = rows;
     let mut w = World::new(cfg).unwrap();
     for i in 0..50 {
         let f = i as f64;
@@ -192,6 +197,27 @@ fn colour_order_on_two_workers_does_not_allocate_once_warm() {
     for t in 0..200 {
         let r = drive_and_step(&mut w, k, t);
         assert!(r.contact_colors > 1, "step {t} coloured nothing");
+    }
+    assert_eq!(allocations() - before, 0, "step() allocated");
+}
+
+/// The narrow contact rows, their lanes on, in colour order on two
+/// workers: a warm step allocates nothing either.
+#[test]
+fn narrow_rows_with_their_lanes_do_not_allocate_once_warm() {
+    let (mut w, k) = scene_with(false, ContactOrder::Colors, ContactRows::Narrow);
+    w.set_workers(2);
+    w.set_lanes(true);
+    for t in 0..60 {
+        checked_step(&mut w, t);
+    }
+    let before = allocations();
+    for t in 0..200 {
+        let r = drive_and_step(&mut w, k, t);
+        assert!(
+            r.narrow_constraints > 0,
+            "step {t}: nothing on the narrow rows"
+        );
     }
     assert_eq!(allocations() - before, 0, "step() allocated");
 }

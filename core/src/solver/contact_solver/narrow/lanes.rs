@@ -331,6 +331,8 @@ fn kernel_plain(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize
 
 /// Which build of the lane kernel runs (the results are the same bits).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+// Only x86_64 builds construct the vector variants.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub enum Kernel {
     /// AVX-512 (F, DQ, VL, BW).
     Avx512,
@@ -696,17 +698,16 @@ mod tests {
             run(&|args, rows| std::array::from_fn(|l| !super::super::visit(args, &mut rows[l])));
         let mut batch = Batch::default();
         batch.fill(&rows);
-        let mut kernels = vec![Kernel::Plain];
         #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                kernels.push(Kernel::Avx2);
-            }
-            if Kernel::best() == Kernel::Avx512 {
-                kernels.push(Kernel::Avx512);
-            }
-        }
-        for kernel in kernels {
+        let avx2 = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        let kernels = [
+            Some(Kernel::Plain),
+            avx2.then_some(Kernel::Avx2),
+            (Kernel::best() == Kernel::Avx512).then_some(Kernel::Avx512),
+        ];
+        for kernel in kernels.into_iter().flatten() {
             let lanes = run(&|args, rows| visit(args, &batch, rows, kernel));
             assert_eq!(lanes.0, twin.0, "{kernel:?}: refusals");
             for l in 0..LANES {
