@@ -109,24 +109,25 @@ const PREFETCH_AHEAD: usize = 1;
 
 /// Visits the constraints in order, asking the CPU to load the next ones
 /// first (see [`PREFETCH_AHEAD`]): the narrow rows of one on them, the
-/// Q32.32 constraint of one that is not.
+/// Q32.32 constraint of one that is not. `rs` holds the constraints' narrow
+/// rows, or nothing in a world on the Q32.32 rows (each visit then gets
+/// `None`).
 #[inline(always)]
 fn for_each_prefetched(
     cs: &mut [Constraint],
     rs: &mut [NarrowRows],
-    mut f: impl FnMut(&mut Constraint, &mut NarrowRows),
+    mut f: impl FnMut(&mut Constraint, Option<&mut NarrowRows>),
 ) {
-    let len = cs.len().min(rs.len());
+    let len = cs.len();
+    let narrow = !rs.is_empty();
     for i in 0..len {
         if i + PREFETCH_AHEAD < len {
-            let next = &rs[i + PREFETCH_AHEAD];
-            if next.on {
-                prefetch(next);
-            } else {
-                prefetch(&cs[i + PREFETCH_AHEAD]);
+            match rs.get(i + PREFETCH_AHEAD) {
+                Some(next) if narrow && next.on => prefetch(next),
+                _ => prefetch(&cs[i + PREFETCH_AHEAD]),
             }
         }
-        f(&mut cs[i], &mut rs[i]);
+        f(&mut cs[i], rs.get_mut(i));
     }
 }
 
@@ -151,8 +152,16 @@ impl<'a> Both<'a> {
     /// No other thread touches them while the slices live.
     #[allow(clippy::mut_from_ref)]
     unsafe fn slices(&self, r: Range<usize>) -> (&mut [Constraint], &mut [NarrowRows]) {
-        // SAFETY: as the caller promises.
-        unsafe { (self.cs.slice(r.clone()), self.rs.slice(r)) }
+        // SAFETY: as the caller promises. No rows (a world on the Q32.32
+        // rows): an empty slice of them.
+        unsafe {
+            let rows = if self.rs.is_empty() {
+                self.rs.slice(0..0)
+            } else {
+                self.rs.slice(r.clone())
+            };
+            (self.cs.slice(r), rows)
+        }
     }
 }
 
@@ -183,6 +192,9 @@ const STORE_BLOCK: usize = 128;
 /// multiple of [`BLOCK`], whatever the worker count (see
 /// `workers::segment`), so the wide kernels' batches of eight are the same
 /// for any count.
+///
+/// `rows` holds the constraints' narrow rows (same index), or nothing in a
+/// world on the Q32.32 rows; each run gets its own rows, or none.
 fn for_each_colored<F>(
     constraints: &mut [Constraint],
     rows: &mut [NarrowRows],
@@ -192,7 +204,7 @@ fn for_each_colored<F>(
 ) where
     F: Fn(&mut [Constraint], &mut [NarrowRows], bool) + Sync,
 {
-    let len = constraints.len().min(rows.len());
+    let len = constraints.len();
     let colored = (starts[COLORS] as usize).min(len);
     if colored == 0 {
         visit(constraints, rows, false);
@@ -202,10 +214,15 @@ fn for_each_colored<F>(
         (starts[c] as usize).min(colored)..(starts[c + 1] as usize).min(colored)
     });
     let (shared, overflow) = constraints.split_at_mut(colored);
-    let (shared_rows, overflow_rows) = rows.split_at_mut(colored);
+    let (shared_rows, overflow_rows) = rows.split_at_mut(colored.min(rows.len()));
     if workers.count() == 1 {
         for r in ranges {
-            visit(&mut shared[r.clone()], &mut shared_rows[r], true);
+            let rs = if shared_rows.is_empty() {
+                &mut []
+            } else {
+                &mut shared_rows[r.clone()]
+            };
+            visit(&mut shared[r], rs, true);
         }
     } else {
         let gate = ColorGate::<COLORS>::new(workers);
@@ -224,7 +241,7 @@ fn for_each_colored<F>(
 /// [`for_each_colored`]'s visitor for a pass that visits one constraint at
 /// a time.
 fn one_by_one(
-    visit: impl Fn(&mut Constraint, &mut NarrowRows) + Sync,
+    visit: impl Fn(&mut Constraint, Option<&mut NarrowRows>) + Sync,
 ) -> impl Fn(&mut [Constraint], &mut [NarrowRows], bool) + Sync {
     move |cs, rs, _| for_each_prefetched(cs, rs, &visit)
 }
@@ -572,8 +589,8 @@ impl Pass<'_> {
     /// the constraint's impulses go back to Q32.32 and the Q32.32 rows
     /// solve it from this visit to the end of the tick.
     #[inline(always)]
-    fn visit(&self, c: &mut Constraint, r: &mut NarrowRows) {
-        if r.on {
+    fn visit(&self, c: &mut Constraint, r: Option<&mut NarrowRows>) {
+        if let Some(r) = r.filter(|r| r.on) {
             if narrow::visit(&self.narrow_args(), r) {
                 self.accepted(c, r);
             } else {
@@ -662,7 +679,7 @@ impl Pass<'_> {
                 if i + PREFETCH_AHEAD < len {
                     prefetch(&rs[i + PREFETCH_AHEAD]);
                 }
-                self.visit(&mut cs[i], &mut rs[i]);
+                self.visit(&mut cs[i], Some(&mut rs[i]));
                 i += 1;
             }
         }
@@ -814,7 +831,10 @@ impl Pass<'_> {
                 self.tail(c, v);
             }
         }
-        for_each_prefetched(&mut cs[whole..], &mut rs[whole..], |c, r| self.visit(c, r));
+        // Rows only in a world on the narrow rows (the wide kernels never
+        // run there).
+        let rest = if rs.is_empty() { rs } else { &mut rs[whole..] };
+        for_each_prefetched(&mut cs[whole..], rest, |c, r| self.visit(c, r));
         counts
     }
 }
@@ -963,9 +983,11 @@ pub(crate) struct ContactSolver {
     touched: Vec<u32>,
     /// This tick's constraints in colour order (see [`color`]).
     constraints: Vec<Constraint>,
-    /// Their narrow rows (same index; see [`narrow`]); entries past the
-    /// constraints' count are stale.
+    /// Their narrow rows (same index; see [`narrow`]) in a world on the
+    /// narrow rows, the first `rows_len` (the constraints' count, or 0 on
+    /// the Q32.32 rows); entries past it are stale.
     rows: Vec<NarrowRows>,
+    rows_len: usize,
     /// The colouring's buffers.
     coloring: Coloring,
     /// Per candidate pair, in pair order, what the first scan found
@@ -1383,11 +1405,13 @@ impl ContactSolver {
             ks
         };
         let placed = &self.placed;
-        // Only grows; every entry below `used` is written next.
-        if self.rows.len() < used {
-            self.rows.resize(used, NarrowRows::default());
+        // Only grows; every entry below `used` is written next. A world on
+        // the Q32.32 rows has none.
+        self.rows_len = if params.narrow { used } else { 0 };
+        if self.rows.len() < self.rows_len {
+            self.rows.resize(self.rows_len, NarrowRows::default());
         }
-        let both = Both::new(&mut self.constraints, &mut self.rows[..used]);
+        let both = Both::new(&mut self.constraints, &mut self.rows[..self.rows_len]);
         let on_narrow = AtomicU32::new(0);
         self.workers.for_each_block(used, BLOCK, |r| {
             // SAFETY: each block goes to one worker alone.
@@ -1405,9 +1429,10 @@ impl ContactSolver {
                     }
                 }
                 let ks = constants(&mut block[i], k);
-                let row = &mut rows[i];
-                row.on = params.narrow && narrow::prepare(row, &block[i], &ks);
-                narrow_here += u32::from(row.on);
+                if let Some(row) = rows.get_mut(i) {
+                    row.on = narrow::prepare(row, &block[i], &ks);
+                    narrow_here += u32::from(row.on);
+                }
             }
             // An exact count, whatever the order the blocks add in.
             on_narrow.fetch_add(narrow_here, Ordering::Relaxed);
@@ -1501,7 +1526,7 @@ impl ContactSolver {
                 r.batch = NONE;
             }
         } else {
-            for r in &mut self.rows[..n] {
+            for r in &mut self.rows[..self.rows_len] {
                 r.batch = NONE;
             }
         }
@@ -1684,9 +1709,9 @@ impl ContactSolver {
         }
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
         let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
-        let visit = |c: &mut Constraint, r: &mut NarrowRows| {
+        let visit = |c: &mut Constraint, r: Option<&mut NarrowRows>| {
             let (mut va, mut vb) = arrays.load(c.a, c.b);
-            if r.on {
+            if let Some(r) = r.filter(|r| r.on) {
                 let (da, db) = narrow::warm_start(r);
                 (va.v, va.w, vb.v, vb.w) = (va.v + da.v, va.w + da.w, vb.v + db.v, vb.w + db.w);
             } else {
@@ -1694,10 +1719,9 @@ impl ContactSolver {
             }
             arrays.store(c.wa, c.wb, va, vb);
         };
-        let n = self.constraints.len();
         for_each_colored(
             &mut self.constraints,
-            &mut self.rows[..n],
+            &mut self.rows[..self.rows_len],
             &self.starts,
             &self.workers,
             one_by_one(visit),
@@ -1759,8 +1783,7 @@ impl ContactSolver {
                 for_each_prefetched(cs, rs, |c, r| pass.visit(c, r));
             }
         };
-        let n = self.constraints.len();
-        let rows = &mut self.rows[..n];
+        let rows = &mut self.rows[..self.rows_len];
         for_each_colored(
             &mut self.constraints,
             rows,
@@ -1817,7 +1840,9 @@ impl ContactSolver {
             c.softness = if both { soft } else { params.softness };
             if high {
                 self.heavy.push(i as u32);
-                left_narrow += u32::from(std::mem::take(&mut self.rows[i].on));
+                if let Some(r) = self.rows[..self.rows_len].get_mut(i) {
+                    left_narrow += u32::from(std::mem::take(&mut r.on));
+                }
             }
         }
         left_narrow
@@ -1829,11 +1854,12 @@ impl ContactSolver {
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
         let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         let threshold = -params.restitution_threshold;
-        let visit = |c: &mut Constraint, r: &mut NarrowRows| {
+        let visit = |c: &mut Constraint, r: Option<&mut NarrowRows>| {
             // The narrow rows' impulses back in Q32.32 (here, where the
             // constraint is at hand anyway): restitution and the stored
             // impulses read them.
-            if std::mem::take(&mut r.on) {
+            if let Some(r) = r.filter(|r| r.on) {
+                r.on = false;
                 narrow::write_back(r, c);
             }
             if c.restitution.is_zero() {
@@ -1863,10 +1889,9 @@ impl ContactSolver {
             arrays.store(c.wa, c.wb, va, vb);
             c.collect_angular(&arrays);
         };
-        let n = self.constraints.len();
         for_each_colored(
             &mut self.constraints,
-            &mut self.rows[..n],
+            &mut self.rows[..self.rows_len],
             &self.starts,
             &self.workers,
             one_by_one(visit),

@@ -324,6 +324,11 @@ impl<'a, T> SharedMut<'a, T> {
         }
     }
 
+    /// Whether it shares no item.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
     /// The items of `range`.
     ///
     /// # Safety
