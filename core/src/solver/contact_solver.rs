@@ -1215,13 +1215,14 @@ impl ContactSolver {
         self.placed.resize(used, 0);
         let mut next = self.starts;
         let found = pending.iter().enumerate().filter(|(_, pc)| pc.used);
-        if params.narrow && params.colored {
+        let lanes = self.lanes_will_run(params);
+        if lanes {
             // Each colour's constraints by point count (then pair order),
             // so that runs of eight with the same count can go to the
             // lanes together (see `narrow::lanes`). The order inside a
             // colour does not change a bit: its constraints share no
             // moving body. The overflow, visited in order, keeps pair
-            // order.
+            // order. Only for the lanes: nothing else gains from it.
             let count_of = |k: usize| {
                 let points = pairs[pending[k].pair as usize].manifold.points().len();
                 points.clamp(1, MAX_MANIFOLD_POINTS) - 1
@@ -1453,7 +1454,7 @@ impl ContactSolver {
         self.order_shock();
         // 6. The lanes' batches: runs of eight constraints of one colour on
         //    the narrow rows with one point count, from each colour's start.
-        self.batch_lanes(params);
+        self.batch_lanes(lanes);
         let grew = (
             self.bodies.capacity(),
             self.vels.capacity(),
@@ -1488,10 +1489,10 @@ impl ContactSolver {
     /// colour, all on the narrow rows, one point count; each run starts at
     /// its colour's start plus a multiple of eight, as the worker blocks
     /// do) into a batch, and marks its first constraint's rows with it.
-    fn batch_lanes(&mut self, params: &SolverParams) {
+    fn batch_lanes(&mut self, lanes: bool) {
         let n = self.constraints.len();
         let mut used = 0;
-        if params.narrow && params.colored && self.lanes_on && self.kernel() != Kernel::Plain {
+        if lanes {
             for c in 0..COLORS {
                 let (start, end) = (
                     self.starts[c] as usize,
@@ -1531,6 +1532,13 @@ impl ContactSolver {
             }
         }
         self.lane_batches = used as u32;
+    }
+
+    /// Whether this tick's passes may visit constraints on the narrow rows'
+    /// lanes: narrow rows in colour order, the lanes on, and a CPU with
+    /// them.
+    fn lanes_will_run(&self, params: &SolverParams) -> bool {
+        params.narrow && params.colored && self.lanes().is_some()
     }
 
     /// The build of the lane kernel the passes use.
