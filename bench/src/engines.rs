@@ -609,7 +609,8 @@ pub struct SceneResult {
 }
 
 /// Ours with the Q32.32 rows and with the narrow rows (pair order, one
-/// worker), in the same runs.
+/// worker), in the same runs: the headline runs on the world's default
+/// rows, and one run of the other format beside each.
 #[derive(Clone, Debug)]
 pub struct RowsAb {
     /// On the Q32.32 rows.
@@ -655,8 +656,19 @@ pub struct Threaded {
 /// With `wide`, the colour-order runs turn the solver's wide lanes on.
 pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>, wide: bool) -> SceneResult {
     let mut ours = Vec::new();
-    let (mut exact, mut narrow) = (Vec::new(), Vec::new());
+    // The headline runs are on the world's default rows; the A/B measures
+    // the other format beside them.
+    let default_rows = WorldConfig::default().contact_rows;
+    let other_rows = match default_rows {
+        ContactRows::Exact => ContactRows::Narrow,
+        ContactRows::Narrow => ContactRows::Exact,
+    };
+    let mut other = Vec::new();
     let mut shares = (0.0, 0.0);
+    let share_of = |count: (u64, u64, u64)| {
+        let all = count.0.max(1) as f64;
+        (count.1 as f64 / all, count.2 as f64 / all)
+    };
     let mut theirs = Vec::new();
     let (mut pairs_many, mut one, mut many) = (Vec::new(), Vec::new(), Vec::new());
     let mut rapier_many = Vec::new();
@@ -667,23 +679,20 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>, wide: bool)
     for _ in 0..runs.max(1) {
         let (run, sim) = measure(scene, Ours::new);
         faulted |= sim.faulted;
+        if default_rows == ContactRows::Narrow {
+            shares = share_of(sim.rows_count);
+        }
         drop(sim);
         ours.push(run);
-        for (rows, out) in [
-            (ContactRows::Exact, &mut exact),
-            (ContactRows::Narrow, &mut narrow),
-        ] {
-            let (run, sim) = measure(scene, |s| {
-                Ours::with_rows(s, ContactOrder::Pairs, 1, false, rows)
-            });
-            faulted |= sim.faulted;
-            if rows == ContactRows::Narrow {
-                let all = sim.rows_count.0.max(1) as f64;
-                shares = (sim.rows_count.1 as f64 / all, sim.rows_count.2 as f64 / all);
-            }
-            drop(sim);
-            out.push(run);
+        let (run, sim) = measure(scene, |s| {
+            Ours::with_rows(s, ContactOrder::Pairs, 1, false, other_rows)
+        });
+        faulted |= sim.faulted;
+        if other_rows == ContactRows::Narrow {
+            shares = share_of(sim.rows_count);
         }
+        drop(sim);
+        other.push(run);
         let (run, sim) = measure(scene, Rapier::new);
         let rapier_end = sim.positions();
         drop(sim);
@@ -729,11 +738,21 @@ pub fn run_scene(scene: &Scene, runs: usize, threads: Option<usize>, wide: bool)
         runs: runs.max(1),
         ours: EngineResult::from_runs(&ours, has_tops, faulted),
         rapier: EngineResult::from_runs(&theirs, has_tops, false),
-        rows: RowsAb {
-            exact: EngineResult::from_runs(&exact, has_tops, faulted),
-            narrow: EngineResult::from_runs(&narrow, has_tops, faulted),
-            narrow_share: shares.0,
-            fallback_share: shares.1,
+        rows: {
+            let (default, other) = (
+                EngineResult::from_runs(&ours, has_tops, faulted),
+                EngineResult::from_runs(&other, has_tops, faulted),
+            );
+            let (exact, narrow) = match default_rows {
+                ContactRows::Exact => (default, other),
+                ContactRows::Narrow => (other, default),
+            };
+            RowsAb {
+                exact,
+                narrow,
+                narrow_share: shares.0,
+                fallback_share: shares.1,
+            }
         },
     }
 }
