@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use tokio::sync::watch;
 
-use crate::game::{Demo, RulesFactory};
+use crate::game::{BotView, Demo, RulesFactory};
 use crate::net::{Client, ClientError, ClientEvent, ClientOptions, ClientReport, TrustedCert};
 
 /// What a group of bots should do.
@@ -135,8 +135,8 @@ pub async fn run_bot(
     let client = Client::connect(options, &*game).await?;
     let slot = client.slot().0;
     client
-        .play(
-            move |tick| game.bot_input(seed, slot, tick),
+        .play_seeing(
+            bot_brain(game.clone(), seed, slot),
             move |event| {
                 if verbose {
                     match event {
@@ -165,6 +165,21 @@ pub async fn run_bot(
         .await
 }
 
+/// A bot's input: the game's [`BotPolicy`](crate::game::BotPolicy) for
+/// its slot if it has one, else its scripted
+/// [`bot_input`](RulesFactory::bot_input).
+fn bot_brain(
+    game: Arc<dyn RulesFactory>,
+    seed: u64,
+    slot: u8,
+) -> impl FnMut(&BotView<'_>) -> Vec<u8> + Send + 'static {
+    let mut policy = game.bot_policy(seed, slot);
+    move |view| match &mut policy {
+        Some(p) => p.input(view),
+        None => game.bot_input(seed, slot, view.tick),
+    }
+}
+
 /// Runs `options.count` bots concurrently (connecting one after the other,
 /// so slots follow the index) until each one ends; `stop` makes them all
 /// leave. Returns each bot's outcome in index order.
@@ -189,8 +204,8 @@ pub async fn run_bots(
             };
             let name = format!("bot-{index}");
             client
-                .play(
-                    move |tick| game.bot_input(seed, slot, tick),
+                .play_seeing(
+                    bot_brain(game.clone(), seed, slot),
                     move |event| {
                         if verbose {
                             tracing::info!(player = %name, slot, "{name} (slot {slot}): {event:?}");

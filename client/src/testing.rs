@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use lockstep_core::{BodyKind, Scalar, Vec3, World};
 
-use crate::game::{GameError, GameRules, RulesFactory, RulesId};
+use crate::game::{GameError, GameRules, GameState, GameStateError, RulesFactory, RulesId};
 
 /// Another game's rules plus one ulp more x velocity on the first dynamic
 /// body right before the inputs of `tick`: a peer playing these diverges
@@ -38,6 +38,18 @@ impl GameRules for DivergeRules {
             nudge_one_body(world);
         }
         self.inner.apply_inputs(world, tick, inputs);
+    }
+    fn save_state(&self, state: &mut GameState) -> Result<(), GameStateError> {
+        self.inner.save_state(state)
+    }
+    fn load_state(&mut self, state: &GameState) -> Result<(), GameError> {
+        self.inner.load_state(state)
+    }
+    fn player_joined(&mut self, world: &mut World, tick: u64, slot: u8) {
+        self.inner.player_joined(world, tick, slot);
+    }
+    fn player_left(&mut self, world: &mut World, tick: u64, slot: u8) {
+        self.inner.player_left(world, tick, slot);
     }
 }
 

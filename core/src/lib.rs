@@ -11,6 +11,7 @@ pub mod body;
 pub mod character;
 pub mod collider;
 pub mod collision;
+pub mod game_state;
 pub mod hash;
 pub mod joint;
 pub mod math;
@@ -23,6 +24,7 @@ pub mod world;
 
 pub use body::{BodyDesc, BodyHandle, BodyKind};
 pub use collider::{ColliderDesc, ColliderHandle, CollisionFilter, Material};
+pub use game_state::{GameField, GameState, GameStateError};
 pub use joint::{JointDesc, JointEvent, JointHandle, JointKind, Motor, Spring};
 pub use math::{Aabb, Faults, Mat3, Quat, Scalar, SymMat3, Transform, Vec3};
 pub use world::{BodyRef, ContactOrder, ContactRows, StepReport, World, WorldConfig, WorldError};

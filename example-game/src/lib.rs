@@ -21,7 +21,9 @@
 
 #![warn(missing_docs)]
 
-use lockstep_client::game::{GameError, GameRules, RulesFactory, RulesId};
+use lockstep_client::game::{
+    GameError, GameRules, GameState, GameStateError, RulesFactory, RulesId,
+};
 use lockstep_core::shape::{Shape, Sphere};
 use lockstep_core::{BodyDesc, BodyHandle, BodyKind, ColliderDesc, Scalar, Transform, Vec3, World};
 
@@ -107,7 +109,8 @@ impl PaddleGame {
     pub const ID: &'static str = "example-paddles";
     /// Rules version: bump it whenever the rules turn the same inputs into
     /// different forces, so old replays say so instead of mismatching.
-    pub const VERSION: u32 = 1;
+    /// 2: each player's last drop is game state (in every tick's hash).
+    pub const VERSION: u32 = 2;
 }
 
 impl RulesFactory for PaddleGame {
@@ -125,7 +128,9 @@ impl RulesFactory for PaddleGame {
 }
 
 /// The rules for one world: the paddles' handles and each player's last
-/// drop.
+/// drop. The last drops are the game's own state: saved into the world
+/// after every tick (field [`LAST_DROP_FIELD`]) and loaded back into the
+/// rules of a restored world, so a late joiner's cooldowns are everyone's.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PaddleRules {
     paddles: Vec<BodyHandle>,
@@ -178,7 +183,31 @@ impl PaddleRules {
     }
 }
 
+/// The game-state field of the last drops: per player, the tick of the
+/// last drop plus one (0: none yet).
+pub const LAST_DROP_FIELD: &str = "last_drop";
+
 impl GameRules for PaddleRules {
+    fn save_state(&self, state: &mut GameState) -> Result<(), GameStateError> {
+        let words = self.last_drop.map(|t| t.map_or(0, |t| t + 1));
+        state.set_words(LAST_DROP_FIELD, &words)
+    }
+
+    fn load_state(&mut self, state: &GameState) -> Result<(), GameError> {
+        let Some(words) = state.words(LAST_DROP_FIELD) else {
+            // A world no tick was applied to yet.
+            return Ok(());
+        };
+        let words = <[u64; PLAYERS]>::try_from(words).map_err(|_| {
+            GameError::BadState(format!(
+                "{LAST_DROP_FIELD}: {} words, expected {PLAYERS}",
+                words.len()
+            ))
+        })?;
+        self.last_drop = words.map(|w| w.checked_sub(1));
+        Ok(())
+    }
+
     fn apply_inputs(&mut self, world: &mut World, tick: u64, inputs: &[(u8, &[u8])]) {
         // Whatever fell off the table goes (handle order: the same on every
         // peer).

@@ -22,6 +22,8 @@
 
 mod demo;
 mod input;
+mod policy;
+mod tick;
 
 #[cfg(test)]
 mod tests;
@@ -34,8 +36,11 @@ pub use input::{DemoInput, INPUT_LEN, bot_input};
 
 use std::sync::Arc;
 
+pub use lockstep_core::{GameState, GameStateError};
 pub use lockstep_proto::RulesId;
+pub use policy::{BotPolicy, BotView};
 use thiserror::Error;
+pub use tick::{PLAYERS_FIELD, TickError, apply_tick};
 
 /// The game layer: turns one tick's player inputs into forces and impulses
 /// on the world, called by every peer (bots, clients, the offline replay
@@ -45,14 +50,78 @@ use thiserror::Error;
 /// no hash-map iteration, no clock): two peers that call it with the same
 /// world state and the same inputs must leave the world in the same state,
 /// bit for bit, or they desync.
-pub trait GameRules: Send {
+///
+/// # The game's own state
+///
+/// Whatever the rules remember from one tick to the next (scores, rounds,
+/// cooldowns, a random generator's state) is simulation state: it must be
+/// in the world's [`GameState`] after every tick, or a late joiner (whose
+/// rules start fresh) desyncs and the state hash cannot see a difference.
+/// Either keep it in the world (read and write
+/// [`World::game_state_mut`](lockstep_core::World::game_state_mut) in
+/// [`apply_inputs`](GameRules::apply_inputs)), or keep it in the rules and
+/// implement [`save_state`](GameRules::save_state) and
+/// [`load_state`](GameRules::load_state): [`apply_tick`] saves it after
+/// every tick's inputs, and [`RulesFactory::rules_for`] loads it into fresh
+/// rules for a restored world. A wrapper around other rules forwards all
+/// five methods.
+pub trait GameRules: Send + std::any::Any {
     /// Applies the inputs of `tick`: one entry per player present, ascending
     /// by slot. `bytes` may be anything up to 64 bytes long, including
     /// malformed: never panic, treat bad input as "no input".
     ///
     /// Determinism: must be called once per tick, before `world.step()`,
-    /// with the entries in ascending slot order on every peer.
+    /// with the entries in ascending slot order on every peer (what
+    /// [`apply_tick`] does).
     fn apply_inputs(&mut self, world: &mut lockstep_core::World, tick: u64, inputs: &[(u8, &[u8])]);
+
+    /// Writes the state the rules keep outside the world into `state`
+    /// (called by [`apply_tick`] after every tick's inputs). Set the same
+    /// fields in the same order every time. Default: nothing (rules that
+    /// keep no state, or keep it in the world).
+    ///
+    /// # Errors
+    /// A field past a [`GameState`] bound: the tick fails on every peer
+    /// alike and the client reports it.
+    fn save_state(&self, state: &mut GameState) -> Result<(), GameStateError> {
+        let _ = state;
+        Ok(())
+    }
+
+    /// Reads back what [`save_state`](GameRules::save_state) wrote, into
+    /// rules just made for a restored world (a late join, a rejoin, a desync
+    /// bundle, a sync test). Default: nothing.
+    ///
+    /// # Errors
+    /// [`GameError::BadState`] if the state is not one these rules wrote.
+    fn load_state(&mut self, state: &GameState) -> Result<(), GameError> {
+        let _ = state;
+        Ok(())
+    }
+
+    /// Player `slot` is in the match from `tick` on (at tick 0 for the
+    /// players who started it; later for a late joiner or a rejoin).
+    /// Called by [`apply_tick`] before that tick's inputs, in ascending slot
+    /// order. Default: nothing.
+    fn player_joined(&mut self, world: &mut lockstep_core::World, tick: u64, slot: u8) {
+        let _ = (world, tick, slot);
+    }
+
+    /// Player `slot` is no longer in the match from `tick` on (left,
+    /// dropped, or waiting to rejoin). Called by [`apply_tick`] before
+    /// that tick's inputs and before any join, in ascending slot order.
+    /// Default: nothing.
+    fn player_left(&mut self, world: &mut lockstep_core::World, tick: u64, slot: u8) {
+        let _ = (world, tick, slot);
+    }
+}
+
+impl dyn GameRules {
+    /// These rules as their concrete type, if they are an `R` (a frame
+    /// loop reading its game's score, a bot policy reading a cooldown).
+    pub fn downcast_ref<R: GameRules>(&self) -> Option<&R> {
+        (self as &dyn std::any::Any).downcast_ref::<R>()
+    }
 }
 
 /// A game, as the client, the bots and the replay check see it: which rules
@@ -142,12 +211,37 @@ pub trait RulesFactory: Send + Sync {
     /// [`GameError`] if the world is not the one the game expects.
     fn new_rules(&self, world: &lockstep_core::World) -> Result<Box<dyn GameRules>, GameError>;
 
+    /// Rules for `world` wherever it comes from: [`new_rules`] for it,
+    /// then its game state loaded into them ([`GameRules::load_state`]).
+    /// Every program of the library makes rules this way, so a world
+    /// restored mid-match (a late join, a bundle) continues with the rules'
+    /// state it was saved with.
+    ///
+    /// [`new_rules`]: RulesFactory::new_rules
+    ///
+    /// # Errors
+    /// [`GameError`] from either.
+    fn rules_for(&self, world: &lockstep_core::World) -> Result<Box<dyn GameRules>, GameError> {
+        let mut rules = self.new_rules(world)?;
+        rules.load_state(world.game_state())?;
+        Ok(rules)
+    }
+
     /// A headless bot's input for `tick` (pure function of its arguments
     /// so that bot matches are reproducible). Default: no input (empty
     /// bytes), which rules must accept.
     fn bot_input(&self, seed: u64, slot: u8, tick: u64) -> Vec<u8> {
         let _ = (seed, slot, tick);
         Vec::new()
+    }
+
+    /// A bot that sees the world, for the bot in `slot` of a match played
+    /// with `seed`; the bots ([`crate::bot`]) use it when there is one, and
+    /// [`bot_input`](RulesFactory::bot_input) otherwise (and always for
+    /// load tests' blind bots). Default: none.
+    fn bot_policy(&self, seed: u64, slot: u8) -> Option<Box<dyn BotPolicy>> {
+        let _ = (seed, slot);
+        None
     }
 }
 
@@ -160,6 +254,12 @@ impl<T: RulesFactory + ?Sized> RulesFactory for Arc<T> {
     }
     fn bot_input(&self, seed: u64, slot: u8, tick: u64) -> Vec<u8> {
         (**self).bot_input(seed, slot, tick)
+    }
+    fn rules_for(&self, world: &lockstep_core::World) -> Result<Box<dyn GameRules>, GameError> {
+        (**self).rules_for(world)
+    }
+    fn bot_policy(&self, seed: u64, slot: u8) -> Option<Box<dyn BotPolicy>> {
+        (**self).bot_policy(seed, slot)
     }
 }
 
@@ -196,6 +296,9 @@ pub enum GameError {
     /// The world has no body with this name.
     #[error("the world has no body named {0:?}")]
     MissingBody(String),
+    /// The world's game state is not one these rules wrote.
+    #[error("game state: {0}")]
+    BadState(String),
     /// A body exists but is not what the game needs.
     #[error("body {name:?}: {problem}")]
     BadBody {
@@ -232,7 +335,9 @@ struct VerifiedWorld {
 
 impl lockstep_proto::verify::TickVerifier for VerifiedWorld {
     fn apply(&mut self, bundle: &lockstep_proto::TickBundle) -> u64 {
-        crate::offline::apply_bundle(&mut self.world, &mut *self.rules, bundle);
+        // A tick the rules cannot apply fails alike on every peer; the
+        // hash of the state as it is stays the verdict.
+        let _ = crate::offline::apply_bundle(&mut self.world, &mut *self.rules, bundle);
         self.world.state_hash()
     }
 
@@ -256,7 +361,7 @@ impl lockstep_proto::verify::VerifierFactory for RulesVerifier {
                 "scene hashes to {got:016x}, the room announces {scene_hash:016x}"
             ));
         }
-        let rules = self.game.new_rules(&world).map_err(|e| e.to_string())?;
+        let rules = self.game.rules_for(&world).map_err(|e| e.to_string())?;
         Ok(Box::new(VerifiedWorld { world, rules }))
     }
 }

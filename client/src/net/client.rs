@@ -20,7 +20,7 @@ use lockstep_net::{
 };
 
 use super::tls::client_config;
-use crate::game::{GameRules, RulesFactory, RulesId};
+use crate::game::{BotView, GameRules, RulesFactory, RulesId, apply_tick};
 
 /// The certificate (or CA) a client trusts: a PEM file, or PEM text held in
 /// memory (a game that ships its server's certificate inside the binary).
@@ -378,7 +378,7 @@ impl Client {
             connection.close(close_code::REFUSED.into(), b"scene hash mismatch");
             return Err(ClientError::SceneHashMismatch { expected, got });
         }
-        let rules = match game.new_rules(&world) {
+        let rules = match game.rules_for(&world) {
             Ok(r) => r,
             Err(e) => {
                 connection.close(close_code::NORMAL.into(), b"rules refused the scene");
@@ -411,6 +411,11 @@ impl Client {
     /// The lockstep session (timing parameters, counters).
     pub fn session(&self) -> &Session {
         &self.session
+    }
+
+    /// The rules, as built for the welcome's world.
+    pub fn rules(&self) -> &dyn GameRules {
+        &*self.rules
     }
 
     /// The rules this client plays with.
@@ -509,6 +514,22 @@ impl Client {
     pub async fn play(
         self,
         mut input: impl FnMut(u64) -> Vec<u8> + Send,
+        on_event: impl FnMut(&ClientEvent) + Send,
+        stop: impl Future<Output = ()> + Send,
+    ) -> Result<ClientReport, ClientError> {
+        self.play_seeing(move |view| input(view.tick), on_event, stop)
+            .await
+    }
+
+    /// [`play`](Self::play) with an input that sees the world, the rules
+    /// and the slot ([`BotView`]): how a bot with a
+    /// [`BotPolicy`](crate::game::BotPolicy) plays.
+    ///
+    /// # Errors
+    /// As [`play`](Self::play).
+    pub async fn play_seeing(
+        self,
+        mut input: impl FnMut(&BotView<'_>) -> Vec<u8> + Send,
         mut on_event: impl FnMut(&ClientEvent) + Send,
         stop: impl Future<Output = ()> + Send,
     ) -> Result<ClientReport, ClientError> {
@@ -531,7 +552,7 @@ impl Client {
         tokio::pin!(stop);
         let mut stopped = false;
         let result = loop {
-            let polled = live.poll(&mut input);
+            let polled = live.poll_seeing(&mut input);
             let failed = match polled {
                 Ok(p) => {
                     record(&mut report, &p, &mut on_event);
@@ -699,6 +720,14 @@ impl LiveClient {
         &self.session
     }
 
+    /// The rules after the last applied tick: a frame loop reads the
+    /// game's own state from them, typed, with
+    /// `live.rules().downcast_ref::<MyRules>()` (or from
+    /// [`World::game_state`]).
+    pub fn rules(&self) -> &dyn GameRules {
+        &*self.rules
+    }
+
     /// The next tick to apply.
     pub fn next_tick(&self) -> u64 {
         self.next_tick
@@ -745,6 +774,19 @@ impl LiveClient {
     /// [`ClientError`] if the server sent garbage or the connection is
     /// lost (a close by the server is an event, not an error).
     pub fn poll(&mut self, mut input: impl FnMut(u64) -> Vec<u8>) -> Result<Polled, ClientError> {
+        self.poll_seeing(|view| input(view.tick))
+    }
+
+    /// [`poll`](Self::poll) with an input that sees the world, the rules
+    /// and the slot ([`BotView`]): what a bot that plays, or a game's
+    /// assist, needs.
+    ///
+    /// # Errors
+    /// As [`poll`](Self::poll).
+    pub fn poll_seeing(
+        &mut self,
+        mut input: impl FnMut(&BotView<'_>) -> Vec<u8>,
+    ) -> Result<Polled, ClientError> {
         let mut out = Polled::default();
         let result = self.poll_inner(&mut input, &mut out);
         let mut answered = false;
@@ -771,7 +813,7 @@ impl LiveClient {
 
     fn poll_inner(
         &mut self,
-        input: &mut impl FnMut(u64) -> Vec<u8>,
+        input: &mut impl FnMut(&BotView<'_>) -> Vec<u8>,
         out: &mut Polled,
     ) -> Result<(), ClientError> {
         while let Some(item) = self
@@ -803,7 +845,13 @@ impl LiveClient {
         }
         while self.session.wants_input(now) {
             let tick = self.session.next_input_tick();
-            self.session.submit_input(input(tick))?;
+            let view = BotView {
+                world: &self.world,
+                rules: &*self.rules,
+                slot: self.session.slot().0,
+                tick,
+            };
+            self.session.submit_input(input(&view))?;
         }
         // Inputs first: they are the time-critical part.
         self.flush()?;
@@ -826,9 +874,8 @@ impl LiveClient {
                 .iter()
                 .map(|p| (p.slot.0, p.input.as_slice()))
                 .collect();
-            self.rules
-                .apply_inputs(&mut self.world, bundle.tick, &inputs);
-            let step = self.world.step();
+            let step = apply_tick(&mut self.world, &mut *self.rules, bundle.tick, &inputs)
+                .map_err(|e| ClientError::Game(e.to_string()))?;
             let hash = self.world.state_hash();
             self.history.record(bundle.tick, &self.world);
             let every = self.options.body_hashes_every;

@@ -60,7 +60,7 @@ pub fn reproduce_bundle(
         .ok_or(ReplayVerifyError::NotABundle)?;
     let mut world = recorded_world(replay, "bundle scene")?;
     let mut rules = game
-        .new_rules(&world)
+        .rules_for(&world)
         .map_err(|e| ReplayVerifyError::Game(e.to_string()))?;
     let mut checked = 0;
     let end = usize::try_from(recorded.tick)
@@ -68,7 +68,7 @@ pub fn reproduce_bundle(
         .filter(|&t| t < replay.ticks.len())
         .ok_or(ReplayVerifyError::NotABundle)?;
     for (bundle, expected) in replay.ticks[..=end].iter().zip(&replay.hashes) {
-        apply_bundle(&mut world, &mut *rules, bundle);
+        apply_bundle(&mut world, &mut *rules, bundle).map_err(super::replay::tick_failed)?;
         let got = world.state_hash();
         if bundle.tick < recorded.tick
             && let Some(expected) = *expected

@@ -5,6 +5,7 @@ mod bundle;
 mod dump;
 mod replay;
 mod sim;
+mod synctest;
 pub mod tune;
 
 pub use bundle::{BundleCheck, is_bundle, reproduce_bundle};
@@ -14,3 +15,4 @@ pub use replay::{
     check_replay_command, exit_status, recorded_world, verify_replay, verify_replay_file,
 };
 pub use sim::{SimError, SimOptions, SimSummary, load_scene_file, run_sim};
+pub use synctest::{SyncCheck, SyncTestError, SyncTestOptions, SyncTestReport, sync_test};

@@ -15,12 +15,12 @@
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use lockstep_core::World;
 use lockstep_core::world::STATE_HASH_VERSION;
+use lockstep_core::{StepReport, World};
 use lockstep_proto::{Replay, ReplayError, RulesId, TickBundle};
 use thiserror::Error;
 
-use crate::game::{GameRules, RulesFactory};
+use crate::game::{GameRules, RulesFactory, TickError, apply_tick};
 
 /// A body whose hash differs from the one recorded in the replay.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -235,16 +235,27 @@ impl ReplayVerifyError {
     }
 }
 
-/// Applies one bundle to the world: game rules, then a step. The same
-/// sequence every client runs, so the result hashes the same.
-pub fn apply_bundle(world: &mut World, game: &mut dyn GameRules, bundle: &TickBundle) {
+/// Applies one bundle to the world with [`apply_tick`]: the sequence every
+/// client runs, so the result hashes the same.
+///
+/// # Errors
+/// [`TickError`] from the rules.
+pub fn apply_bundle(
+    world: &mut World,
+    game: &mut dyn GameRules,
+    bundle: &TickBundle,
+) -> Result<StepReport, TickError> {
     let inputs: Vec<(u8, &[u8])> = bundle
         .inputs
         .iter()
         .map(|p| (p.slot.0, p.input.as_slice()))
         .collect();
-    game.apply_inputs(world, bundle.tick, &inputs);
-    world.step();
+    apply_tick(world, game, bundle.tick, &inputs)
+}
+
+/// A failed tick as a replay error.
+pub(crate) fn tick_failed(e: TickError) -> ReplayVerifyError {
+    ReplayVerifyError::Game(e.to_string())
 }
 
 /// Builds the world from the scene a replay (or bundle) recorded;
@@ -304,11 +315,11 @@ pub fn verify_replay(
         });
     }
     let mut rules = game
-        .new_rules(&world)
+        .rules_for(&world)
         .map_err(|e| ReplayVerifyError::Game(e.to_string()))?;
     let mut checked = 0;
     for (i, (bundle, expected)) in replay.ticks.iter().zip(&replay.hashes).enumerate() {
-        apply_bundle(&mut world, &mut *rules, bundle);
+        apply_bundle(&mut world, &mut *rules, bundle).map_err(tick_failed)?;
         if let Some(expected) = *expected {
             let got = world.state_hash();
             if got != expected {
@@ -348,7 +359,7 @@ fn diverging_bodies(
     let tick = at as u64;
     let (target, recorded) = replay.body_hashes.iter().find(|(t, _)| *t >= tick)?;
     for bundle in replay.ticks.get(at + 1..=usize::try_from(*target).ok()?)? {
-        apply_bundle(world, rules, bundle);
+        apply_bundle(world, rules, bundle).ok()?;
     }
     let ours = world.body_hashes();
     let n = ours.len().max(recorded.len());

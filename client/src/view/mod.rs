@@ -144,7 +144,7 @@ pub fn view_replay(
     let mut world =
         recorded_world(replay, "recorded scene").map_err(|e| ViewError::Replay(e.to_string()))?;
     let mut rules = game
-        .new_rules(&world)
+        .rules_for(&world)
         .map_err(|e| ViewError::Replay(e.to_string()))?;
     let bundle = is_bundle(replay);
     let kind = if bundle {
@@ -182,7 +182,7 @@ pub fn view_replay(
         if t.tick > last {
             break;
         }
-        apply_bundle(&mut world, &mut *rules, t);
+        apply_bundle(&mut world, &mut *rules, t).map_err(|e| ViewError::Replay(e.to_string()))?;
         if t.tick >= from {
             rec.record(&world, t.tick);
         }

@@ -76,6 +76,8 @@ pub struct World {
     contacts: ContactSet,
     faults: Faults,
     joints: joints::JointSet,
+    /// The game's own state (see [`crate::game_state`]).
+    game: crate::game_state::GameState,
     /// The joints that broke in the last step (an output, not state).
     #[serde(skip)]
     joint_events: Vec<crate::joint::JointEvent>,
@@ -128,6 +130,7 @@ impl World {
             contacts: ContactSet::default(),
             faults: Faults::NONE,
             joints: joints::JointSet::default(),
+            game: crate::game_state::GameState::default(),
             joint_events: Vec::new(),
             joint_solver: Default::default(),
             candidates: Vec::new(),
@@ -908,9 +911,21 @@ impl World {
         self.joints.rebuild();
     }
 
+    /// The game's own state (see [`crate::game_state`]): hashed,
+    /// snapshotted and restored with the world.
+    pub fn game_state(&self) -> &crate::game_state::GameState {
+        &self.game
+    }
+
+    /// The game's own state, to change (see [`crate::game_state`]).
+    pub fn game_state_mut(&mut self) -> &mut crate::game_state::GameState {
+        &mut self.game
+    }
+
     /// Checks the cross-references a decoded snapshot must satisfy: every
     /// collider's body exists and lists it, and every listed collider exists.
     pub(crate) fn check_invariants(&self) -> Result<(), String> {
+        self.game.validate()?;
         self.bodies.check()?;
         self.colliders.check()?;
         self.broad.validate().map_err(|e| e.to_string())?;

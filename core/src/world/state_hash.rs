@@ -80,6 +80,12 @@ impl World {
         }
         self.contacts.hash_into(&mut h);
         self.joints.hash_into(&mut h);
+        // The game's own state, only when it has a field (a world whose
+        // rules keep none hashes as before game state existed).
+        if !self.game.is_empty() {
+            h.word(u64::from_le_bytes(*b"game\0\0\0\0"));
+            self.game.hash_into(&mut h);
+        }
         h.finish()
     }
 
@@ -259,7 +265,7 @@ impl World {
 }
 
 /// How a dumped field's words read.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum FieldKind {
     /// Unsigned words (flags, counts, handles, hashes).
     Word,
