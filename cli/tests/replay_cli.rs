@@ -66,7 +66,7 @@ fn record_lying(
                 })
                 .collect(),
         };
-        apply_bundle(&mut world, &mut game, &bundle);
+        apply_bundle(&mut world, &mut game, &bundle).expect("tick");
         let mut bundle = bundle;
         if lie_at == Some(tick) {
             // The file says player 0 pressed something else than it did.
@@ -242,7 +242,7 @@ fn world_after(ticks: u64) -> lockstep_core::World {
                 })
                 .collect(),
         };
-        apply_bundle(&mut world, &mut game, &bundle);
+        apply_bundle(&mut world, &mut game, &bundle).expect("tick");
     }
     world
 }
@@ -278,6 +278,8 @@ fn bundle(expected: Option<Vec<u64>>, snapshot: Option<Vec<u8>>) -> Vec<u8> {
             status: ProbeStatus::Complete,
             bodies_differing: 1,
             contacts_differ: false,
+            game_differs: false,
+            game: Vec::new(),
             bodies: vec![BodyDiff {
                 index: 5,
                 handle: dump.handle,
@@ -292,6 +294,7 @@ fn bundle(expected: Option<Vec<u64>>, snapshot: Option<Vec<u8>>) -> Vec<u8> {
             }],
         }],
         fields_omitted: 0,
+        inputs: Vec::new(),
     };
     let snap = snapshot.unwrap_or_else(|| at_59.snapshot());
     let mut bytes = record(61, None);

@@ -410,6 +410,7 @@ mod tests {
             scene_hash: 1,
             scene: vec![],
             resume: None,
+            rules: None,
         });
         assert!(matches!(
             ServerMessage::decode(&raw(&w)),

@@ -16,9 +16,9 @@ use serde::{Deserialize, Serialize};
 use crate::limits::{
     MAX_BODY_HASHES, MAX_DUMP_FIELDS, MAX_FIELD_NAME_BYTES, MAX_FIELD_WORDS, MAX_NAME_BYTES,
     MAX_PLAYERS, MAX_PROBE_BODIES, MAX_PROBE_SNAPSHOT_BYTES, MAX_PROBE_TOTAL_BODIES,
-    MAX_REPORT_FIELDS, MAX_SNAPSHOT_CHUNK_BYTES,
+    MAX_REPORT_FIELDS, MAX_SNAPSHOT_CHUNK_BYTES, MAX_INPUT_BYTES,
 };
-use crate::message::{Slot, Violation};
+use crate::message::{PlayerInput, Slot, Violation};
 
 /// What the room asks a client about a past tick.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -102,13 +102,19 @@ pub enum ProbeAnswer {
         from: u32,
         /// The hash of the world's contact state alone.
         contacts: u64,
+        /// The hash of the game's own state alone.
+        game: u64,
         /// Consecutive body hashes.
         hashes: Vec<u64>,
     },
-    /// The asked bodies' fields (a body index past the world is left out).
+    /// The asked bodies' fields (a body index past the world is left out),
+    /// and every field of the game's own state.
     Fields {
         /// One dump per body, ascending by index.
         bodies: Vec<BodyDump>,
+        /// The game state's fields, in order (at most
+        /// [`MAX_DUMP_FIELDS`]).
+        game: Vec<FieldDump>,
     },
     /// A chunk of the snapshot.
     Snapshot {
@@ -181,6 +187,10 @@ pub struct SuspectReport {
     pub bodies_differing: u32,
     /// Whether the contact state differs.
     pub contacts_differ: bool,
+    /// Whether the game's own state differs.
+    pub game_differs: bool,
+    /// The game-state fields that differ, in the reference's order.
+    pub game: Vec<FieldDiff>,
     /// The first differing bodies with their differing fields, ascending.
     pub bodies: Vec<BodyDiff>,
 }
@@ -202,6 +212,9 @@ pub struct DesyncReport {
     pub suspects: Vec<SuspectReport>,
     /// Differing fields left out past [`MAX_REPORT_FIELDS`].
     pub fields_omitted: u32,
+    /// The inputs of the desync tick, as every player applied them (empty
+    /// when the room no longer held the tick).
+    pub inputs: Vec<PlayerInput>,
 }
 
 impl DesyncReport {
@@ -260,7 +273,11 @@ impl ProbeReply {
                 check(*total as usize, MAX_PROBE_TOTAL_BODIES, entries)?;
                 check(hashes.len(), MAX_BODY_HASHES, entries)
             }
-            ProbeAnswer::Fields { bodies } => {
+            ProbeAnswer::Fields { bodies, game } => {
+                check(game.len(), MAX_DUMP_FIELDS, entries)?;
+                for f in game {
+                    check_field(f.name.len(), &f.words)?;
+                }
                 check(bodies.len(), MAX_PROBE_BODIES, entries)?;
                 for b in bodies {
                     check(b.name.len(), MAX_NAME_BYTES, name)?;
@@ -290,12 +307,27 @@ impl DesyncReport {
     /// The first [`Violation`].
     pub fn validate(&self) -> Result<(), Violation> {
         check(self.suspects.len(), MAX_PLAYERS, entries)?;
+        check(self.inputs.len(), MAX_PLAYERS, entries)?;
+        for p in &self.inputs {
+            if p.slot.index() >= MAX_PLAYERS {
+                return Err(Violation::SlotOutOfRange(p.slot.0));
+            }
+            check(p.input.len(), MAX_INPUT_BYTES, |len, max| Violation::InputTooLarge {
+                len,
+                max,
+            })?;
+        }
         let mut fields = 0;
         for s in &self.suspects {
             if s.slot.index() >= MAX_PLAYERS {
                 return Err(Violation::SlotOutOfRange(s.slot.0));
             }
             check(s.bodies.len(), MAX_PROBE_BODIES, entries)?;
+            fields += s.game.len();
+            for f in &s.game {
+                check_field(f.name.len(), &f.expected)?;
+                check_field(f.name.len(), &f.got)?;
+            }
             for b in &s.bodies {
                 check(b.name.len(), MAX_NAME_BYTES, name)?;
                 fields += b.fields.len();
@@ -372,6 +404,18 @@ impl std::fmt::Display for DesyncReport {
             Some(b) => writeln!(f, "  first diverging body in handle order: {b}")?,
             None => writeln!(f, "  no diverging body found")?,
         }
+        if !self.inputs.is_empty() {
+            let inputs: Vec<String> = self
+                .inputs
+                .iter()
+                .map(|p| {
+                    let hex: String = p.input.iter().map(|b| format!("{b:02x}")).collect();
+                    let sub = if p.substituted { " (substituted)" } else { "" };
+                    format!("slot {} [{hex}]{sub}", p.slot.0)
+                })
+                .collect();
+            writeln!(f, "  inputs of tick {}: {}", self.tick, inputs.join(", "))?;
+        }
         for s in &self.suspects {
             writeln!(
                 f,
@@ -379,12 +423,18 @@ impl std::fmt::Display for DesyncReport {
                 s.slot.0,
                 s.status,
                 s.bodies_differing,
-                if s.contacts_differ {
-                    ", the contact state differs"
-                } else {
-                    ""
+                match (s.contacts_differ, s.game_differs) {
+                    (true, true) => ", the contact state and the game state differ",
+                    (true, false) => ", the contact state differs",
+                    (false, true) => ", the game state differs",
+                    (false, false) => "",
                 }
             )?;
+            for d in &s.game {
+                writeln!(f, "    game state {}:", d.name)?;
+                writeln!(f, "        expected {}", words_text(d.kind, &d.expected))?;
+                writeln!(f, "        got      {}", words_text(d.kind, &d.got))?;
+            }
             for b in &s.bodies {
                 writeln!(f, "    {b}")?;
                 for d in &b.fields {
@@ -408,9 +458,15 @@ impl std::fmt::Display for DesyncReport {
 /// The fields of two dumps of one body that differ, matched by name in
 /// order (a field only one side has differs).
 pub fn field_diffs(expected: &BodyDump, got: &BodyDump) -> Vec<FieldDiff> {
+    list_diffs(&expected.fields, &got.fields)
+}
+
+/// The fields of two lists that differ, matched by name in order (a field
+/// only one side has differs).
+pub fn list_diffs(expected: &[FieldDump], got: &[FieldDump]) -> Vec<FieldDiff> {
     let mut out = Vec::new();
-    for f in &expected.fields {
-        match got.fields.iter().find(|g| g.name == f.name) {
+    for f in expected {
+        match got.iter().find(|g| g.name == f.name) {
             Some(g) if g.words == f.words && g.kind == f.kind => {}
             Some(g) => out.push(FieldDiff {
                 name: f.name.clone(),
@@ -426,8 +482,8 @@ pub fn field_diffs(expected: &BodyDump, got: &BodyDump) -> Vec<FieldDiff> {
             }),
         }
     }
-    for g in &got.fields {
-        if !expected.fields.iter().any(|f| f.name == g.name) {
+    for g in got {
+        if !expected.iter().any(|f| f.name == g.name) {
             out.push(FieldDiff {
                 name: g.name.clone(),
                 kind: g.kind,

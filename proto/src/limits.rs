@@ -9,7 +9,9 @@
 /// [`DecodeError::WrongVersion`](crate::DecodeError::WrongVersion) instead of
 /// being misread. Bump it on any change to a message layout.
 /// Version 2 added the join token and the desync probes and report.
-pub const PROTOCOL_VERSION: u16 = 2;
+/// Version 3 added the rules in the welcome and the game state in the
+/// desync probes and report.
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Bytes taken by the version header in front of every encoded message.
 pub const VERSION_HEADER_BYTES: usize = 2;

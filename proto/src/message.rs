@@ -210,6 +210,9 @@ pub struct Welcome {
     /// For a player joining a running match (a late join or a rejoin): the
     /// state to start from instead of the scene.
     pub resume: Option<Resume>,
+    /// The game rules the match is played with (`None`: the server does not
+    /// say). A client with other rules must not play.
+    pub rules: Option<crate::RulesId>,
 }
 
 /// Where a player joining a running match starts: the world after `tick`
@@ -247,6 +250,12 @@ impl Welcome {
             MAX_INPUT_BYTES,
             |len, max| Violation::InputTooLarge { len, max },
         )?;
+        if let Some(r) = &self.rules {
+            check_len(r.id.len(), MAX_NAME_BYTES, |len, max| Violation::NameTooLong {
+                len,
+                max,
+            })?;
+        }
         let resume = self.resume.as_ref().map_or(0, |r| r.snapshot.len());
         check_len(self.scene.len() + resume, MAX_SCENE_BYTES, |len, max| {
             Violation::SceneTooLarge { len, max }

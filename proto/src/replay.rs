@@ -42,7 +42,10 @@ pub const REPLAY_MAGIC: [u8; 8] = *b"LSREPLAY";
 /// state-hash layout, the rules' id and version) and per-body hash records.
 /// Version 3 added desync reports and snapshot records (desync bundles);
 /// version 2 files are still read (they cannot hold those records).
-pub const REPLAY_FORMAT_VERSION: u16 = 3;
+/// Version 4 added the game state and the tick's inputs to desync reports;
+/// version 3 files read unless they hold a desync report (then they are
+/// refused as too old).
+pub const REPLAY_FORMAT_VERSION: u16 = 4;
 
 /// The oldest format version this build reads.
 pub const REPLAY_OLDEST_READABLE: u16 = 2;
@@ -209,7 +212,7 @@ pub enum ReplayError {
     #[error(
         "replay format version {found}, this build reads versions {REPLAY_OLDEST_READABLE} to {expected}{}",
         if *found < *expected {
-            " (an older replay, recorded before replays said which engine, hash layout and rules made them: re-record it)"
+            " (an older replay whose records this build cannot read: re-record it)"
         } else {
             " (a newer replay: check it with a newer build)"
         }
@@ -360,7 +363,18 @@ impl Replay {
                 break;
             };
             let (record, used) = bincode::serde::decode_from_slice::<ReplayRecord, _>(body, CONFIG)
-                .map_err(|source| ReplayError::Malformed { offset, source })?;
+                .map_err(|source| {
+                    if found < REPLAY_FORMAT_VERSION {
+                        // A record of an older shape (a version 3 desync
+                        // report).
+                        ReplayError::WrongVersion {
+                            found,
+                            expected: REPLAY_FORMAT_VERSION,
+                        }
+                    } else {
+                        ReplayError::Malformed { offset, source }
+                    }
+                })?;
             if used != body.len() {
                 return Err(ReplayError::Malformed {
                     offset,

@@ -286,6 +286,7 @@ impl Room {
                 scene_hash: self.config.scene_hash,
                 scene: self.config.scene.clone(),
                 resume: None,
+                rules: self.config.rules.clone(),
             }),
         });
         self.events.push_back(RoomEvent::PlayerJoined {
@@ -965,6 +966,7 @@ impl Room {
                     hash: j.hash,
                     snapshot,
                 }),
+                rules: self.config.rules.clone(),
             }),
         });
         self.events.push_back(RoomEvent::PlayerJoined { id, name });
@@ -991,7 +993,12 @@ impl Room {
                         });
                     }
                 }
-                Output::Report(report) => {
+                Output::Report(mut report) => {
+                    // The inputs of the desync tick beside the bodies: a
+                    // wrong input handling shows there first.
+                    if let Some(b) = self.history.get(report.tick) {
+                        report.inputs.clone_from(&b.inputs);
+                    }
                     self.stats.desyncs_located += 1;
                     for index in 0..self.players.len() {
                         if self.players[index].is_some() {

@@ -595,6 +595,7 @@ mod tests {
             scene_hash: 77,
             scene: vec![1, 2, 3],
             resume: None,
+            rules: None,
         }
     }
 

@@ -72,6 +72,7 @@ fn server_samples() -> Vec<ServerMessage> {
             scene_hash: 99,
             scene: (0..=255).collect(),
             resume: None,
+            rules: None,
         }),
         ServerMessage::Bundles(BundleDatagram {
             ack_input: Some(36_004),

@@ -8,7 +8,7 @@ use lockstep_proto::{
 };
 
 /// The version header: protocol version 2, little-endian.
-const V: [u8; 2] = [2, 0];
+const V: [u8; 2] = [3, 0];
 
 fn with_header(body: &[u8]) -> Vec<u8> {
     [&V[..], body].concat()
@@ -17,19 +17,19 @@ fn with_header(body: &[u8]) -> Vec<u8> {
 #[test]
 fn client_messages_have_the_documented_bytes() {
     let join = ClientMessage::Join(Join {
-        protocol_version: 2,
+        protocol_version: 3,
         room: "ab".into(),
         player_name: "p".into(),
         token: None,
     });
-    // variant 0; u16 varint 2; string = varint length + UTF-8; string;
+    // variant 0; u16 varint 3; string = varint length + UTF-8; string;
     // no token: Option tag 0.
     assert_eq!(
         join.encode().unwrap(),
-        with_header(&[0, 2, 2, b'a', b'b', 1, b'p', 0])
+        with_header(&[0, 3, 2, b'a', b'b', 1, b'p', 0])
     );
     let join = ClientMessage::Join(Join {
-        protocol_version: 2,
+        protocol_version: 3,
         room: "ab".into(),
         player_name: "p".into(),
         token: Some("0f".into()),
@@ -37,7 +37,7 @@ fn client_messages_have_the_documented_bytes() {
     // A token: Option tag 1, then the string.
     assert_eq!(
         join.encode().unwrap(),
-        with_header(&[0, 2, 2, b'a', b'b', 1, b'p', 1, 2, b'0', b'f'])
+        with_header(&[0, 3, 2, b'a', b'b', 1, b'p', 1, 2, b'0', b'f'])
     );
     let probe = ServerMessage::Probe(lockstep_proto::Probe {
         tick: 300,
@@ -97,13 +97,14 @@ fn server_messages_have_the_documented_bytes() {
         scene_hash: 17,
         scene: b"s".to_vec(),
         resume: None,
+        rules: None,
     });
     // variant 0; slot u8; tick rate, delay, window varints; max input
     // bytes u8 raw; start tick; scene hash; scene = length + bytes; no
-    // resume: Option tag 0.
+    // resume: Option tag 0; no rules: Option tag 0.
     assert_eq!(
         welcome.encode().unwrap(),
-        with_header(&[0, 1, 60, 4, 64, 64, 0, 17, 1, b's', 0])
+        with_header(&[0, 1, 60, 4, 64, 64, 0, 17, 1, b's', 0, 0])
     );
     let bundles = ServerMessage::Bundles(BundleDatagram {
         ack_input: None,

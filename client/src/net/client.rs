@@ -174,6 +174,16 @@ pub enum ClientError {
         /// Computed.
         got: u64,
     },
+    /// The server plays other rules than this client's.
+    #[error(
+        "the server plays {server}, this client {ours}: build the client with the server's game (or point it at a server of its own)"
+    )]
+    WrongRules {
+        /// What the server announced.
+        server: RulesId,
+        /// This client's.
+        ours: RulesId,
+    },
     /// The game rules refused the world.
     #[error("game: {0}")]
     Game(String),
@@ -357,6 +367,15 @@ impl Client {
                 return Err(ClientError::Timeout("joining"));
             }
         };
+        if let Some(server) = &welcome.rules
+            && *server != game.rules_id()
+        {
+            connection.close(close_code::REFUSED.into(), b"other game rules");
+            return Err(ClientError::WrongRules {
+                server: server.clone(),
+                ours: game.rules_id(),
+            });
+        }
         let session = Session::new(&welcome)?;
         let (world, expected) = match &welcome.resume {
             // Joining a running match: the agreed state of a past tick.

@@ -90,6 +90,7 @@ impl History {
                     total: all.len() as u32,
                     from: start as u32,
                     contacts: world.contacts_hash(),
+                    game: world.game_state().hash(),
                     hashes: all[start..end].iter().map(|&(_, h)| h).collect(),
                 })
             }
@@ -107,7 +108,10 @@ impl History {
                         dump(world, index, handle)
                     })
                     .collect();
-                Some(ProbeAnswer::Fields { bodies: dumps })
+                Some(ProbeAnswer::Fields {
+                    bodies: dumps,
+                    game: dump_game(world),
+                })
             }
         }
     }
@@ -130,11 +134,7 @@ fn dump(world: &World, index: u32, handle: lockstep_core::BodyHandle) -> Option<
         .take(MAX_DUMP_FIELDS)
         .map(|f| FieldDump {
             name: cut(&f.name, MAX_FIELD_NAME_BYTES),
-            kind: match f.kind {
-                CoreKind::Word => FieldKind::Word,
-                CoreKind::Int => FieldKind::Int,
-                CoreKind::Scalar => FieldKind::Scalar,
-            },
+            kind: kind(f.kind),
             words: f.words.into_iter().take(MAX_FIELD_WORDS).collect(),
         })
         .collect();
@@ -145,6 +145,29 @@ fn dump(world: &World, index: u32, handle: lockstep_core::BodyHandle) -> Option<
         name: cut(&name, MAX_NAME_BYTES),
         fields,
     })
+}
+
+/// Every field of the world's game state, as a client dumps them.
+pub fn dump_game(world: &World) -> Vec<FieldDump> {
+    world
+        .game_state()
+        .fields()
+        .iter()
+        .take(MAX_DUMP_FIELDS)
+        .map(|f| FieldDump {
+            name: cut(f.name(), MAX_FIELD_NAME_BYTES),
+            kind: kind(f.kind()),
+            words: f.words().iter().take(MAX_FIELD_WORDS).copied().collect(),
+        })
+        .collect()
+}
+
+fn kind(k: CoreKind) -> FieldKind {
+    match k {
+        CoreKind::Word => FieldKind::Word,
+        CoreKind::Int => FieldKind::Int,
+        CoreKind::Scalar => FieldKind::Scalar,
+    }
 }
 
 /// Every hashed field of every body of `world` whose index is in `bodies`,

@@ -25,7 +25,7 @@ pub use client::{
     AppliedTick, Client, ClientError, ClientEvent, ClientOptions, ClientReport, LiveClient, Polled,
     Traffic, TrustedCert,
 };
-pub use forensics::dump_bodies;
+pub use forensics::{dump_bodies, dump_game};
 pub use lockstep_net::{
     ALPN, FrameError, MIN_CONGESTION_WINDOW, TlsError, close_code, close_code_for, load_certs,
     parse_certs, read_frame, transport_config, write_frame,

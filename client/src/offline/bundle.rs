@@ -6,11 +6,11 @@
 //! the room reported.
 
 use lockstep_core::World;
-use lockstep_proto::{BodyDiff, DesyncReport, FieldDiff, Replay, SuspectReport};
+use lockstep_proto::{BodyDiff, DesyncReport, FieldDiff, FieldDump, Replay, Slot, SuspectReport};
 
 use super::replay::{ReplayVerifyError, apply_bundle, check_header, recorded_world};
 use crate::game::RulesFactory;
-use crate::net::dump_bodies;
+use crate::net::{dump_bodies, dump_game};
 
 /// What re-simulating a bundle found.
 #[derive(Clone, Debug)]
@@ -32,6 +32,27 @@ impl BundleCheck {
     /// player is the one that differs.
     pub fn reproduces(&self) -> bool {
         self.recorded == self.offline
+    }
+
+    /// When the desync does not reproduce: the diverging player this
+    /// machine simulates like (its values equal that player's in every
+    /// reported field, bodies and game state, and there is at least one).
+    pub fn simulates_like(&self) -> Option<Slot> {
+        if self.reproduces() {
+            return None;
+        }
+        self.offline
+            .suspects
+            .iter()
+            .find(|s| {
+                let fields = s.bodies.iter().flat_map(|b| &b.fields).chain(&s.game);
+                let mut any = false;
+                fields
+                    .inspect(|_| any = true)
+                    .all(|f| f.expected == f.got)
+                    && any
+            })
+            .map(|s| s.slot)
     }
 }
 
@@ -95,6 +116,7 @@ pub fn reproduce_bundle(
             .iter()
             .map(|s| SuspectReport {
                 bodies: s.bodies.iter().map(|b| offline_body(&world, b)).collect(),
+                game: offline_fields(&dump_game(&world), &s.game),
                 ..s.clone()
             })
             .collect(),
@@ -135,19 +157,25 @@ fn check_snapshot(
 /// A reported body with this machine's words as the expected ones.
 fn offline_body(world: &World, b: &BodyDiff) -> BodyDiff {
     let dump = dump_bodies(world, &[b.index]);
-    let ours = dump.first();
+    let ours = dump.first().map_or(&[][..], |d| d.fields.as_slice());
     BodyDiff {
-        fields: b
-            .fields
-            .iter()
-            .map(|f| FieldDiff {
-                expected: ours
-                    .and_then(|d| d.fields.iter().find(|x| x.name == f.name))
-                    .map(|x| x.words.clone())
-                    .unwrap_or_default(),
-                ..f.clone()
-            })
-            .collect(),
+        fields: offline_fields(ours, &b.fields),
         ..b.clone()
     }
+}
+
+/// Reported field differences with this machine's words (`ours`) as the
+/// expected ones.
+fn offline_fields(ours: &[FieldDump], reported: &[FieldDiff]) -> Vec<FieldDiff> {
+    reported
+        .iter()
+        .map(|f| FieldDiff {
+            expected: ours
+                .iter()
+                .find(|x| x.name == f.name)
+                .map(|x| x.words.clone())
+                .unwrap_or_default(),
+            ..f.clone()
+        })
+        .collect()
 }

@@ -144,7 +144,9 @@ pub enum ReplayVerifyError {
     #[error("game: {0}")]
     Game(String),
     /// The replay was recorded with other rules than the ones checking it.
-    #[error("the replay was recorded with rules {recorded}, this check uses {ours}")]
+    #[error(
+        "the replay was recorded with rules {recorded}, this check uses {ours}: check it with that game's own program (`<game> replay FILE`, a `lockstep::App` of its rules) or with `lockstep_testkit::assert_replays` in its tests (docs/own-game.md)"
+    )]
     WrongRules {
         /// The replay's.
         recorded: RulesId,
@@ -483,17 +485,40 @@ fn check_bundle_command(path: &Path, game: &dyn RulesFactory) -> Option<u8> {
                 || "no snapshot in the bundle".to_owned(),
                 |t| format!("the snapshot of tick {t} matches"),
             );
-            let verdict = if c.reproduces() {
-                "REPRODUCED"
-            } else {
-                "NOT REPRODUCED (this machine differs from the majority too)"
+            let like = c.simulates_like();
+            let verdict = match like {
+                _ if c.reproduces() => "REPRODUCED".to_owned(),
+                Some(slot) => format!(
+                    "NOT REPRODUCED: this build simulates as slot {} did, not as the majority \
+                     (its values equal slot {}'s in every reported field): this build is the \
+                     odd one out, or slot {} ran this build",
+                    slot.0, slot.0, slot.0
+                ),
+                None => "NOT REPRODUCED (this machine differs from the majority too)".to_owned(),
             };
             println!(
                 "BUNDLE {verdict}: {} agreed hashes checked up to tick {}, {snapshot}; \
                  this machine's values are the expected ones below",
                 c.hashes_checked, c.recorded.tick
             );
-            print!("{}", c.offline);
+            if let Some(slot) = like {
+                // Every field of that slot would read "expected = got".
+                let mut shown = c.offline.clone();
+                shown.suspects.retain(|s| s.slot != slot);
+                println!(
+                    "  (slot {}'s {} fields, equal to this machine's, not listed)",
+                    slot.0,
+                    c.offline
+                        .suspects
+                        .iter()
+                        .filter(|s| s.slot == slot)
+                        .map(|s| s.game.len() + s.bodies.iter().map(|b| b.fields.len()).sum::<usize>())
+                        .sum::<usize>()
+                );
+                print!("{shown}");
+            } else {
+                print!("{}", c.offline);
+            }
             if c.reproduces() {
                 exit_status::OK
             } else {

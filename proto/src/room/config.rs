@@ -78,6 +78,10 @@ pub struct RoomConfig {
     pub scene: Vec<u8>,
     /// Hash of `scene`, sent alongside it.
     pub scene_hash: u64,
+    /// The game rules the match is played with, announced in the welcome
+    /// so that a client with other rules refuses to play (`None`: not
+    /// announced). Default `None`.
+    pub rules: Option<crate::RulesId>,
 }
 
 impl RoomConfig {
@@ -98,6 +102,7 @@ impl RoomConfig {
             max_wrong_ticks: 180,
             ping_interval: Duration::from_secs(1),
             locate_timeout: Duration::from_secs(10),
+            rules: None,
             verify: false,
             late_join: false,
             rejoin_grace: Duration::from_secs(30),

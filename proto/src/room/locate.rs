@@ -6,9 +6,9 @@
 
 use std::time::Duration;
 
-use crate::forensics::field_diffs;
+use crate::forensics::{field_diffs, list_diffs};
 use crate::forensics::{
-    BodyDiff, BodyDump, DesyncReport, Probe, ProbeAnswer, ProbeAsk, ProbeReply, ProbeStatus,
+    BodyDiff, BodyDump, DesyncReport, FieldDump, Probe, ProbeAnswer, ProbeAsk, ProbeReply, ProbeStatus,
     SuspectReport,
 };
 use crate::limits::{MAX_PROBE_BODIES, MAX_REPORT_FIELDS};
@@ -54,8 +54,10 @@ struct Peer {
     state: PeerState,
     total: Option<u32>,
     contacts: u64,
+    game: u64,
     hashes: Vec<u64>,
     dumps: Vec<BodyDump>,
+    game_fields: Vec<FieldDump>,
 }
 
 impl Peer {
@@ -65,8 +67,10 @@ impl Peer {
             state: PeerState::Hashes,
             total: None,
             contacts: 0,
+            game: 0,
             hashes: Vec::new(),
             dumps: Vec::new(),
+            game_fields: Vec::new(),
         }
     }
 
@@ -270,6 +274,7 @@ impl Locator {
                     total,
                     from,
                     contacts,
+                    game,
                     hashes,
                 },
             ) if p.total.is_none_or(|t| t == total)
@@ -279,6 +284,7 @@ impl Locator {
             {
                 p.total = Some(total);
                 p.contacts = contacts;
+                p.game = game;
                 p.hashes.extend_from_slice(&hashes);
                 if p.hashes.len() == total as usize {
                     p.state = PeerState::HashesDone;
@@ -294,11 +300,12 @@ impl Locator {
                     ));
                 }
             }
-            (PeerState::Fields, ProbeAnswer::Fields { bodies }) => {
+            (PeerState::Fields, ProbeAnswer::Fields { bodies, game }) => {
                 let asked = &s.bodies;
                 let fits = bodies.windows(2).all(|w| w[0].index < w[1].index)
                     && bodies.iter().all(|b| asked.contains(&b.index));
                 p.dumps = if fits { bodies } else { Vec::new() };
+                p.game_fields = if fits { game } else { Vec::new() };
                 p.state = if fits {
                     PeerState::Done
                 } else {
@@ -366,9 +373,15 @@ impl Locator {
             bodies.dedup();
             bodies.truncate(MAX_PROBE_BODIES);
             s.bodies = bodies;
+            // The game state's fields come with the bodies' (all of them:
+            // they are few), asked for when any suspect's game hash differs.
+            let game_differs = s.peers[0].has_hashes()
+                && s.peers[1..]
+                    .iter()
+                    .any(|p| p.has_hashes() && p.game != s.peers[0].game);
             for p in &mut s.peers {
                 if p.state == PeerState::HashesDone {
-                    if s.bodies.is_empty() {
+                    if s.bodies.is_empty() && !game_differs {
                         p.state = PeerState::Done;
                     } else {
                         p.state = PeerState::Fields;
@@ -445,6 +458,18 @@ fn report(s: &Search) -> DesyncReport {
                 status: p.status(),
                 bodies_differing: differ.len() as u32,
                 contacts_differ: both && reference.contacts != p.contacts,
+                game_differs: both && reference.game != p.game,
+                game: if both && reference.game != p.game {
+                    let mut fields = list_diffs(&reference.game_fields, &p.game_fields);
+                    if fields.len() > budget {
+                        omitted += (fields.len() - budget) as u32;
+                        fields.truncate(budget);
+                    }
+                    budget -= fields.len();
+                    fields
+                } else {
+                    Vec::new()
+                },
                 bodies,
             }
         })
@@ -456,5 +481,6 @@ fn report(s: &Search) -> DesyncReport {
         reference_status: reference.status(),
         suspects,
         fields_omitted: omitted,
+        inputs: Vec::new(),
     }
 }

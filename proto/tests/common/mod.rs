@@ -502,6 +502,7 @@ pub fn answer_probe(hashes: &[u64], corrupt_at: Option<u64>, p: &Probe) -> Probe
             total: PROBE_BODIES,
             from: *from,
             contacts: 0,
+            game: 0,
             hashes: (*from..PROBE_BODIES)
                 .map(|i| u64::from(bad && i == CORRUPT_BODY))
                 .collect(),
@@ -528,6 +529,7 @@ pub fn answer_probe(hashes: &[u64], corrupt_at: Option<u64>, p: &Probe) -> Probe
                     ],
                 })
                 .collect(),
+            game: Vec::new(),
         },
         ProbeAsk::Snapshot { offset } => {
             let all: Vec<u8> = state

@@ -73,6 +73,7 @@ fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig
     c.verify = config.verifier.is_some();
     c.late_join = s.late_join;
     c.rejoin_grace = s.rejoin_grace;
+    c.rules = Some(config.rules.clone());
     c.input_window = c.input_window.max(s.input_delay.saturating_add(16));
     let needed = c.ticks_in(c.hash_timeout).saturating_add(2);
     c.hash_window_ticks = c

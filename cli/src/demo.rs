@@ -1,7 +1,8 @@
-//! The main job: the server on loopback with the demo scene and in-process
-//! bots over real QUIC, a status line per second, and a summary at the end.
-//! The game is a parameter ([`DemoOptions::game`], with the server's scene
-//! and rules id): the demo game by default, any other game likewise.
+//! The demo match: the server on loopback with a game's scene and
+//! in-process bots over real QUIC, a status line per second, and a summary
+//! at the end. The game is a parameter ([`DemoOptions::game`], with the
+//! server's scene and rules id): the demo game by default (the README's
+//! main job), any other game likewise (`<game> server --demo`).
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -35,6 +36,11 @@ pub struct DemoOptions {
     /// Make the last bot nudge one body by one ulp before this tick, to
     /// show a desync being located (`--diverge-at`).
     pub diverge_at: Option<u64>,
+    /// The room the bots play in.
+    pub room: String,
+    /// How to run the offline tool with this game, for the hints printed
+    /// (`cargo run --release -p lockstep --bin lockstep --` for the demo).
+    pub tool: String,
 }
 
 impl DemoOptions {
@@ -55,6 +61,8 @@ impl DemoOptions {
             seed: 1,
             duration: Duration::from_secs(20),
             diverge_at: None,
+            room: "demo".into(),
+            tool: "cargo run --release -p lockstep --bin lockstep --".into(),
         }
     }
 }
@@ -155,7 +163,7 @@ pub async fn run_demo(
         options.duration.as_secs_f64()
     );
     let mut bot_options =
-        BotOptions::for_game(addr, cert, "demo", options.bots, options.game.clone());
+        BotOptions::for_game(addr, cert, &options.room, options.bots, options.game.clone());
     bot_options.seed = options.seed;
     if let Some(tick) = options.diverge_at {
         bot_options.game_of_bot = vec![(
@@ -189,7 +197,7 @@ pub async fn run_demo(
                 Some(ServerEvent::DesyncLocated { report, bundle, .. }) => {
                     print!("demo: {report}");
                     if let Some(b) = bundle {
-                        println!("demo: desync bundle {} (check it: lockstep replay FILE)", b.display());
+                        println!("demo: desync bundle {} (check it: {} replay {})", b.display(), options.tool, b.display());
                     }
                 }
                 Some(ServerEvent::MatchEnded(r)) => {
@@ -231,11 +239,11 @@ pub async fn run_demo(
         bots_agree,
         replay_check,
     };
-    print_summary(&summary, options.bots);
+    print_summary(&summary, options.bots, &options.tool);
     Ok(summary)
 }
 
-fn print_summary(s: &DemoSummary, bots: usize) {
+fn print_summary(s: &DemoSummary, bots: usize, tool: &str) {
     println!("== summary");
     let Some(r) = &s.report else {
         println!("no match was played");
@@ -283,10 +291,7 @@ fn print_summary(s: &DemoSummary, bots: usize) {
                 r.replay_hashed_ticks
             );
             println!("replay check: {check}");
-            println!(
-                "  re-check with: cargo run --release -p lockstep --bin lockstep -- replay {}",
-                p.display()
-            );
+            println!("  re-check with: {tool} replay {}", p.display());
         }
         _ => println!("replay: not recorded"),
     }

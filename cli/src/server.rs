@@ -1,0 +1,390 @@
+//! The server program: `lockstep-server`, or a game's `server` command
+//! ([`App`]): parses flags and runs the library's server (or the demo
+//! match, [`crate::demo`]); Ctrl-C or SIGTERM shuts it down gracefully.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Parser, Subcommand};
+use lockstep_client::game::RulesFactory;
+use lockstep_server::{ServerConfig, TlsSource, run};
+
+use crate::App;
+use crate::demo::{DemoOptions, run_demo};
+
+/// The lockstep server: relays inputs, compares every tick's hashes,
+/// records replays.
+#[derive(Parser, Debug)]
+#[command(name = "lockstep-server", version)]
+pub struct ServerArgs {
+    #[command(subcommand)]
+    command: Option<ServerCommand>,
+    /// Run the demo: the server on loopback with 4 in-process bots playing
+    /// this program's game, a status line per second, a summary at the end.
+    #[arg(long, env = "LOCKSTEP_DEMO")]
+    demo: bool,
+    /// Demo: how many seconds the match lasts.
+    #[arg(long, default_value_t = 20.0, env = "LOCKSTEP_DURATION")]
+    duration: f64,
+    /// Demo: number of bots.
+    #[arg(long, default_value_t = 4, env = "LOCKSTEP_BOTS")]
+    bots: usize,
+    /// Demo: seed of the bots' input.
+    #[arg(long, default_value_t = 1, env = "LOCKSTEP_SEED")]
+    seed: u64,
+    /// Demo: the last bot nudges one body by one ulp before this tick, so
+    /// the match shows a desync being located to its body and field.
+    #[arg(long, value_name = "TICK", env = "LOCKSTEP_DIVERGE_AT")]
+    diverge_at: Option<u64>,
+    /// UDP address to listen on (the demo picks a free loopback port).
+    #[arg(long, default_value = "127.0.0.1:4433", env = "LOCKSTEP_LISTEN")]
+    listen: SocketAddr,
+    /// Certificate chain (PEM) of a real certificate; needs --key.
+    #[arg(long, requires = "key", env = "LOCKSTEP_CERT")]
+    cert: Option<PathBuf>,
+    /// Private key (PEM) of --cert.
+    #[arg(long, requires = "cert", env = "LOCKSTEP_KEY")]
+    key: Option<PathBuf>,
+    /// Where the generated dev certificate is written (without --cert).
+    #[arg(long, default_value = "out/dev-cert.pem", env = "LOCKSTEP_CERT_OUT")]
+    cert_out: PathBuf,
+    /// Scene file sent to the players (default: the game's embedded
+    /// scene). Without --rules-id the game's rules must accept it.
+    #[arg(long, env = "LOCKSTEP_SCENE")]
+    scene: Option<PathBuf>,
+    /// Id of the game rules the players run, announced in the welcome and
+    /// recorded in every replay (default: this program's game; give another
+    /// game's with its --scene to relay a game this program does not have,
+    /// without --verify or --view).
+    #[arg(long, requires = "rules_version", env = "LOCKSTEP_RULES_ID")]
+    rules_id: Option<String>,
+    /// Version of those rules.
+    #[arg(long, requires = "rules_id", env = "LOCKSTEP_RULES_VERSION")]
+    rules_version: Option<u32>,
+    /// Directory for replay files.
+    #[arg(long, default_value = "out/replays", env = "LOCKSTEP_REPLAY_DIR")]
+    replay_dir: PathBuf,
+    /// Do not record replays.
+    #[arg(long, env = "LOCKSTEP_NO_REPLAY")]
+    no_replay: bool,
+    /// Seats per room.
+    #[arg(long, default_value_t = 8, env = "LOCKSTEP_MAX_PLAYERS")]
+    max_players: u8,
+    /// Players needed to start a match.
+    #[arg(long, default_value_t = 2, env = "LOCKSTEP_START_PLAYERS")]
+    start_players: u8,
+    /// Ticks per second.
+    #[arg(long, default_value_t = 60, env = "LOCKSTEP_TICK_RATE")]
+    tick_rate: u16,
+    /// Input delay in ticks.
+    #[arg(long, default_value_t = 4, env = "LOCKSTEP_INPUT_DELAY")]
+    input_delay: u16,
+    /// End each match after this many ticks.
+    #[arg(long, env = "LOCKSTEP_MATCH_TICKS")]
+    match_ticks: Option<u64>,
+    /// Seconds a lobby waits after its first join; then players without
+    /// their first input are dropped and the ready ones start (0: wait for
+    /// ever).
+    #[arg(long, default_value_t = 30.0, env = "LOCKSTEP_LOBBY_TIMEOUT")]
+    lobby_timeout: f64,
+    /// Most rooms open at once; a join for a new room beyond it is refused.
+    #[arg(long, default_value_t = 16, env = "LOCKSTEP_MAX_ROOMS")]
+    max_rooms: usize,
+    /// Most connections at once; beyond it a connection is refused at once.
+    #[arg(long, default_value_t = 256, env = "LOCKSTEP_MAX_CONNECTIONS")]
+    max_connections: usize,
+    /// Messages a second each connection may send; past it datagrams are
+    /// dropped (counted and logged) and stream frames wait.
+    #[arg(long, default_value_t = 1000, env = "LOCKSTEP_MAX_MESSAGES_PER_SECOND")]
+    max_messages_per_second: u32,
+    /// File holding the secret join tokens are signed with (at least 16
+    /// bytes). With it, a join that carries a token is seated only if the
+    /// token verifies, and in its seat.
+    #[arg(long, value_name = "FILE", env = "LOCKSTEP_TOKEN_SECRET_FILE")]
+    token_secret_file: Option<PathBuf>,
+    /// Refuse every join without a valid token (needs --token-secret-file).
+    #[arg(long, requires = "token_secret_file", env = "LOCKSTEP_REQUIRE_TOKENS")]
+    require_tokens: bool,
+    /// Re-simulate every match on the server with the game's rules and
+    /// judge every hash report against the server's own hash, so a
+    /// majority of liars cannot outvote honest players (costs one
+    /// simulation per room).
+    #[arg(long, env = "LOCKSTEP_VERIFY")]
+    verify: bool,
+    /// Let players join a running match: they start from the last agreed
+    /// state, fetched from a player in agreement and checked by its hash.
+    #[arg(long, env = "LOCKSTEP_LATE_JOIN")]
+    late_join: bool,
+    /// Seconds a dropped player's seat stays reserved for a rejoin with
+    /// its seat token.
+    #[arg(long, default_value_t = 30.0, env = "LOCKSTEP_REJOIN_GRACE")]
+    rejoin_grace: f64,
+    /// Serve Prometheus metrics, /healthz and /readyz over HTTP on this TCP
+    /// address (e.g. 0.0.0.0:9100 in a container).
+    #[arg(long, value_name = "ADDR", env = "LOCKSTEP_METRICS")]
+    metrics: Option<SocketAddr>,
+    /// Serve the live rooms to the browser viewer on this TCP address (e.g.
+    /// 127.0.0.1:8080; open it in a browser). A room is re-simulated on the
+    /// server with the game's rules only while someone watches; viewers
+    /// only read and cannot send input.
+    #[arg(long, value_name = "ADDR", env = "LOCKSTEP_VIEW")]
+    view: Option<SocketAddr>,
+    /// Exit (status 0) once the first match has ended and its replay is
+    /// flushed: one match per process.
+    #[arg(long, env = "LOCKSTEP_EXIT_AFTER_MATCH")]
+    exit_after_match: bool,
+    /// Run the tick clock and the rooms at real-time priority (SCHED_FIFO,
+    /// Linux), so a tick that is due is not queued behind the connection
+    /// threads on a busy machine. Needs CAP_SYS_NICE or an rtprio limit of
+    /// at least 10 (docs/deploy.md); without either the server warns and
+    /// runs at normal priority.
+    #[arg(long, env = "LOCKSTEP_REALTIME_CLOCK")]
+    realtime_clock: bool,
+    /// Run as an Agones game server: Ready once listening, health pings
+    /// while the tick clocks keep time, joins only after allocation (for
+    /// the room and with the token secret its lockstep.dev/room and
+    /// lockstep.dev/token-secret annotations give), Shutdown and exit after
+    /// the match. The SDK address comes from AGONES_SDK_GRPC_HOST and
+    /// AGONES_SDK_GRPC_PORT (default localhost:9357).
+    #[arg(long, env = "LOCKSTEP_AGONES", conflicts_with = "demo")]
+    agones: bool,
+    /// Seconds between two Agones health pings (keep it under the
+    /// fleet's health.periodSeconds).
+    #[arg(long, default_value_t = 2.0, env = "LOCKSTEP_AGONES_HEALTH_PERIOD")]
+    agones_health_period: f64,
+}
+
+/// The server program's subcommands.
+#[derive(Subcommand, Debug)]
+pub enum ServerCommand {
+    /// Print a join token for a seat of a room (what a matchmaker hands a
+    /// player), signed with the server's secret.
+    Token {
+        /// File holding the server's secret.
+        #[arg(long, value_name = "FILE")]
+        secret_file: PathBuf,
+        /// The room.
+        #[arg(long)]
+        room: String,
+        /// The seat (slot); without it, any free seat.
+        #[arg(long)]
+        seat: Option<u8>,
+        /// Who it is for (in the server's logs).
+        #[arg(long)]
+        player: String,
+        /// Seconds it stays valid.
+        #[arg(long, default_value_t = 3600)]
+        ttl_seconds: u64,
+    },
+}
+
+pub(crate) fn read_secret(path: &std::path::Path) -> Result<Vec<u8>, String> {
+    std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+pub(crate) async fn terminate() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
+}
+
+/// Logs to stderr through `tracing`: `RUST_LOG` filters (default `info`),
+/// spans (a room, a connection) prefix their events.
+pub(crate) fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+}
+
+/// Whether `game`'s rules accept the world `scene` builds.
+fn check_scene(game: &dyn RulesFactory, scene: &str, name: &str) -> Result<(), String> {
+    let world = lockstep_core::scene::load_world(scene, name).map_err(|e| e.to_string())?;
+    game.new_rules(&world)
+        .map(|_| ())
+        .map_err(|e| format!("{name}: the rules of {} refuse it: {e}", game.rules_id()))
+}
+
+/// Runs the server (or the demo match) as `cli` says, with `app`'s game.
+pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
+    if let Some(ServerCommand::Token {
+        secret_file,
+        room,
+        seat,
+        player,
+        ttl_seconds,
+    }) = &cli.command
+    {
+        let token = read_secret(secret_file).and_then(|secret| {
+            lockstep_server::issue_token(
+                &secret,
+                room,
+                *seat,
+                player,
+                Duration::from_secs(*ttl_seconds),
+                std::time::SystemTime::now(),
+            )
+            .map_err(|e| e.to_string())
+        });
+        return match token {
+            Ok(t) => {
+                println!("{t}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("lockstep-server token: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    let listen = if cli.demo {
+        SocketAddr::from(([127, 0, 0, 1], 0))
+    } else {
+        cli.listen
+    };
+    let mut config = ServerConfig::for_game(
+        listen,
+        app.scene.clone(),
+        app.scene_name.clone(),
+        app.game.rules_id(),
+    );
+    config.tls = match (cli.cert, cli.key) {
+        (Some(cert), Some(key)) => TlsSource::Files { cert, key },
+        _ => TlsSource::dev(cli.cert_out),
+    };
+    if let Some(path) = cli.scene {
+        match std::fs::read_to_string(&path) {
+            Ok(text) => {
+                config.scene = text;
+                config.scene_name = path.display().to_string();
+            }
+            Err(e) => {
+                eprintln!("lockstep-server: {}: {e}", path.display());
+                return ExitCode::from(2);
+            }
+        }
+    }
+    if let (Some(id), Some(version)) = (cli.rules_id, cli.rules_version) {
+        config.rules = lockstep_server::RulesId::new(id, version);
+    }
+    let ours = app.game.rules_id();
+    if config.rules == ours {
+        // The rules this program has: they must accept the scene, or the
+        // players' would refuse it at their first tick.
+        if let Err(e) = check_scene(&*app.game, &config.scene, &config.scene_name) {
+            eprintln!(
+                "lockstep-server: {e}\n  the match would be announced and recorded as {ours}: give \
+                 --rules-id and --rules-version of the game this scene is for, or run that game's \
+                 own server (docs/own-game.md)"
+            );
+            return ExitCode::from(2);
+        }
+    } else if cli.verify || cli.view.is_some() {
+        eprintln!(
+            "lockstep-server: --verify and --view re-simulate with this program's rules ({ours}), \
+             and the match is played with {}: run the game's own server (a lockstep::App of its \
+             rules, docs/own-game.md), or drop --verify and --view to relay it",
+            config.rules
+        );
+        return ExitCode::from(2);
+    }
+    config.replay_dir = (!cli.no_replay).then_some(cli.replay_dir);
+    config.room.max_players = cli.max_players;
+    config.room.start_players = cli.start_players;
+    config.room.tick_rate = cli.tick_rate;
+    config.room.input_delay = cli.input_delay;
+    config.room.match_ticks = cli.match_ticks;
+    config.room.lobby_timeout =
+        (cli.lobby_timeout > 0.0).then(|| Duration::from_secs_f64(cli.lobby_timeout.min(86_400.0)));
+    config.max_rooms = cli.max_rooms.max(1);
+    config.max_connections = cli.max_connections.max(1);
+    config.room.max_messages_per_second = cli.max_messages_per_second.max(1);
+    if let Some(path) = &cli.token_secret_file {
+        match read_secret(path) {
+            Ok(s) => config.token_secret = Some(s),
+            Err(e) => {
+                eprintln!("lockstep-server: {e}");
+                return ExitCode::from(2);
+            }
+        }
+    }
+    config.require_tokens = cli.require_tokens;
+    config.room.late_join = cli.late_join;
+    config.metrics = cli.metrics;
+    config.view = cli.view.map(|listen| lockstep_server::ViewSettings {
+        listen,
+        sim: std::sync::Arc::new(lockstep_client::game::RulesVerifier {
+            game: app.game.clone(),
+        }),
+    });
+    config.exit_after_match = cli.exit_after_match;
+    config.realtime_clock = cli.realtime_clock;
+    if cli.agones {
+        let mut a = lockstep_server::agones::AgonesSettings::from_env();
+        a.health_period = Duration::from_secs_f64(cli.agones_health_period.clamp(0.1, 3600.0));
+        config.agones = Some(a);
+    }
+    config.room.rejoin_grace = Duration::from_secs_f64(cli.rejoin_grace.clamp(0.0, 86_400.0));
+    if cli.verify {
+        config.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
+            game: app.game.clone(),
+        }));
+    }
+    if cli.demo {
+        let mut options = DemoOptions::new();
+        options.game = app.game.clone();
+        options.room = app.room.clone();
+        options.server = config;
+        options.bots = cli.bots;
+        options.seed = cli.seed;
+        options.diverge_at = cli.diverge_at;
+        options.duration = Duration::from_secs_f64(cli.duration.clamp(0.1, 86_400.0));
+        return match run_demo(options, terminate()).await {
+            Ok(s) => {
+                let ok = s.report.as_ref().is_some_and(|r| r.desyncs.is_empty())
+                    && s.bots_agree
+                    && s.replay_check
+                        .as_deref()
+                        .is_none_or(|c| c.starts_with("OK"));
+                if ok {
+                    ExitCode::SUCCESS
+                } else {
+                    ExitCode::from(1)
+                }
+            }
+            Err(e) => {
+                eprintln!("lockstep-server: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    match run(config, terminate()).await {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("lockstep-server: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
