@@ -162,8 +162,13 @@ pub async fn run_demo(
         ticks,
         options.duration.as_secs_f64()
     );
-    let mut bot_options =
-        BotOptions::for_game(addr, cert, &options.room, options.bots, options.game.clone());
+    let mut bot_options = BotOptions::for_game(
+        addr,
+        cert,
+        &options.room,
+        options.bots,
+        options.game.clone(),
+    );
     bot_options.seed = options.seed;
     if let Some(tick) = options.diverge_at {
         bot_options.game_of_bot = vec![(

@@ -48,8 +48,11 @@ pub struct App {
     pub scene_name: String,
     /// The room bots join by default.
     pub room: String,
-    /// The program's name in its help and hints.
+    /// The program's name in its help.
     pub name: String,
+    /// How a user runs this program's offline commands, for the hints it
+    /// prints (`replay FILE` is appended): the name by default.
+    pub tool: String,
 }
 
 impl std::fmt::Debug for App {
@@ -91,16 +94,19 @@ impl App {
             scene: scene.into(),
             scene_name: "scene.toml".into(),
             room: "game".into(),
-            name: id,
+            name: id.clone(),
+            tool: id,
         }
     }
 
     /// The demo game's programs (what the shipped binaries run).
     pub fn demo() -> App {
-        App::new(Demo, DemoGame::SCENE)
+        let mut app = App::new(Demo, DemoGame::SCENE)
             .scene_name("demo")
             .room("demo")
-            .name("lockstep")
+            .name("lockstep");
+        app.tool = "cargo run --release -p lockstep --bin lockstep --".into();
+        app
     }
 
     /// The scene's name in messages and replays.
@@ -118,6 +124,7 @@ impl App {
     /// The program's name in its help and hints.
     pub fn name(mut self, name: impl Into<String>) -> App {
         self.name = name.into();
+        self.tool.clone_from(&self.name);
         self
     }
 

@@ -356,6 +356,7 @@ pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
         let mut options = DemoOptions::new();
         options.game = app.game.clone();
         options.room = app.room.clone();
+        options.tool = app.tool.clone();
         options.server = config;
         options.bots = cli.bots;
         options.seed = cli.seed;

@@ -152,7 +152,12 @@ pub fn run_tool(app: &App, command: ToolCommand) -> ExitCode {
             listen,
             from,
             ticks,
-        } => view(app, &file, listen, lockstep_client::view::Window { from, ticks }),
+        } => view(
+            app,
+            &file,
+            listen,
+            lockstep_client::view::Window { from, ticks },
+        ),
         ToolCommand::Tune {
             scene,
             max_error,

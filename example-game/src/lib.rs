@@ -22,7 +22,7 @@
 #![warn(missing_docs)]
 
 use lockstep_client::game::{
-    GameError, GameRules, GameState, GameStateError, RulesFactory, RulesId,
+    BotPolicy, BotView, GameError, GameRules, GameState, GameStateError, RulesFactory, RulesId,
 };
 use lockstep_core::shape::{Shape, Sphere};
 use lockstep_core::{BodyDesc, BodyHandle, BodyKind, ColliderDesc, Scalar, Transform, Vec3, World};
@@ -125,6 +125,10 @@ impl RulesFactory for PaddleGame {
     fn bot_input(&self, seed: u64, slot: u8, tick: u64) -> Vec<u8> {
         bot_input(seed, slot, tick).encode()
     }
+
+    fn bot_policy(&self, _seed: u64, slot: u8) -> Option<Box<dyn BotPolicy>> {
+        Some(Box::new(ChaseBot::new(slot)))
+    }
 }
 
 /// The rules for one world: the paddles' handles and each player's last
@@ -163,6 +167,19 @@ impl PaddleRules {
             paddles,
             last_drop: [None; PLAYERS],
         })
+    }
+
+    /// Whether player `slot` may drop a ball at `tick` (its cooldown has
+    /// passed).
+    pub fn ready(&self, slot: u8, tick: u64) -> bool {
+        self.last_drop
+            .get(usize::from(slot))
+            .is_some_and(|d| d.is_none_or(|t| tick >= t + DROP_COOLDOWN))
+    }
+
+    /// The tick of player `slot`'s last drop.
+    pub fn last_drop(&self, slot: u8) -> Option<u64> {
+        self.last_drop.get(usize::from(slot)).copied().flatten()
     }
 
     fn balls(world: &World) -> usize {
@@ -256,7 +273,73 @@ impl GameRules for PaddleRules {
     }
 }
 
-/// SplitMix64 of the bot's coordinates: the bot's whole "brain".
+/// A bot that plays: it steers its paddle towards the crate nearest to it
+/// (straight at it along the compass direction closest to the way there)
+/// and drops a ball whenever its cooldown allows, reading the cooldown from
+/// the rules it sees and remembering its own presses (an input applies a
+/// few ticks after it is chosen).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChaseBot {
+    slot: u8,
+    pressed: Option<u64>,
+}
+
+impl ChaseBot {
+    /// The bot of player `slot`.
+    pub fn new(slot: u8) -> ChaseBot {
+        ChaseBot {
+            slot,
+            pressed: None,
+        }
+    }
+}
+
+impl BotPolicy for ChaseBot {
+    fn input(&mut self, view: &BotView<'_>) -> Vec<u8> {
+        let world = view.world;
+        let ready = view
+            .rules
+            .downcast_ref::<PaddleRules>()
+            .is_some_and(|r| r.ready(self.slot, view.tick))
+            && self.pressed.is_none_or(|p| view.tick >= p + DROP_COOLDOWN);
+        if ready {
+            self.pressed = Some(view.tick);
+        }
+        let Some(paddle) = world
+            .find_body(&format!("paddle{}", self.slot))
+            .and_then(|h| world.body(h).ok())
+            .map(|b| b.position())
+        else {
+            return PaddleInput::default().encode();
+        };
+        let crates = world.body_handles().filter_map(|h| {
+            let b = world.body(h).ok()?;
+            b.name().starts_with("crate").then(|| b.position() - paddle)
+        });
+        let nearest = crates.min_by_key(|d| (d.x * d.x + d.z * d.z).to_bits());
+        let dir = nearest.map_or(0, |d| {
+            // Within 0.3 m along an axis counts as there.
+            let near = Scalar::from_ratio(3, 10);
+            let sign = |v: Scalar| {
+                if v > near {
+                    1
+                } else if v < -near {
+                    -1
+                } else {
+                    0
+                }
+            };
+            let want = (sign(d.x), sign(d.z));
+            DIRECTIONS
+                .iter()
+                .position(|&step| step == want)
+                .map_or(0, |i| i as u8 + 1)
+        });
+        PaddleInput { dir, drop: ready }.encode()
+    }
+}
+
+/// SplitMix64 of the bot's coordinates: the blind bots' whole "brain".
 fn mix(seed: u64, slot: u8, stream: u64, n: u64) -> u64 {
     let mut z = seed
         ^ (u64::from(slot) << 56)
@@ -346,6 +429,75 @@ mod tests {
         assert!(w.find_body("crate0").is_none(), "crate0 still there at {t}");
         // Fall time to y = -3 from 0.4 at g = 9.81: about 0.83 s = 50 ticks.
         assert!((75..=90).contains(&t), "{t}");
+    }
+
+    #[test]
+    fn the_chase_bot_heads_for_the_nearest_crate_and_drops_when_ready() {
+        let mut w = world();
+        let mut rules = PaddleRules::new(&w).unwrap();
+        let mut bot = ChaseBot::new(0);
+        let ask = |w: &World, rules: &PaddleRules, bot: &mut ChaseBot, tick| {
+            let view = BotView {
+                world: w,
+                rules,
+                slot: 0,
+                tick,
+            };
+            PaddleInput::decode(&bot.input(&view)).unwrap()
+        };
+        let first = ask(&w, &rules, &mut ChaseBot::new(0), 0);
+        assert!(first.drop && first.dir > 0, "{first:?}");
+        // Moving as told brings the paddle closer to its nearest crate.
+        let distance = |w: &World| {
+            let p = w.body(w.find_body("paddle0").unwrap()).unwrap().position();
+            w.body_handles()
+                .filter_map(|h| {
+                    let b = w.body(h).ok()?;
+                    b.name()
+                        .starts_with("crate")
+                        .then(|| (b.position() - p).length().to_f64())
+                })
+                .fold(f64::MAX, f64::min)
+        };
+        let before = distance(&w);
+        for t in 0..20 {
+            let input = ask(&w, &rules, &mut bot, t).encode();
+            rules.apply_inputs(&mut w, t, &[(0, &input)]);
+            w.step();
+        }
+        assert!(distance(&w) < before - 0.5, "{before} -> {}", distance(&w));
+        // It dropped at tick 0 and waits for the cooldown.
+        assert_eq!(rules.last_drop(0), Some(0));
+        assert!(!ask(&w, &rules, &mut bot, 20).drop);
+        assert!(ask(&w, &rules, &mut bot, DROP_COOLDOWN).drop);
+        // Its own press counts before the rules see it.
+        assert!(!ask(&w, &rules, &mut bot, DROP_COOLDOWN + 1).drop);
+    }
+
+    #[test]
+    fn the_last_drops_are_game_state_and_load_back() {
+        let mut w = world();
+        let mut rules = PaddleRules::new(&w).unwrap();
+        rules.apply_inputs(&mut w, 5, &[(2, &[0, 1])]);
+        rules.save_state(w.game_state_mut()).unwrap();
+        assert_eq!(
+            w.game_state().words(LAST_DROP_FIELD),
+            Some(&[0, 0, 6, 0][..])
+        );
+        let copy = World::restore(&w.snapshot()).unwrap();
+        let restored = PaddleGame.rules_for(&copy).unwrap();
+        let restored = restored.downcast_ref::<PaddleRules>().unwrap();
+        assert_eq!(restored.last_drop(2), Some(5));
+        assert!(!restored.ready(2, 20) && restored.ready(2, 35));
+        // A state that is not the game's is refused.
+        let mut bad = copy.clone();
+        bad.game_state_mut()
+            .set_words(LAST_DROP_FIELD, &[1])
+            .unwrap();
+        assert!(matches!(
+            PaddleGame.rules_for(&bad).err(),
+            Some(GameError::BadState(_))
+        ));
     }
 
     #[test]

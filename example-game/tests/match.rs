@@ -224,7 +224,9 @@ fn a_cut_replay_fails_the_kit_though_what_it_holds_matches() {
     }
     let last = *boundaries.last().unwrap();
     std::fs::write(dir.join("a-no-end.replay"), &bytes[..last]).unwrap();
-    std::fs::write(dir.join("b-half.replay"), &bytes[..bytes.len() / 2]).unwrap();
+    // Inside the record that starts half-way through the file.
+    let inside = boundaries[boundaries.len() / 2] + 6;
+    std::fs::write(dir.join("b-half.replay"), &bytes[..inside]).unwrap();
     std::fs::copy(
         replays_dir().join("three-players.replay"),
         dir.join("c-whole.replay"),

@@ -14,9 +14,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::limits::{
-    MAX_BODY_HASHES, MAX_DUMP_FIELDS, MAX_FIELD_NAME_BYTES, MAX_FIELD_WORDS, MAX_NAME_BYTES,
-    MAX_PLAYERS, MAX_PROBE_BODIES, MAX_PROBE_SNAPSHOT_BYTES, MAX_PROBE_TOTAL_BODIES,
-    MAX_REPORT_FIELDS, MAX_SNAPSHOT_CHUNK_BYTES, MAX_INPUT_BYTES,
+    MAX_BODY_HASHES, MAX_DUMP_FIELDS, MAX_FIELD_NAME_BYTES, MAX_FIELD_WORDS, MAX_INPUT_BYTES,
+    MAX_NAME_BYTES, MAX_PLAYERS, MAX_PROBE_BODIES, MAX_PROBE_SNAPSHOT_BYTES,
+    MAX_PROBE_TOTAL_BODIES, MAX_REPORT_FIELDS, MAX_SNAPSHOT_CHUNK_BYTES,
 };
 use crate::message::{PlayerInput, Slot, Violation};
 
@@ -312,9 +312,8 @@ impl DesyncReport {
             if p.slot.index() >= MAX_PLAYERS {
                 return Err(Violation::SlotOutOfRange(p.slot.0));
             }
-            check(p.input.len(), MAX_INPUT_BYTES, |len, max| Violation::InputTooLarge {
-                len,
-                max,
+            check(p.input.len(), MAX_INPUT_BYTES, |len, max| {
+                Violation::InputTooLarge { len, max }
             })?;
         }
         let mut fields = 0;

@@ -251,9 +251,8 @@ impl Welcome {
             |len, max| Violation::InputTooLarge { len, max },
         )?;
         if let Some(r) = &self.rules {
-            check_len(r.id.len(), MAX_NAME_BYTES, |len, max| Violation::NameTooLong {
-                len,
-                max,
+            check_len(r.id.len(), MAX_NAME_BYTES, |len, max| {
+                Violation::NameTooLong { len, max }
             })?;
         }
         let resume = self.resume.as_ref().map_or(0, |r| r.snapshot.len());

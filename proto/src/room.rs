@@ -384,8 +384,13 @@ impl Room {
     /// Removes a player, queuing a [`Close`] with `reason` and `detail`
     /// (e.g. after a [`Rejection`]).
     pub fn kick(&mut self, now: Duration, id: PlayerId, reason: CloseReason, detail: &str) {
+        let leave = if reason == CloseReason::RoomClosed {
+            LeaveReason::RoomClosed
+        } else {
+            LeaveReason::Kicked
+        };
         let c = close(reason, detail.to_owned());
-        self.remove(now, id, LeaveReason::Kicked, Some(c));
+        self.remove(now, id, leave, Some(c));
     }
 
     /// Advances the room to `now`: drops silent players, closes every tick
@@ -558,7 +563,10 @@ impl Room {
             && p.admitted
             && !matches!(
                 reason,
-                LeaveReason::Kicked | LeaveReason::Diverged | LeaveReason::NoHashReports
+                LeaveReason::Kicked
+                    | LeaveReason::RoomClosed
+                    | LeaveReason::Diverged
+                    | LeaveReason::NoHashReports
             )
         {
             self.reserved[index] = Some((key, now.saturating_add(self.config.rejoin_grace)));

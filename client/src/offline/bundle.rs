@@ -47,10 +47,7 @@ impl BundleCheck {
             .find(|s| {
                 let fields = s.bodies.iter().flat_map(|b| &b.fields).chain(&s.game);
                 let mut any = false;
-                fields
-                    .inspect(|_| any = true)
-                    .all(|f| f.expected == f.got)
-                    && any
+                fields.inspect(|_| any = true).all(|f| f.expected == f.got) && any
             })
             .map(|s| s.slot)
     }

@@ -512,7 +512,8 @@ fn check_bundle_command(path: &Path, game: &dyn RulesFactory) -> Option<u8> {
                         .suspects
                         .iter()
                         .filter(|s| s.slot == slot)
-                        .map(|s| s.game.len() + s.bodies.iter().map(|b| b.fields.len()).sum::<usize>())
+                        .map(|s| s.game.len()
+                            + s.bodies.iter().map(|b| b.fields.len()).sum::<usize>())
                         .sum::<usize>()
                 );
                 print!("{shown}");

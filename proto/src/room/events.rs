@@ -45,6 +45,10 @@ pub enum LeaveReason {
     FellBehind,
     /// The caller removed the player ([`Room::kick`](super::Room::kick)).
     Kicked,
+    /// The room closed (the match ended, or the server shut down): a
+    /// normal end, [`Room::kick`](super::Room::kick) with
+    /// [`CloseReason::RoomClosed`](crate::CloseReason::RoomClosed).
+    RoomClosed,
     /// Its state hash stayed outside the majority for
     /// [`RoomConfig::max_wrong_ticks`](super::RoomConfig::max_wrong_ticks)
     /// reported ticks in a row.

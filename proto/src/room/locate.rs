@@ -6,11 +6,11 @@
 
 use std::time::Duration;
 
-use crate::forensics::{field_diffs, list_diffs};
 use crate::forensics::{
-    BodyDiff, BodyDump, DesyncReport, FieldDump, Probe, ProbeAnswer, ProbeAsk, ProbeReply, ProbeStatus,
-    SuspectReport,
+    BodyDiff, BodyDump, DesyncReport, FieldDump, Probe, ProbeAnswer, ProbeAsk, ProbeReply,
+    ProbeStatus, SuspectReport,
 };
+use crate::forensics::{field_diffs, list_diffs};
 use crate::limits::{MAX_PROBE_BODIES, MAX_REPORT_FIELDS};
 use crate::message::{DesyncNotice, Slot, Verdict};
 

@@ -21,8 +21,8 @@ use std::time::{Duration, Instant, SystemTime};
 use bytes::Bytes;
 use lockstep_proto::{
     BundleDatagram, Channel, ClientMessage, Close, CloseReason, DesyncNotice, ENGINE_VERSION, Join,
-    MAX_DATAGRAM_BYTES, PROTOCOL_VERSION, PlayerId, Rejection, ReplayHeader, ReplayRecorder, Room,
-    RoomConfig, RoomEvent, ServerMessage, Verdict,
+    LeaveReason, MAX_DATAGRAM_BYTES, PROTOCOL_VERSION, PlayerId, Rejection, ReplayHeader,
+    ReplayRecorder, Room, RoomConfig, RoomEvent, ServerMessage, Verdict,
 };
 use tokio::sync::{mpsc, oneshot};
 
@@ -96,6 +96,14 @@ pub(crate) fn check_settings(config: &ServerConfig, scene_hash: u64) -> Result<(
     }
     if s.match_ticks == Some(0) {
         return Err(ServerError::Config("match_ticks must be positive".into()));
+    }
+    // A server asked to verify that cannot re-simulate its scene would wait
+    // out every tick's hash timeout: it refuses to start instead.
+    if let Some(f) = &config.verifier {
+        f.new_verifier(config.scene.as_bytes(), scene_hash)
+            .map_err(|e| {
+                ServerError::Config(format!("verify: cannot re-simulate the scene: {e}"))
+            })?;
     }
     Ok(())
 }
@@ -301,7 +309,9 @@ impl RoomTask {
             match f.new_verifier(&c.scene, c.scene_hash) {
                 Ok(v) => Some(v),
                 Err(e) => {
-                    crate::log!("room {name}: cannot verify: {e}; hashes are judged by majority");
+                    // Checked at start-up: only a verifier that fails now
+                    // and not then lands here.
+                    tracing::warn!("room {name}: cannot verify: {e}; hashes are judged by majority after each tick's timeout");
                     None
                 }
             }
@@ -921,13 +931,22 @@ impl RoomTask {
                 reason,
                 from_tick,
             } => {
-                tracing::info!(
-                    slot = id.slot.0,
-                    reason = ?reason,
-                    "room {}: slot {} left ({reason:?}) from tick {from_tick}",
-                    self.name,
-                    id.slot.0
-                );
+                if reason == LeaveReason::RoomClosed {
+                    tracing::info!(
+                        slot = id.slot.0,
+                        "room {}: slot {} played to the end (tick {from_tick})",
+                        self.name,
+                        id.slot.0
+                    );
+                } else {
+                    tracing::info!(
+                        slot = id.slot.0,
+                        reason = ?reason,
+                        "room {}: slot {} left ({reason:?}) from tick {from_tick}",
+                        self.name,
+                        id.slot.0
+                    );
+                }
                 let index = id.slot.index();
                 if let Some(seat) = self.seats[index].take() {
                     if !seat.closing {
