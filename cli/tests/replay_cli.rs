@@ -46,6 +46,8 @@ fn record_lying(
     let mut header = header;
     tweak(&mut header);
     let mut rec = ReplayRecorder::new(header, 120).expect("header");
+    // The match starts with its seed (0: the recorder's).
+    lockstep_client::game::start_match(&mut world, 0).expect("seed");
     for s in 0..2u8 {
         rec.on_event(&RoomEvent::PlayerJoined {
             id: PlayerId {
@@ -140,9 +142,15 @@ fn a_replay_of_other_rules_says_so_and_exits_three() {
     let (code, out) = run("other-rules.replay", &bytes);
     assert_eq!(code, 3, "{out}");
     assert!(
-        out.contains("recorded with rules someone-elses-game v4, this check uses lockstep-demo v2"),
+        out.contains("recorded with rules someone-elses-game v4, this check uses lockstep-demo v3"),
         "{out}"
     );
+    // And how to check it.
+    assert!(
+        out.contains("check it with that game's own program"),
+        "{out}"
+    );
+    assert!(out.contains("lockstep_testkit::assert_replays"), "{out}");
     let bytes = record_with(10, None, |h| h.rules.version = Demo::VERSION + 1);
     let (code, out) = run("other-rules-version.replay", &bytes);
     assert_eq!(code, 3, "{out}");
@@ -230,6 +238,7 @@ fn a_replay_without_its_end_is_reported_as_cut_at_its_last_tick() {
 /// The demo world after `ticks` ticks of the two players [`record`] plays.
 fn world_after(ticks: u64) -> lockstep_core::World {
     let mut world = DemoGame::world().expect("demo scene");
+    lockstep_client::game::start_match(&mut world, 0).expect("seed");
     let mut game = DemoGame::new(&world).expect("demo game");
     for tick in 0..ticks {
         let bundle = TickBundle {
@@ -252,6 +261,15 @@ fn world_after(ticks: u64) -> lockstep_core::World {
 /// `expected` overrides when given; the snapshot is the world after tick 59
 /// (or `snapshot` when given).
 fn bundle(expected: Option<Vec<u64>>, snapshot: Option<Vec<u8>>) -> Vec<u8> {
+    bundle_with(expected, None, snapshot)
+}
+
+/// [`bundle`] with the diverging player's values `got` given too.
+fn bundle_with(
+    expected: Option<Vec<u64>>,
+    got: Option<Vec<u64>>,
+    snapshot: Option<Vec<u8>>,
+) -> Vec<u8> {
     use lockstep_proto::replay::encode_record;
     use lockstep_proto::{
         BodyDiff, DesyncReport, FieldDiff, ProbeStatus, ReplayRecord, SuspectReport,
@@ -266,8 +284,11 @@ fn bundle(expected: Option<Vec<u64>>, snapshot: Option<Vec<u8>>) -> Vec<u8> {
         .unwrap()
         .words
         .clone();
-    let mut got = v.clone();
-    got[0] = got[0].wrapping_add(1);
+    let got = got.unwrap_or_else(|| {
+        let mut g = v.clone();
+        g[0] = g[0].wrapping_add(1);
+        g
+    });
     let report = DesyncReport {
         tick: 60,
         reference: Slot(0),
@@ -334,6 +355,30 @@ fn a_bundle_whose_majority_values_this_machine_does_not_produce_exits_one() {
         !out.contains("expected [0 (0x0000000000000000), 0 "),
         "{out}"
     );
+}
+
+#[test]
+fn a_bundle_whose_odd_one_out_this_build_matches_says_so_without_the_field_dump() {
+    // The majority recorded other values; the diverging slot 1 recorded
+    // exactly what this build computes.
+    let ours = {
+        let at_60 = world_after(61);
+        let dump = lockstep_client::net::dump_bodies(&at_60, &[5]).remove(0);
+        let f = dump.fields.iter().find(|f| f.name == "linear_velocity");
+        f.unwrap().words.clone()
+    };
+    let bytes = bundle_with(Some(vec![0, 0, 0]), Some(ours), None);
+    let (code, out) = run("odd.bundle", &bytes);
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        out.starts_with("BUNDLE NOT REPRODUCED: this build simulates as slot 1 did"),
+        "{out}"
+    );
+    assert!(
+        out.contains("(slot 1's 1 fields, equal to this machine's, not listed)"),
+        "{out}"
+    );
+    assert!(!out.contains("linear_velocity:"), "{out}");
 }
 
 #[test]

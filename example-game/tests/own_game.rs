@@ -12,7 +12,7 @@ use std::time::Duration;
 use lockstep_client::bot::{BotOptions, run_bots};
 use lockstep_client::game::{BotPolicy, RulesFactory, RulesVerifier};
 use lockstep_client::net::{Client, ClientReport};
-use lockstep_client::offline::{SyncTestOptions, sync_test, verify_replay_file};
+use lockstep_client::offline::verify_replay_file;
 use lockstep_example_game::{
     ChaseBot, LAST_DROP_FIELD, PaddleGame, PaddleInput, PaddleRules, SCENE,
 };
@@ -250,18 +250,9 @@ async fn a_killed_player_rejoins_its_seat_mid_round_and_agrees() {
 }
 
 #[test]
-fn the_sync_test_passes() {
-    let r = sync_test(
-        SCENE,
-        "example-game/scene.toml",
-        &PaddleGame,
-        &SyncTestOptions {
-            ticks: 300,
-            ..SyncTestOptions::default()
-        },
-    )
-    .unwrap();
-    assert_eq!(r.resimulated, 298 * 2);
+fn the_kit_sync_test_passes() {
+    let r = lockstep_testkit::assert_sync(SCENE, "example-game/scene.toml", &PaddleGame);
+    assert_eq!(r.ticks, 600);
 }
 
 fn run_bin(args: &[&str]) -> (i32, String, String) {

@@ -411,6 +411,7 @@ mod tests {
             scene: vec![],
             resume: None,
             rules: None,
+            seed: 0,
         });
         assert!(matches!(
             ServerMessage::decode(&raw(&w)),

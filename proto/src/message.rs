@@ -213,6 +213,9 @@ pub struct Welcome {
     /// The game rules the match is played with (`None`: the server does not
     /// say). A client with other rules must not play.
     pub rules: Option<crate::RulesId>,
+    /// The match's seed: the game state of a world built from the scene
+    /// starts with it (ignored with `resume`: the snapshot holds it).
+    pub seed: u64,
 }
 
 /// Where a player joining a running match starts: the world after `tick`

@@ -188,6 +188,10 @@ pub enum ReplayRecord {
         /// The piece.
         bytes: Vec<u8>,
     },
+    // Format version 4.
+    /// The match's seed (right after the header; a replay without one has
+    /// seed 0).
+    Seed(u64),
 }
 
 /// Why a replay could not be written.
@@ -319,6 +323,8 @@ pub struct Replay {
     /// Whether the file ends inside a record (the server stopped while
     /// writing it, e.g. a crash); everything before it was read.
     pub truncated: bool,
+    /// The match's seed (0 when the replay records none).
+    pub seed: u64,
 }
 
 impl Replay {
@@ -405,6 +411,7 @@ impl Replay {
                 .filter(|(_, _, total, b)| b.len() as u64 == *total)
                 .map(|(t, h, _, b)| (t, h, b)),
             end: replay_parts.end,
+            seed: replay_parts.seed,
             truncated,
         })
     }
@@ -426,6 +433,7 @@ struct Parts {
     located: Vec<DesyncReport>,
     snapshot: Option<(u64, u64, u64, Vec<u8>)>,
     end: Option<(u64, String)>,
+    seed: u64,
 }
 
 impl Parts {
@@ -433,6 +441,7 @@ impl Parts {
         let at = offset;
         match record {
             ReplayRecord::Header(_) => return Err(ReplayError::MisplacedHeader { offset }),
+            ReplayRecord::Seed(seed) => self.seed = seed,
             ReplayRecord::PlayerJoined {
                 slot,
                 name,
@@ -555,8 +564,21 @@ impl ReplayRecorder {
     /// [`ReplayEncodeError`] if the header cannot be encoded (a scene over
     /// the size limit).
     pub fn new(header: ReplayHeader, decide_after: u64) -> Result<Self, ReplayEncodeError> {
+        Self::with_seed(header, 0, decide_after)
+    }
+
+    /// [`ReplayRecorder::new`] for a match played with `seed`.
+    ///
+    /// # Errors
+    /// As [`ReplayRecorder::new`].
+    pub fn with_seed(
+        header: ReplayHeader,
+        seed: u64,
+        decide_after: u64,
+    ) -> Result<Self, ReplayEncodeError> {
         let mut out = encode_preamble();
         out.extend(encode_record(&ReplayRecord::Header(header))?);
+        out.extend(encode_record(&ReplayRecord::Seed(seed))?);
         Ok(Self {
             pending: VecDeque::new(),
             present: 0,

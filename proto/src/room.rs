@@ -287,6 +287,7 @@ impl Room {
                 scene: self.config.scene.clone(),
                 resume: None,
                 rules: self.config.rules.clone(),
+                seed: self.config.seed,
             }),
         });
         self.events.push_back(RoomEvent::PlayerJoined {
@@ -975,6 +976,7 @@ impl Room {
                     snapshot,
                 }),
                 rules: self.config.rules.clone(),
+                seed: self.config.seed,
             }),
         });
         self.events.push_back(RoomEvent::PlayerJoined { id, name });

@@ -596,6 +596,7 @@ mod tests {
             scene: vec![1, 2, 3],
             resume: None,
             rules: None,
+            seed: 0,
         }
     }
 

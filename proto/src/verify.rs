@@ -24,9 +24,15 @@ pub trait TickVerifier: Send {
 /// Makes a verifier for each room.
 pub trait VerifierFactory: Send + Sync + std::fmt::Debug {
     /// A verifier starting from `scene` (the bytes the room sends), whose
-    /// initial state must hash to `scene_hash`.
+    /// initial state must hash to `scene_hash`, for a match played with
+    /// `seed` (the welcome's).
     ///
     /// # Errors
     /// A message saying why the scene cannot be simulated.
-    fn new_verifier(&self, scene: &[u8], scene_hash: u64) -> Result<Box<dyn TickVerifier>, String>;
+    fn new_verifier(
+        &self,
+        scene: &[u8],
+        scene_hash: u64,
+        seed: u64,
+    ) -> Result<Box<dyn TickVerifier>, String>;
 }

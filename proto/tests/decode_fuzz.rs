@@ -73,6 +73,7 @@ fn server_samples() -> Vec<ServerMessage> {
             scene: (0..=255).collect(),
             resume: None,
             rules: None,
+            seed: 0,
         }),
         ServerMessage::Bundles(BundleDatagram {
             ack_input: Some(36_004),

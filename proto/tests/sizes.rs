@@ -99,10 +99,11 @@ fn message_sizes_for_a_4_player_room_with_8_byte_inputs() {
         scene: vec![0; 2048],
         resume: None,
         rules: None,
+        seed: 0,
     });
     // 3 + six 1-byte fields + scene hash 9 + scene length 3 + 2048 + no
-    // resume 1 + no rules 1
-    assert_eq!(len_s(&welcome), 23 + 2048);
+    // resume 1 + no rules 1 + seed 1
+    assert_eq!(len_s(&welcome), 24 + 2048);
     // One bundle: tick 3 + count 1 + 4 × (slot 1 + len 1 + 8 + flag 1) = 48.
     // Datagram: 3 + ack Some 1+3 + count 1 + n × 48.
     assert_eq!(len_s(&bundles(1)), 56);

@@ -98,13 +98,14 @@ fn server_messages_have_the_documented_bytes() {
         scene: b"s".to_vec(),
         resume: None,
         rules: None,
+        seed: 0,
     });
     // variant 0; slot u8; tick rate, delay, window varints; max input
     // bytes u8 raw; start tick; scene hash; scene = length + bytes; no
-    // resume: Option tag 0; no rules: Option tag 0.
+    // resume: Option tag 0; no rules: Option tag 0; seed varint 0.
     assert_eq!(
         welcome.encode().unwrap(),
-        with_header(&[0, 1, 60, 4, 64, 64, 0, 17, 1, b's', 0, 0])
+        with_header(&[0, 1, 60, 4, 64, 64, 0, 17, 1, b's', 0, 0, 0])
     );
     let bundles = ServerMessage::Bundles(BundleDatagram {
         ack_input: None,

@@ -89,6 +89,10 @@ pub struct RoomSettings {
     /// How long a dropped player's seat stays reserved for a rejoin with
     /// its seat token. Default 30 s.
     pub rejoin_grace: Duration,
+    /// Every match's seed (announced in the welcome, recorded in the
+    /// replay; the game's rules read it as their random source). `None`
+    /// (default): a fresh random seed per room.
+    pub seed: Option<u64>,
 }
 
 impl Default for RoomSettings {
@@ -105,6 +109,7 @@ impl Default for RoomSettings {
             max_messages_per_second: 1000,
             late_join: false,
             rejoin_grace: Duration::from_secs(30),
+            seed: None,
         }
     }
 }

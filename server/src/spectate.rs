@@ -45,6 +45,7 @@ pub(crate) struct RoomFeed {
     name: String,
     scene: Vec<u8>,
     scene_hash: u64,
+    seed: u64,
     /// The bundles the room closed that no re-simulation has applied yet,
     /// in tick order (from tick 0 until someone watches).
     history: Mutex<Vec<TickBundle>>,
@@ -74,11 +75,18 @@ impl Spectate {
     }
 
     /// A room opened: viewers can find it from now on.
-    pub(crate) fn open(&self, name: &str, scene: &[u8], scene_hash: u64) -> Arc<RoomFeed> {
+    pub(crate) fn open(
+        &self,
+        name: &str,
+        scene: &[u8],
+        scene_hash: u64,
+        seed: u64,
+    ) -> Arc<RoomFeed> {
         let feed = Arc::new(RoomFeed {
             name: name.to_owned(),
             scene: scene.to_vec(),
             scene_hash,
+            seed,
             history: Mutex::new(Vec::new()),
             closed: AtomicU64::new(0),
             sim: Mutex::new(None),
@@ -110,7 +118,7 @@ impl Spectate {
         if sim.is_none() {
             let verifier = self
                 .factory
-                .new_verifier(&feed.scene, feed.scene_hash)
+                .new_verifier(&feed.scene, feed.scene_hash, feed.seed)
                 .map_err(|e| Response::error(503, &format!("cannot re-simulate: {e}")))?;
             let world = restore(&*verifier)?;
             let title = format!("room {}", feed.name);

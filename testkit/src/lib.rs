@@ -21,6 +21,9 @@
 //! bodies that differ (where the replay recorded body hashes: record with
 //! `ClientOptions::body_hashes_every` set). `docs/own-game.md` says how to
 //! record a replay from a real match and drop it into the folder.
+//!
+//! [`assert_sync`] is the other half: the game's determinism checked on one
+//! machine (a twin and a rollback every tick), before any replay exists.
 
 #![warn(missing_docs)]
 
@@ -28,7 +31,9 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use lockstep_client::game::RulesFactory;
-use lockstep_client::offline::{ReplayCheck, ReplayVerifyError, verify_replay_file};
+use lockstep_client::offline::{
+    ReplayCheck, ReplayVerifyError, SyncTestOptions, SyncTestReport, sync_test, verify_replay_file,
+};
 
 /// The replays that verified.
 #[derive(Clone, Debug)]
@@ -208,6 +213,35 @@ pub fn assert_replays(dir: impl AsRef<Path>, game: &dyn RulesFactory) -> KitRepo
     match check_replays(dir, game) {
         Ok(r) => r,
         Err(e) => panic!("{e}"),
+    }
+}
+
+/// The sync test for a test: plays `scene` (TOML, `label` in errors) with
+/// `game`'s rules and four scripted bots for 600 ticks beside a twin, and
+/// every tick re-simulates the last two from the saved state with fresh
+/// rules (see [`lockstep_client::offline::sync_test`]); panics naming the
+/// first tick and the fields that differ. It catches rules that are not
+/// deterministic (a `HashMap`'s iteration order, a clock, a float that
+/// depends on the machine is not among them: run the replays on each
+/// machine for that) or that keep state outside the world, on one machine
+/// and before any network.
+///
+/// ```no_run
+/// use lockstep_client::game::{Demo, DemoGame};
+///
+/// #[test]
+/// fn the_rules_are_deterministic() {
+///     lockstep_testkit::assert_sync(DemoGame::SCENE, "scenes/demo.toml", &Demo);
+/// }
+/// ```
+///
+/// # Panics
+/// If the sync test fails.
+#[track_caller]
+pub fn assert_sync(scene: &str, label: &str, game: &dyn RulesFactory) -> SyncTestReport {
+    match sync_test(scene, label, game, &SyncTestOptions::default()) {
+        Ok(r) => r,
+        Err(e) => panic!("sync test of {}: {e}", game.rules_id()),
     }
 }
 

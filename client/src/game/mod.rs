@@ -40,7 +40,7 @@ pub use lockstep_core::{GameState, GameStateError};
 pub use lockstep_proto::RulesId;
 pub use policy::{BotPolicy, BotView};
 use thiserror::Error;
-pub use tick::{PLAYERS_FIELD, TickError, apply_tick};
+pub use tick::{PLAYERS_FIELD, SEED_FIELD, TickError, apply_tick, match_seed, start_match};
 
 /// The game layer: turns one tick's player inputs into forces and impulses
 /// on the world, called by every peer (bots, clients, the offline replay
@@ -352,6 +352,7 @@ impl lockstep_proto::verify::VerifierFactory for RulesVerifier {
         &self,
         scene: &[u8],
         scene_hash: u64,
+        seed: u64,
     ) -> Result<Box<dyn lockstep_proto::verify::TickVerifier>, String> {
         let text = std::str::from_utf8(scene).map_err(|e| format!("scene is not UTF-8: {e}"))?;
         let world =
@@ -362,6 +363,8 @@ impl lockstep_proto::verify::VerifierFactory for RulesVerifier {
                 "scene hashes to {got:016x}, the room announces {scene_hash:016x}"
             ));
         }
+        let mut world = world;
+        start_match(&mut world, seed).map_err(|e| e.to_string())?;
         let rules = self.game.rules_for(&world).map_err(|e| e.to_string())?;
         Ok(Box::new(VerifiedWorld { world, rules }))
     }

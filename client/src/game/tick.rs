@@ -12,6 +12,27 @@ use super::GameRules;
 /// included. Names starting with `match.` are the library's.
 pub const PLAYERS_FIELD: &str = "match.players";
 
+/// The game-state field holding the match's seed (announced in the
+/// welcome, recorded in the replay): the rules' deterministic random
+/// source, the same on every peer ([`match_seed`]).
+pub const SEED_FIELD: &str = "match.seed";
+
+/// Starts a match on a world just built from its scene: writes the match's
+/// seed into its game state ([`SEED_FIELD`]). Every peer that builds the
+/// world from the scene does this before the first tick (a world restored
+/// from a snapshot already holds it).
+///
+/// # Errors
+/// [`GameStateError`] only if the game state is already full.
+pub fn start_match(world: &mut World, seed: u64) -> Result<(), GameStateError> {
+    world.game_state_mut().set_word(SEED_FIELD, seed)
+}
+
+/// The match's seed ([`start_match`]); 0 for a world no match started on.
+pub fn match_seed(world: &World) -> u64 {
+    world.game_state().word(SEED_FIELD).unwrap_or(0)
+}
+
 /// Why a tick could not be applied whole. It fails alike on every peer
 /// (the inputs and the state are the same), so it is a defect of the rules,
 /// not a desync.

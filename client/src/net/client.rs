@@ -20,7 +20,7 @@ use lockstep_net::{
 };
 
 use super::tls::client_config;
-use crate::game::{BotView, GameRules, RulesFactory, RulesId, apply_tick};
+use crate::game::{BotView, GameRules, RulesFactory, RulesId, apply_tick, start_match};
 
 /// The certificate (or CA) a client trusts: a PEM file, or PEM text held in
 /// memory (a game that ships its server's certificate inside the binary).
@@ -377,7 +377,7 @@ impl Client {
             });
         }
         let session = Session::new(&welcome)?;
-        let (world, expected) = match &welcome.resume {
+        let (mut world, expected) = match &welcome.resume {
             // Joining a running match: the agreed state of a past tick.
             Some(r) => {
                 let world = World::restore(&r.snapshot)
@@ -396,6 +396,9 @@ impl Client {
         if got != expected {
             connection.close(close_code::REFUSED.into(), b"scene hash mismatch");
             return Err(ClientError::SceneHashMismatch { expected, got });
+        }
+        if welcome.resume.is_none() {
+            start_match(&mut world, welcome.seed).map_err(|e| ClientError::Game(e.to_string()))?;
         }
         let rules = match game.rules_for(&world) {
             Ok(r) => r,

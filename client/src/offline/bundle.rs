@@ -8,7 +8,7 @@
 use lockstep_core::World;
 use lockstep_proto::{BodyDiff, DesyncReport, FieldDiff, FieldDump, Replay, Slot, SuspectReport};
 
-use super::replay::{ReplayVerifyError, apply_bundle, check_header, recorded_world};
+use super::replay::{ReplayVerifyError, apply_bundle, check_header, match_world};
 use crate::game::RulesFactory;
 use crate::net::{dump_bodies, dump_game};
 
@@ -76,7 +76,7 @@ pub fn reproduce_bundle(
         .last()
         .cloned()
         .ok_or(ReplayVerifyError::NotABundle)?;
-    let mut world = recorded_world(replay, "bundle scene")?;
+    let mut world = match_world(replay, "bundle scene")?;
     let mut rules = game
         .rules_for(&world)
         .map_err(|e| ReplayVerifyError::Game(e.to_string()))?;

@@ -20,7 +20,7 @@ use lockstep_core::{StepReport, World};
 use lockstep_proto::{Replay, ReplayError, RulesId, TickBundle};
 use thiserror::Error;
 
-use crate::game::{GameRules, RulesFactory, TickError, apply_tick};
+use crate::game::{GameRules, RulesFactory, TickError, apply_tick, start_match};
 
 /// A body whose hash differs from the one recorded in the replay.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -260,6 +260,25 @@ pub(crate) fn tick_failed(e: TickError) -> ReplayVerifyError {
     ReplayVerifyError::Game(e.to_string())
 }
 
+/// The world every player started the recorded match from: built from the
+/// recorded scene (checked against the recorded scene hash), with the
+/// match's seed ([`start_match`]).
+///
+/// # Errors
+/// [`ReplayVerifyError::Scene`] or [`ReplayVerifyError::SceneHash`].
+pub fn match_world(replay: &Replay, label: &str) -> Result<World, ReplayVerifyError> {
+    let mut world = recorded_world(replay, label)?;
+    let got = world.state_hash();
+    if got != replay.header.scene_hash {
+        return Err(ReplayVerifyError::SceneHash {
+            expected: replay.header.scene_hash,
+            got,
+        });
+    }
+    start_match(&mut world, replay.seed).map_err(|e| ReplayVerifyError::Game(e.to_string()))?;
+    Ok(world)
+}
+
 /// Builds the world from the scene a replay (or bundle) recorded;
 /// `label` names it in error messages.
 ///
@@ -308,14 +327,7 @@ pub fn verify_replay(
     game: &dyn RulesFactory,
 ) -> Result<ReplayCheck, ReplayVerifyError> {
     check_header(replay, game)?;
-    let mut world = recorded_world(replay, "replay scene")?;
-    let got = world.state_hash();
-    if got != replay.header.scene_hash {
-        return Err(ReplayVerifyError::SceneHash {
-            expected: replay.header.scene_hash,
-            got,
-        });
-    }
+    let mut world = match_world(replay, "replay scene")?;
     let mut rules = game
         .rules_for(&world)
         .map_err(|e| ReplayVerifyError::Game(e.to_string()))?;

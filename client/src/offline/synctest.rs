@@ -27,7 +27,7 @@ use lockstep_core::world::FieldKind;
 use lockstep_proto::forensics::q32_decimal;
 use thiserror::Error;
 
-use crate::game::{GameRules, RulesFactory, apply_tick};
+use crate::game::{GameRules, RulesFactory, apply_tick, start_match};
 
 /// What the sync test runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -143,8 +143,9 @@ pub fn sync_test(
     options: &SyncTestOptions,
 ) -> Result<SyncTestReport, SyncTestError> {
     let build = || -> Result<(World, Box<dyn GameRules>), SyncTestError> {
-        let world = lockstep_core::scene::load_world(scene, label)
+        let mut world = lockstep_core::scene::load_world(scene, label)
             .map_err(|e| SyncTestError::Setup(e.to_string()))?;
+        start_match(&mut world, options.seed).map_err(|e| SyncTestError::Setup(e.to_string()))?;
         let rules = game
             .rules_for(&world)
             .map_err(|e| SyncTestError::Setup(e.to_string()))?;

@@ -18,7 +18,7 @@ pub use lockstep_view::{
 };
 
 use crate::game::RulesFactory;
-use crate::offline::{apply_bundle, check_header, is_bundle, recorded_world};
+use crate::offline::{apply_bundle, check_header, is_bundle, match_world};
 
 /// Why a file could not be viewed.
 #[derive(Debug, thiserror::Error)]
@@ -142,7 +142,7 @@ pub fn view_replay(
 ) -> Result<ViewData, ViewError> {
     check_header(replay, game).map_err(|e| ViewError::Replay(e.to_string()))?;
     let mut world =
-        recorded_world(replay, "recorded scene").map_err(|e| ViewError::Replay(e.to_string()))?;
+        match_world(replay, "recorded scene").map_err(|e| ViewError::Replay(e.to_string()))?;
     let mut rules = game
         .rules_for(&world)
         .map_err(|e| ViewError::Replay(e.to_string()))?;

@@ -82,6 +82,9 @@ pub struct RoomConfig {
     /// so that a client with other rules refuses to play (`None`: not
     /// announced). Default `None`.
     pub rules: Option<crate::RulesId>,
+    /// The match's seed, sent in the welcome: every peer's rules read the
+    /// same value (a deterministic random source for the game). Default 0.
+    pub seed: u64,
 }
 
 impl RoomConfig {
@@ -103,6 +106,7 @@ impl RoomConfig {
             ping_interval: Duration::from_secs(1),
             locate_timeout: Duration::from_secs(10),
             rules: None,
+            seed: 0,
             verify: false,
             late_join: false,
             rejoin_grace: Duration::from_secs(30),

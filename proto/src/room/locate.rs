@@ -484,3 +484,101 @@ fn report(s: &Search) -> DesyncReport {
         inputs: Vec::new(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::forensics::FieldKind;
+    use crate::message::PlayerHash;
+
+    fn field(name: &str, w: u64) -> FieldDump {
+        FieldDump {
+            name: name.into(),
+            kind: FieldKind::Int,
+            words: vec![w],
+        }
+    }
+
+    /// Two players whose bodies agree and whose game states differ in one
+    /// field: the room asks for the fields (with no body) and the report
+    /// names the game-state field.
+    #[test]
+    fn a_game_state_difference_is_located_to_its_field() {
+        let mut l = Locator::new(Duration::from_secs(5));
+        let mut out = Vec::new();
+        let notice = DesyncNotice {
+            tick: 10,
+            hashes: (0..3u8)
+                .map(|s| PlayerHash {
+                    slot: Slot(s),
+                    hash: Some(if s == 2 { 9 } else { 7 }),
+                })
+                .collect(),
+            verdict: Verdict::Majority {
+                majority_hash: 7,
+                wrong: vec![Slot(2)],
+            },
+        };
+        assert!(l.start(Duration::ZERO, &notice, None, &mut out));
+        out.clear();
+        for (s, game) in [(0u8, 5u64), (2, 6)] {
+            let reply = ProbeReply {
+                tick: 10,
+                answer: ProbeAnswer::BodyHashes {
+                    total: 2,
+                    from: 0,
+                    contacts: 1,
+                    game,
+                    hashes: vec![3, 4],
+                },
+            };
+            l.on_reply(Slot(s), reply, &mut out);
+        }
+        let asked: Vec<_> = out
+            .drain(..)
+            .filter_map(|o| match o {
+                Output::Probe(s, p) => Some((s, p.ask)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            asked,
+            [
+                (Slot(0), ProbeAsk::Fields { bodies: vec![] }),
+                (Slot(2), ProbeAsk::Fields { bodies: vec![] })
+            ]
+        );
+        for (s, score) in [(0u8, 3), (2, 4)] {
+            let reply = ProbeReply {
+                tick: 10,
+                answer: ProbeAnswer::Fields {
+                    bodies: vec![],
+                    game: vec![field("round", 1), field("score", score)],
+                },
+            };
+            l.on_reply(Slot(s), reply, &mut out);
+        }
+        let Some(Output::Report(r)) = out.pop() else {
+            panic!("no report");
+        };
+        let s = &r.suspects[0];
+        assert_eq!(s.slot, Slot(2));
+        assert!(s.game_differs && !s.contacts_differ);
+        assert_eq!(s.bodies_differing, 0);
+        assert_eq!(s.game.len(), 1);
+        assert_eq!(
+            (
+                s.game[0].name.as_str(),
+                &s.game[0].expected[..],
+                &s.game[0].got[..]
+            ),
+            ("score", &[3][..], &[4][..])
+        );
+        let text = r.to_string();
+        assert!(
+            text.contains("slot 2 (Complete): 0 bodies differ, the game state differs"),
+            "{text}"
+        );
+        assert!(text.contains("game state score:"), "{text}");
+    }
+}

@@ -74,6 +74,15 @@ fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig
     c.late_join = s.late_join;
     c.rejoin_grace = s.rejoin_grace;
     c.rules = Some(config.rules.clone());
+    c.seed = s.seed.unwrap_or_else(|| {
+        // A fresh seed per room: std's hasher keys are random per process,
+        // the room's name and the clock make it per room.
+        use std::hash::BuildHasher;
+        let now = SystemTime::now()
+            .duration_since(SystemTime::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        std::collections::hash_map::RandomState::new().hash_one((name, now))
+    });
     c.input_window = c.input_window.max(s.input_delay.saturating_add(16));
     let needed = c.ticks_in(c.hash_timeout).saturating_add(2);
     c.hash_window_ticks = c
@@ -100,7 +109,7 @@ pub(crate) fn check_settings(config: &ServerConfig, scene_hash: u64) -> Result<(
     // A server asked to verify that cannot re-simulate its scene would wait
     // out every tick's hash timeout: it refuses to start instead.
     if let Some(f) = &config.verifier {
-        f.new_verifier(config.scene.as_bytes(), scene_hash)
+        f.new_verifier(config.scene.as_bytes(), scene_hash, 0)
             .map_err(|e| {
                 ServerError::Config(format!("verify: cannot re-simulate the scene: {e}"))
             })?;
@@ -274,7 +283,7 @@ impl RoomTask {
                 rules: shared.config.rules.clone(),
             };
             let decide_after = c.ticks_in(c.hash_timeout);
-            let recorder = match ReplayRecorder::new(header, decide_after) {
+            let recorder = match ReplayRecorder::with_seed(header, c.seed, decide_after) {
                 Ok(r) => r,
                 Err(e) => {
                     crate::log!("room {name}: no replay: {e}");
@@ -306,7 +315,7 @@ impl RoomTask {
         });
         let verifier = shared.config.verifier.as_ref().and_then(|f| {
             let c = room.config();
-            match f.new_verifier(&c.scene, c.scene_hash) {
+            match f.new_verifier(&c.scene, c.scene_hash, c.seed) {
                 Ok(v) => Some(v),
                 Err(e) => {
                     // Checked at start-up: only a verifier that fails now
@@ -326,7 +335,7 @@ impl RoomTask {
         );
         let feed = shared.spectate.as_ref().map(|v| {
             let c = room.config();
-            v.open(&name, &c.scene, c.scene_hash)
+            v.open(&name, &c.scene, c.scene_hash, c.seed)
         });
         let seats = (0..room.config().max_players).map(|_| None).collect();
         Self {
