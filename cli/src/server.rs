@@ -117,6 +117,11 @@ pub struct ServerArgs {
     /// state, fetched from a player in agreement and checked by its hash.
     #[arg(long, env = "LOCKSTEP_LATE_JOIN")]
     late_join: bool,
+    /// Every match's seed, the game rules' random source (default: a fresh
+    /// random seed per room; it is announced in the welcome and recorded
+    /// in the replay either way).
+    #[arg(long, value_name = "SEED", env = "LOCKSTEP_MATCH_SEED")]
+    match_seed: Option<u64>,
     /// Seconds a dropped player's seat stays reserved for a rejoin with
     /// its seat token.
     #[arg(long, default_value_t = 30.0, env = "LOCKSTEP_REJOIN_GRACE")]
@@ -332,6 +337,7 @@ pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
     }
     config.require_tokens = cli.require_tokens;
     config.room.late_join = cli.late_join;
+    config.room.seed = cli.match_seed;
     config.metrics = cli.metrics;
     config.view = cli.view.map(|listen| lockstep_server::ViewSettings {
         listen,

@@ -1,11 +1,14 @@
-//! Headless bots: clients that play scripted input and re-simulate every
-//! tick, for load tests, the demo and the end-to-end tests.
+//! Headless bots: clients that play and re-simulate every tick, for load
+//! tests, the demo, a game's own test matches and the end-to-end tests.
 //!
 //! Each bot is a full [`Client`]: it builds the world from the welcome,
 //! applies every bundle through the game rules, steps, and reports every
 //! tick's hash. It plays any game: its rules and its input come from a
-//! [`RulesFactory`] (input [`RulesFactory::bot_input`]`(seed, slot, tick)`,
-//! a pure function, so a match between bots is reproducible from the seed).
+//! [`RulesFactory`]: the game's [`BotPolicy`](crate::game::BotPolicy) for
+//! its slot when it has one (a bot that sees the world, the rules and its
+//! slot), else [`RulesFactory::bot_input`]`(seed, slot, tick)` (a pure
+//! function, so a match between such blind bots is reproducible from the
+//! seed).
 
 use std::future::Future;
 use std::net::SocketAddr;
