@@ -26,5 +26,8 @@ pub use body::{BodyDesc, BodyHandle, BodyKind};
 pub use collider::{ColliderDesc, ColliderHandle, CollisionFilter, Material};
 pub use game_state::{GameField, GameState, GameStateError};
 pub use joint::{JointDesc, JointEvent, JointHandle, JointKind, Motor, Spring};
+/// The elementary functions rules use most (exact to the documented ulp, the
+/// same bits on every machine; the rest are in [`math::elem`]).
+pub use math::elem::{atan2, sin_cos};
 pub use math::{Aabb, Faults, Mat3, Quat, Scalar, SymMat3, Transform, Vec3};
 pub use world::{BodyRef, ContactOrder, ContactRows, StepReport, World, WorldConfig, WorldError};

@@ -249,6 +249,28 @@ async fn a_killed_player_rejoins_its_seat_mid_round_and_agrees() {
     assert_eq!((check.ticks, check.checked), (420, 420));
 }
 
+/// A client with other rules refuses to play, and says whose.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_of_another_game_refuses_to_join() {
+    let dir = tmp("own-game-other");
+    let server = Server::start(&dir, |c| c.room.start_players = 2).await;
+    let options =
+        lockstep_client::net::ClientOptions::new(server.addr, server.cert.clone(), "table", "demo");
+    let err = Client::connect(options, &lockstep_client::game::Demo)
+        .await
+        .err()
+        .expect("refused");
+    assert!(
+        matches!(&err, lockstep_client::net::ClientError::WrongRules { server, .. } if *server == PaddleGame.rules_id()),
+        "{err}"
+    );
+    assert!(
+        err.to_string()
+            .starts_with("the server plays example-paddles v2, this client lockstep-demo v3"),
+        "{err}"
+    );
+}
+
 #[test]
 fn the_kit_sync_test_passes() {
     let r = lockstep_testkit::assert_sync(SCENE, "example-game/scene.toml", &PaddleGame);

@@ -558,8 +558,15 @@ mod tests {
             };
             l.on_reply(Slot(s), reply, &mut out);
         }
+        // The bundle's snapshot of tick 9 is not available: the report
+        // comes without it.
+        let unavailable = ProbeReply {
+            tick: 9,
+            answer: ProbeAnswer::Unavailable,
+        };
+        l.on_reply(Slot(0), unavailable, &mut out);
         let Some(Output::Report(r)) = out.pop() else {
-            panic!("no report");
+            panic!("no report: {out:?}");
         };
         let s = &r.suspects[0];
         assert_eq!(s.slot, Slot(2));
