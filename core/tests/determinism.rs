@@ -434,3 +434,31 @@ fn faults_raised_by_the_observer_are_not_the_steps() {
     }
     assert_eq!(plain.state_hash(), observed.state_hash());
 }
+
+/// A body's game value and the world's game state are state: hashed (only
+/// when set, so a world that sets neither hashes as before), named in the
+/// body's fields, and carried by snapshots.
+#[test]
+fn user_data_and_game_state_are_hashed_named_and_restored() {
+    let mut w = build();
+    let h = w.body_handles().nth(1).unwrap();
+    let (before, body_before) = (w.state_hash(), w.body_hashes()[1].1);
+    w.set_user_data(h, 0).unwrap();
+    assert_eq!(w.state_hash(), before, "zero is the unset value");
+    w.set_user_data(h, 42).unwrap();
+    assert_ne!(w.state_hash(), before);
+    assert_ne!(w.body_hashes()[1].1, body_before);
+    let fields = w.body_fields(h).unwrap();
+    let f = fields.iter().find(|f| f.name == "user_data").unwrap();
+    assert_eq!(f.words, [42]);
+    let with_data = w.state_hash();
+    w.game_state_mut().set_int("score", -3).unwrap();
+    assert_ne!(w.state_hash(), with_data);
+    let copy = World::restore(&w.snapshot()).unwrap();
+    assert_eq!(copy.state_hash(), w.state_hash());
+    assert_eq!(copy.body(h).unwrap().user_data(), 42);
+    assert_eq!(copy.game_state().int("score"), Some(-3));
+    // A stale handle is refused.
+    w.remove_body(h).unwrap();
+    assert!(w.set_user_data(h, 1).is_err());
+}

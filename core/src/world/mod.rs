@@ -659,6 +659,19 @@ impl World {
         Ok(())
     }
 
+    /// Sets the game's opaque value for a body (an entity id, a team, a
+    /// kind; also given at creation, [`BodyDesc::user_data`]). It is state
+    /// like the body's pose: in the body's hash (when not zero), in
+    /// snapshots, and in a desync report's fields.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`] for a stale handle.
+    pub fn set_user_data(&mut self, h: BodyHandle, value: u64) -> Result<(), WorldError> {
+        let (_, cold) = self.bodies.both_mut(h).ok_or(WorldError::InvalidBody(h))?;
+        cold.user_data = value;
+        Ok(())
+    }
+
     /// Marks a dynamic body as a bullet or not (see
     /// [`BodyDesc::bullet`]); ignored for static and kinematic bodies.
     ///

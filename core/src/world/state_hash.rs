@@ -210,6 +210,11 @@ impl World {
             }
             None => sink.field(FieldName::Body("kinematic_target set"), Word, &[0]),
         }
+        // The game's value for the body, only when set (a world that never
+        // sets one hashes as before it was hashed).
+        if cold.user_data != 0 {
+            sink.field(FieldName::Body("user_data"), Word, &[cold.user_data]);
+        }
         sink.field(
             FieldName::Body("collider count"),
             Word,
