@@ -48,6 +48,8 @@ pub struct BotOptions {
     pub tokens: Vec<String>,
     /// Print desync notices and closes to stderr as they happen.
     pub verbose: bool,
+    /// Bots predict and roll back ([`ClientOptions::predict`]).
+    pub predict: bool,
 }
 
 impl std::fmt::Debug for BotOptions {
@@ -96,6 +98,7 @@ impl BotOptions {
             body_hashes_every: 0,
             tokens: Vec::new(),
             verbose: false,
+            predict: false,
         }
     }
 
@@ -118,6 +121,7 @@ impl BotOptions {
         o.max_ticks = self.ticks;
         o.body_hashes_every = self.body_hashes_every;
         o.token = self.tokens.get(index).cloned();
+        o.predict = self.predict;
         o
     }
 }

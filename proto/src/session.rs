@@ -126,6 +126,9 @@ pub struct Session {
     slot: Slot,
     tick_rate: u16,
     input_delay: u16,
+    /// Ticks ahead of the room's clock inputs are sent (the input delay
+    /// unless a predicting client asks for more, [`Session::set_input_lead`]).
+    input_lead: u16,
     input_window: u16,
     max_input_bytes: usize,
     start_tick: u64,
@@ -191,6 +194,7 @@ impl Session {
             slot: welcome.slot,
             tick_rate: welcome.tick_rate,
             input_delay: welcome.input_delay,
+            input_lead: welcome.input_delay,
             input_window: welcome.input_window,
             max_input_bytes: usize::from(welcome.max_input_bytes),
             start_tick: welcome.start_tick,
@@ -240,7 +244,7 @@ impl Session {
     /// on time whenever the round trip is below `input_delay + 1` ticks.
     pub fn wants_input(&self, now: Duration) -> bool {
         !self.closed
-            && self.next_input_tick <= self.pacing_base(now) + u64::from(self.input_delay)
+            && self.next_input_tick <= self.pacing_base(now) + u64::from(self.input_lead)
             && self.next_input_tick < self.next_deliver + u64::from(self.input_window)
     }
 
@@ -389,7 +393,7 @@ impl Session {
         let due = self.clock_anchor.and_then(|(tick, at)| {
             let needed = self
                 .next_input_tick
-                .checked_sub(u64::from(self.input_delay) + 1)?;
+                .checked_sub(u64::from(self.input_lead) + 1)?;
             let periods = u32::try_from(needed.checked_sub(tick)?).ok()?;
             Some(at.saturating_add(self.period().saturating_mul(periods)))
         });
@@ -524,6 +528,22 @@ impl Session {
     /// The room's input delay in ticks.
     pub fn input_delay(&self) -> u16 {
         self.input_delay
+    }
+
+    /// Sends inputs `lead` ticks ahead of the room's clock instead of the
+    /// room's input delay: a predicting client runs ahead by about a round
+    /// trip, so that its inputs arrive before their ticks close while it
+    /// shows their effect at once. Held between the input delay and the
+    /// room's input window (less one); returns the lead kept.
+    pub fn set_input_lead(&mut self, lead: u16) -> u16 {
+        let max = self.input_window.saturating_sub(2).max(self.input_delay);
+        self.input_lead = lead.clamp(self.input_delay, max);
+        self.input_lead
+    }
+
+    /// Ticks ahead of the room's clock inputs are sent.
+    pub fn input_lead(&self) -> u16 {
+        self.input_lead
     }
 
     /// First tick this client takes part in.

@@ -98,6 +98,14 @@ pub struct ClientOptions {
     /// The join token to present (`lockstep-server token`, or a
     /// matchmaker's), for servers that require one.
     pub token: Option<String>,
+    /// Predict (see [`super::predict`]): run a second world ahead of the
+    /// confirmed ticks, to the tick of the last input this client chose,
+    /// with the other players' inputs guessed; draw
+    /// [`LiveClient::predicted_world`]. Default off.
+    pub predict: bool,
+    /// How many ticks the predicted world may run ahead of the last
+    /// confirmed one. Default 8.
+    pub max_prediction: u64,
 }
 
 impl ClientOptions {
@@ -120,6 +128,8 @@ impl ClientOptions {
             connect_timeout: Duration::from_secs(10),
             forensics_ticks: 64,
             token: None,
+            predict: false,
+            max_prediction: 8,
         }
     }
 }
@@ -272,6 +282,8 @@ pub struct ClientReport {
     pub traffic: Traffic,
     /// From the welcome to the end of play.
     pub played_for: Duration,
+    /// What prediction did ([`ClientOptions::predict`]; zeros without).
+    pub prediction: super::predict::PredictionStats,
 }
 
 impl ClientReport {
@@ -296,6 +308,8 @@ pub struct Client {
     session: Session,
     world: World,
     rules: Box<dyn GameRules>,
+    /// The predicted world's rules (with [`ClientOptions::predict`]).
+    predicted_rules: Option<Box<dyn GameRules>>,
     rules_id: RulesId,
     options: ClientOptions,
 }
@@ -407,6 +421,14 @@ impl Client {
                 return Err(ClientError::Game(e.to_string()));
             }
         };
+        let predicted_rules = if options.predict {
+            Some(
+                game.rules_for(&world)
+                    .map_err(|e| ClientError::Game(e.to_string()))?,
+            )
+        } else {
+            None
+        };
         Ok(Client {
             endpoint,
             connection,
@@ -415,6 +437,7 @@ impl Client {
             session,
             world,
             rules,
+            predicted_rules,
             rules_id: game.rules_id(),
             options,
         })
@@ -447,8 +470,13 @@ impl Client {
 
     /// Starts the network tasks and hands the match to the caller's loop:
     /// call [`LiveClient::poll`] every frame, then read
-    /// [`LiveClient::world`] to render. Must be called inside a tokio
-    /// runtime (the tasks run on it).
+    /// [`LiveClient::world`] (or, predicting,
+    /// [`LiveClient::predicted_world`]) to render. Must be called inside a
+    /// tokio runtime (the tasks run on it).
+    ///
+    /// # Panics
+    /// Never; a predicting client whose rules refuse their own state starts
+    /// without prediction (the same rules accepted it at connect).
     pub fn start(self) -> LiveClient {
         let (in_tx, incoming) = mpsc::unbounded_channel::<Incoming>();
         let (outgoing, mut out_rx) = mpsc::unbounded_channel::<Outgoing>();
@@ -501,7 +529,19 @@ impl Client {
         });
         let start_tick = self.session.first_bundle();
         let history = super::forensics::History::new(self.options.forensics_ticks);
+        let predictor = self.predicted_rules.and_then(|rules| {
+            super::predict::Predictor::new(
+                &self.world,
+                start_tick,
+                rules,
+                self.session.slot().0,
+                self.options.max_prediction,
+                None,
+            )
+            .ok()
+        });
         LiveClient {
+            predictor,
             history,
             endpoint: self.endpoint,
             connection: self.connection,
@@ -570,6 +610,7 @@ impl Client {
             rtt: Duration::ZERO,
             traffic: Traffic::default(),
             played_for: Duration::ZERO,
+            prediction: Default::default(),
         };
         tokio::pin!(stop);
         let mut stopped = false;
@@ -609,6 +650,7 @@ impl Client {
         report.rtt = live.connection.rtt();
         report.traffic = live.traffic();
         report.played_for = started.elapsed();
+        report.prediction = live.prediction_stats();
         live.shutdown().await;
         result.map(|()| report)
     }
@@ -685,10 +727,17 @@ pub struct AppliedTick {
 /// What one [`LiveClient::poll`] did.
 #[derive(Clone, Debug, Default)]
 pub struct Polled {
-    /// The ticks applied, in order (none if no bundle was ready).
+    /// The confirmed ticks applied, in order (none if no bundle was
+    /// ready).
     pub ticks: Vec<AppliedTick>,
     /// Room events seen (desync notices, the close).
     pub events: Vec<ClientEvent>,
+    /// Predicting: the predicted ticks this poll threw away and simulated
+    /// again because a confirmed tick differed from its prediction.
+    pub rollback: Option<super::predict::Rollback>,
+    /// Predicting: the tick the predicted world is at (its state is the
+    /// one after this tick).
+    pub predicted_tick: Option<u64>,
 }
 
 /// A client in a match, driven by the caller's loop: [`poll`](Self::poll)
@@ -715,6 +764,7 @@ pub struct LiveClient {
     stream_ended: Option<String>,
     left: bool,
     history: super::forensics::History,
+    predictor: Option<super::predict::Predictor>,
 }
 
 impl std::fmt::Debug for LiveClient {
@@ -748,6 +798,31 @@ impl LiveClient {
     /// [`World::game_state`]).
     pub fn rules(&self) -> &dyn GameRules {
         &*self.rules
+    }
+
+    /// The world to draw: predicting, the predicted present (after
+    /// [`Polled::predicted_tick`]); otherwise the confirmed world
+    /// ([`LiveClient::world`]).
+    pub fn predicted_world(&self) -> &World {
+        self.predictor.as_ref().map_or(&self.world, |p| p.world())
+    }
+
+    /// The predicted world's rules (the confirmed ones when not
+    /// predicting).
+    pub fn predicted_rules(&self) -> &dyn GameRules {
+        self.predictor.as_ref().map_or(&*self.rules, |p| p.rules())
+    }
+
+    /// Whether this client predicts.
+    pub fn is_predicting(&self) -> bool {
+        self.predictor.is_some()
+    }
+
+    /// What prediction did so far (zeros when not predicting).
+    pub fn prediction_stats(&self) -> super::predict::PredictionStats {
+        self.predictor
+            .as_ref()
+            .map_or_else(Default::default, |p| p.stats())
     }
 
     /// The next tick to apply.
@@ -865,15 +940,34 @@ impl LiveClient {
         if self.session.poll_timeout().is_some_and(|t| t <= now) {
             self.session.handle_timeout(now);
         }
+        if self.predictor.is_some() {
+            // Inputs must reach the room before their ticks close: lead
+            // its clock (estimated from the bundles, a one-way trip late)
+            // by the round trip and two ticks more.
+            let period = 1.0 / f64::from(self.session.tick_rate().max(1));
+            let rtt = self.connection.rtt().as_secs_f64();
+            let lead = (rtt / period).ceil() as u64 + 2;
+            self.session
+                .set_input_lead(u16::try_from(lead).unwrap_or(u16::MAX));
+        }
         while self.session.wants_input(now) {
             let tick = self.session.next_input_tick();
+            // A predicting client chooses from the predicted present.
+            let (world, rules) = match &self.predictor {
+                Some(p) => (p.world(), p.rules()),
+                None => (&self.world, &*self.rules),
+            };
             let view = BotView {
-                world: &self.world,
-                rules: &*self.rules,
+                world,
+                rules,
                 slot: self.session.slot().0,
                 tick,
             };
-            self.session.submit_input(input(&view))?;
+            let bytes = input(&view);
+            if let Some(p) = &mut self.predictor {
+                p.own_input(tick, &bytes);
+            }
+            self.session.submit_input(bytes)?;
         }
         // Inputs first: they are the time-critical part.
         self.flush()?;
@@ -899,6 +993,9 @@ impl LiveClient {
             let step = apply_tick(&mut self.world, &mut *self.rules, bundle.tick, &inputs)
                 .map_err(|e| ClientError::Game(e.to_string()))?;
             let hash = self.world.state_hash();
+            if let Some(p) = &mut self.predictor {
+                p.confirmed(&bundle, hash);
+            }
             self.history.record(bundle.tick, &self.world);
             let every = self.options.body_hashes_every;
             let bodies = (every > 0 && bundle.tick.is_multiple_of(every)).then(|| {
@@ -922,6 +1019,15 @@ impl LiveClient {
                 faults: step.faults,
                 applied_at,
             });
+        }
+        if let Some(p) = &mut self.predictor {
+            // To the tick of the last input chosen, which the room has not
+            // closed yet (with an input delay, a few ticks past its clock).
+            let target = self.session.next_input_tick().saturating_sub(1);
+            out.rollback = p
+                .advance(&self.world, self.next_tick, target)
+                .map_err(|e| ClientError::Game(e.to_string()))?;
+            out.predicted_tick = p.next().checked_sub(1);
         }
         if self
             .options

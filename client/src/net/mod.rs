@@ -19,6 +19,7 @@
 
 mod client;
 mod forensics;
+pub mod predict;
 mod tls;
 
 pub use client::{
@@ -30,4 +31,5 @@ pub use lockstep_net::{
     ALPN, FrameError, MIN_CONGESTION_WINDOW, TlsError, close_code, close_code_for, load_certs,
     parse_certs, read_frame, transport_config, write_frame,
 };
+pub use predict::{InputPredictor, PredictionStats, Rollback};
 pub use tls::client_config;
