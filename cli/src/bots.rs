@@ -48,6 +48,10 @@ pub struct BotArgs {
     /// i presenting the i-th.
     #[arg(long = "token", value_name = "TOKEN", env = "LOCKSTEP_BOT_TOKENS")]
     tokens: Vec<String>,
+    /// Predict and roll back: run ahead of the confirmed ticks to the
+    /// last input chosen (leading the room's clock by the round trip).
+    #[arg(long, env = "LOCKSTEP_BOT_PREDICT")]
+    predict: bool,
     /// Blind bots: play the game's scripted input (a pure function of
     /// the seed, slot and tick) even when it has a bot that sees the world.
     #[arg(long, env = "LOCKSTEP_BOT_BLIND")]
@@ -159,6 +163,7 @@ pub async fn run_bot_command(app: &App, cli: BotArgs) -> ExitCode {
     options.ticks = cli.ticks;
     options.body_hashes_every = cli.body_hashes_every;
     options.tokens = cli.tokens;
+    options.predict = cli.predict;
     options.verbose = true;
     let stop = async {
         let _ = tokio::signal::ctrl_c().await;

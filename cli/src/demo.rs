@@ -38,6 +38,10 @@ pub struct DemoOptions {
     pub diverge_at: Option<u64>,
     /// The room the bots play in.
     pub room: String,
+    /// The bots predict and roll back (`--predict`): the status line shows
+    /// their rollbacks, and the summary their input-to-effect latency with
+    /// and without prediction.
+    pub predict: bool,
     /// How to run the offline tool with this game, for the hints printed
     /// (`cargo run --release -p lockstep --bin lockstep --` for the demo).
     pub tool: String,
@@ -62,6 +66,7 @@ impl DemoOptions {
             duration: Duration::from_secs(20),
             diverge_at: None,
             room: "demo".into(),
+            predict: false,
             tool: "cargo run --release -p lockstep --bin lockstep --".into(),
         }
     }
@@ -170,6 +175,12 @@ pub async fn run_demo(
         options.game.clone(),
     );
     bot_options.seed = options.seed;
+    bot_options.predict = options.predict;
+    let tally = options
+        .predict
+        .then(|| Arc::new(lockstep_client::net::PredictionTally::default()));
+    bot_options.tally.clone_from(&tally);
+    let mut last_counts = lockstep_client::net::TallyCounts::default();
     if let Some(tick) = options.diverge_at {
         bot_options.game_of_bot = vec![(
             options.bots.saturating_sub(1),
@@ -192,7 +203,24 @@ pub async fn run_demo(
                 }
             }
             event = events.recv() => match event {
-                Some(ServerEvent::Status(s)) => println!("{}", status_line(&s)),
+                Some(ServerEvent::Status(s)) => {
+                    let mut line = status_line(&s);
+                    if let Some(t) = &tally {
+                        // The status comes once a second: the counts since
+                        // the last one are per second.
+                        let c = t.counts();
+                        let rollbacks = c.rollbacks - last_counts.rollbacks;
+                        let depth = (c.depth_sum - last_counts.depth_sum) as f64
+                            / rollbacks.max(1) as f64;
+                        line.push_str(&format!(
+                            " | prediction: {rollbacks} rollbacks/s, mean depth {depth:.1}, largest {}, {} re-simulated ticks/s",
+                            c.max_depth,
+                            c.resimulated - last_counts.resimulated
+                        ));
+                        last_counts = c;
+                    }
+                    println!("{line}");
+                }
                 Some(ServerEvent::MatchStarted { players, .. }) => {
                     println!("demo: match started with {players} players");
                 }
@@ -238,6 +266,23 @@ pub async fn run_demo(
             Err(e) => format!("FAILED: {e}"),
         }
     });
+    if options.predict {
+        for (i, r) in oks.iter().enumerate() {
+            let (p, l) = (r.prediction, r.input_latency);
+            println!(
+                "bot-{i}: {} rollbacks (deepest {} ticks), {} predictions confirmed bit for bit, {} wrong; \
+                 input to effect: predicted {:.1} ms (largest {:.1}), confirmed {:.1} ms (largest {:.1})",
+                p.rollbacks,
+                p.max_depth,
+                p.confirmed_right,
+                p.state_wrong,
+                l.predicted.mean().as_secs_f64() * 1e3,
+                l.predicted.max.as_secs_f64() * 1e3,
+                l.confirmed.mean().as_secs_f64() * 1e3,
+                l.confirmed.max.as_secs_f64() * 1e3,
+            );
+        }
+    }
     let summary = DemoSummary {
         report,
         bots_ok: oks.len(),

@@ -34,6 +34,10 @@ pub struct ServerArgs {
     /// Demo: seed of the bots' input.
     #[arg(long, default_value_t = 1, env = "LOCKSTEP_SEED")]
     seed: u64,
+    /// Demo: the bots predict and roll back (no input delay felt; they
+    /// lead the room's clock by their round trip).
+    #[arg(long, env = "LOCKSTEP_PREDICT")]
+    predict: bool,
     /// Demo: the last bot nudges one body by one ulp before this tick, so
     /// the match shows a desync being located to its body and field.
     #[arg(long, value_name = "TICK", env = "LOCKSTEP_DIVERGE_AT")]
@@ -363,6 +367,7 @@ pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
         options.game = app.game.clone();
         options.room = app.room.clone();
         options.tool = app.tool.clone();
+        options.predict = cli.predict;
         options.server = config;
         options.bots = cli.bots;
         options.seed = cli.seed;

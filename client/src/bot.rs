@@ -50,6 +50,8 @@ pub struct BotOptions {
     pub verbose: bool,
     /// Bots predict and roll back ([`ClientOptions::predict`]).
     pub predict: bool,
+    /// Where predicting bots count their rollbacks as they happen.
+    pub tally: Option<Arc<crate::net::PredictionTally>>,
 }
 
 impl std::fmt::Debug for BotOptions {
@@ -99,6 +101,7 @@ impl BotOptions {
             tokens: Vec::new(),
             verbose: false,
             predict: false,
+            tally: None,
         }
     }
 
@@ -161,6 +164,7 @@ pub async fn run_bot(
                         ClientEvent::Fault { tick, faults } => {
                             tracing::warn!(player = %name, slot, "{name} (slot {slot}): fault at tick {tick}: {faults}")
                         }
+                        ClientEvent::Rollback(_) => {}
                         ClientEvent::DesyncLocated(r) => {
                             tracing::warn!(player = %name, slot, "{name} (slot {slot}): {r}")
                         }
@@ -200,6 +204,7 @@ pub async fn run_bots(
         let client_options = options.client_options(index);
         let mut rx = stop_rx.clone();
         let (seed, verbose) = (options.seed, options.verbose);
+        let tally = options.tally.clone();
         let game = options.game_of(index);
         // Connect in order so bot i gets slot i in an empty room.
         let client = Client::connect(client_options, &*game).await;
@@ -214,6 +219,12 @@ pub async fn run_bots(
                 .play_seeing(
                     bot_brain(game.clone(), seed, slot),
                     move |event| {
+                        if let ClientEvent::Rollback(r) = event {
+                            if let Some(t) = &tally {
+                                t.add(r);
+                            }
+                            return;
+                        }
                         if verbose {
                             tracing::info!(player = %name, slot, "{name} (slot {slot}): {event:?}");
                         }

@@ -222,6 +222,10 @@ pub enum ClientEvent {
     Closed(Close),
     /// The room located a desync: the bodies and fields that differ.
     DesyncLocated(lockstep_proto::DesyncReport),
+    /// Predicting: a confirmed tick differed from its prediction, and the
+    /// predicted world was rolled back and simulated again (passed to the
+    /// event callback, not kept in [`ClientReport::events`]).
+    Rollback(super::predict::Rollback),
 }
 
 /// Bytes and datagrams one connection moved, for bandwidth figures.
@@ -284,6 +288,49 @@ pub struct ClientReport {
     pub played_for: Duration,
     /// What prediction did ([`ClientOptions::predict`]; zeros without).
     pub prediction: super::predict::PredictionStats,
+    /// From choosing an input to the world shown containing its tick: the
+    /// confirmed world's (a bundle's round trip), and, predicting, the
+    /// predicted world's.
+    pub input_latency: InputLatency,
+}
+
+/// Input-to-effect latency figures of one client (see
+/// [`ClientReport::input_latency`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct InputLatency {
+    /// Until the confirmed world applied the input's tick.
+    pub confirmed: Latency,
+    /// Until the predicted world simulated the input's tick (zero samples
+    /// without prediction).
+    pub predicted: Latency,
+}
+
+/// Samples of one latency: count, sum and largest.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Latency {
+    /// Samples.
+    pub count: u64,
+    /// Their sum.
+    pub total: Duration,
+    /// The largest.
+    pub max: Duration,
+}
+
+impl Latency {
+    fn add(&mut self, d: Duration) {
+        self.count += 1;
+        self.total += d;
+        self.max = self.max.max(d);
+    }
+
+    /// The mean (zero without samples).
+    pub fn mean(&self) -> Duration {
+        if self.count == 0 {
+            Duration::ZERO
+        } else {
+            self.total / u32::try_from(self.count).unwrap_or(u32::MAX)
+        }
+    }
 }
 
 impl ClientReport {
@@ -542,6 +589,8 @@ impl Client {
         });
         LiveClient {
             predictor,
+            chosen_at: VecDeque::new(),
+            latency: InputLatency::default(),
             history,
             endpoint: self.endpoint,
             connection: self.connection,
@@ -611,6 +660,7 @@ impl Client {
             traffic: Traffic::default(),
             played_for: Duration::ZERO,
             prediction: Default::default(),
+            input_latency: Default::default(),
         };
         tokio::pin!(stop);
         let mut stopped = false;
@@ -651,6 +701,7 @@ impl Client {
         report.traffic = live.traffic();
         report.played_for = started.elapsed();
         report.prediction = live.prediction_stats();
+        report.input_latency = live.latency;
         live.shutdown().await;
         result.map(|()| report)
     }
@@ -676,6 +727,9 @@ fn record(report: &mut ClientReport, p: &Polled, on_event: &mut impl FnMut(&Clie
         }
         on_event(ev);
         report.events.push(ev.clone());
+    }
+    if let Some(r) = p.rollback {
+        on_event(&ClientEvent::Rollback(r));
     }
 }
 
@@ -765,6 +819,9 @@ pub struct LiveClient {
     left: bool,
     history: super::forensics::History,
     predictor: Option<super::predict::Predictor>,
+    /// Own inputs chosen, by tick, with when: for the latency figures.
+    chosen_at: VecDeque<(u64, Instant, bool)>,
+    latency: InputLatency,
 }
 
 impl std::fmt::Debug for LiveClient {
@@ -967,6 +1024,7 @@ impl LiveClient {
             if let Some(p) = &mut self.predictor {
                 p.own_input(tick, &bytes);
             }
+            self.chosen_at.push_back((tick, Instant::now(), false));
             self.session.submit_input(bytes)?;
         }
         // Inputs first: they are the time-critical part.
@@ -995,6 +1053,15 @@ impl LiveClient {
             let hash = self.world.state_hash();
             if let Some(p) = &mut self.predictor {
                 p.confirmed(&bundle, hash);
+            }
+            while self.chosen_at.front().is_some_and(|c| c.0 <= bundle.tick) {
+                if let Some((t, at, _)) = self.chosen_at.pop_front()
+                    && t == bundle.tick
+                {
+                    self.latency
+                        .confirmed
+                        .add(applied_at.saturating_duration_since(at));
+                }
             }
             self.history.record(bundle.tick, &self.world);
             let every = self.options.body_hashes_every;
@@ -1028,6 +1095,13 @@ impl LiveClient {
                 .advance(&self.world, self.next_tick, target)
                 .map_err(|e| ClientError::Game(e.to_string()))?;
             out.predicted_tick = p.next().checked_sub(1);
+            let shown = Instant::now();
+            for c in self.chosen_at.iter_mut().filter(|c| !c.2 && c.0 < p.next()) {
+                c.2 = true;
+                self.latency
+                    .predicted
+                    .add(shown.saturating_duration_since(c.1));
+            }
         }
         if self
             .options

@@ -23,13 +23,13 @@ pub mod predict;
 mod tls;
 
 pub use client::{
-    AppliedTick, Client, ClientError, ClientEvent, ClientOptions, ClientReport, LiveClient, Polled,
-    Traffic, TrustedCert,
+    AppliedTick, Client, ClientError, ClientEvent, ClientOptions, ClientReport, InputLatency,
+    Latency, LiveClient, Polled, Traffic, TrustedCert,
 };
 pub use forensics::{dump_bodies, dump_game};
 pub use lockstep_net::{
     ALPN, FrameError, MIN_CONGESTION_WINDOW, TlsError, close_code, close_code_for, load_certs,
     parse_certs, read_frame, transport_config, write_frame,
 };
-pub use predict::{InputPredictor, PredictionStats, Rollback};
+pub use predict::{InputPredictor, PredictionStats, PredictionTally, Rollback, TallyCounts};
 pub use tls::client_config;

@@ -32,6 +32,52 @@ pub trait InputPredictor: Send {
     fn predict(&mut self, slot: u8, tick: u64, last: &[u8], last_tick: u64) -> Vec<u8>;
 }
 
+/// Prediction figures shared by several clients (the demo's bots), for a
+/// live status line: counters only, added to as rollbacks happen.
+#[derive(Debug, Default)]
+pub struct PredictionTally {
+    rollbacks: std::sync::atomic::AtomicU64,
+    depth_sum: std::sync::atomic::AtomicU64,
+    max_depth: std::sync::atomic::AtomicU64,
+    resimulated: std::sync::atomic::AtomicU64,
+}
+
+/// A [`PredictionTally`]'s counts at one moment.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TallyCounts {
+    /// Rollbacks.
+    pub rollbacks: u64,
+    /// Predicted ticks thrown away, over all rollbacks.
+    pub depth_sum: u64,
+    /// The deepest rollback.
+    pub max_depth: u64,
+    /// Ticks simulated again after rollbacks.
+    pub resimulated: u64,
+}
+
+impl PredictionTally {
+    /// Counts one rollback.
+    pub fn add(&self, r: &Rollback) {
+        use std::sync::atomic::Ordering::Relaxed;
+        let depth = r.to.saturating_sub(r.from);
+        self.rollbacks.fetch_add(1, Relaxed);
+        self.depth_sum.fetch_add(depth, Relaxed);
+        self.max_depth.fetch_max(depth, Relaxed);
+        self.resimulated.fetch_add(r.resimulated, Relaxed);
+    }
+
+    /// The counts so far.
+    pub fn counts(&self) -> TallyCounts {
+        use std::sync::atomic::Ordering::Relaxed;
+        TallyCounts {
+            rollbacks: self.rollbacks.load(Relaxed),
+            depth_sum: self.depth_sum.load(Relaxed),
+            max_depth: self.max_depth.load(Relaxed),
+            resimulated: self.resimulated.load(Relaxed),
+        }
+    }
+}
+
 /// What prediction did so far.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PredictionStats {
@@ -63,10 +109,13 @@ pub struct PredictionStats {
 /// there).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Rollback {
-    /// First tick simulated again.
+    /// The first tick whose prediction was wrong.
     pub from: u64,
     /// First tick after the predicted ticks thrown away.
     pub to: u64,
+    /// Ticks simulated again on the predicted world after it (from the
+    /// confirmed state to the present).
+    pub resimulated: u64,
 }
 
 /// One tick's inputs: (slot, bytes), ascending by slot.
@@ -237,6 +286,7 @@ impl Predictor {
                 rollback = Some(Rollback {
                     from,
                     to: self.next,
+                    resimulated: 0,
                 });
             }
             self.world.clone_from(confirmed);
@@ -248,6 +298,7 @@ impl Predictor {
             self.stale = false;
         }
         let end = target.min(confirmed_next.saturating_add(self.max_ahead));
+        let first = self.next;
         while self.next <= end {
             let tick = self.next;
             let inputs = self.guess(tick);
@@ -258,6 +309,9 @@ impl Predictor {
             self.used.push_back(Predicted { tick, inputs, hash });
             self.next += 1;
             self.stats.simulated += 1;
+        }
+        if let Some(r) = &mut rollback {
+            r.resimulated = self.next - first;
         }
         Ok(rollback)
     }
