@@ -24,6 +24,7 @@ mod harness;
 mod math;
 mod net;
 mod profile;
+mod rollback;
 mod scene_file;
 mod scenes;
 mod sleep;
@@ -153,6 +154,12 @@ const SUITES: &[Suite] = &[
         about: "players one server holds: relays in rooms of 4 and 16 at 60 Hz, tick lateness, bandwidth, CPU",
         run: net::run,
         scenes: net::config_names,
+    },
+    Suite {
+        name: "rollback",
+        about: "prediction's rollback: restore cost per body, a tick's cost, the deepest rollback in a 60 Hz frame",
+        run: rollback::run,
+        scenes: rollback::scene_names,
     },
     Suite {
         name: "stress",
