@@ -52,6 +52,10 @@ pub struct BotArgs {
     /// last input chosen (leading the room's clock by the round trip).
     #[arg(long, env = "LOCKSTEP_BOT_PREDICT")]
     predict: bool,
+    /// Serve the bots' prediction figures as Prometheus metrics on this TCP
+    /// address (`GET /metrics`): rollbacks, their depth, re-simulated ticks.
+    #[arg(long, value_name = "ADDR", env = "LOCKSTEP_BOT_METRICS")]
+    metrics: Option<SocketAddr>,
     /// Blind bots: play the game's scripted input (a pure function of
     /// the seed, slot and tick) even when it has a bot that sees the world.
     #[arg(long, env = "LOCKSTEP_BOT_BLIND")]
@@ -126,6 +130,51 @@ async fn run_relays(cli: &BotArgs, room: &str) -> ExitCode {
     }
 }
 
+/// The bots' prediction figures in Prometheus' text format.
+pub fn render_metrics(c: &lockstep_client::net::TallyCounts) -> String {
+    format!(
+        "# HELP lockstep_bot_rollbacks_total Rollbacks of the bots' predicted worlds.\n\
+         # TYPE lockstep_bot_rollbacks_total counter\n\
+         lockstep_bot_rollbacks_total {}\n\
+         # HELP lockstep_bot_rollback_depth_ticks_total Predicted ticks thrown away by rollbacks.\n\
+         # TYPE lockstep_bot_rollback_depth_ticks_total counter\n\
+         lockstep_bot_rollback_depth_ticks_total {}\n\
+         # HELP lockstep_bot_rollback_depth_max_ticks The deepest rollback.\n\
+         # TYPE lockstep_bot_rollback_depth_max_ticks gauge\n\
+         lockstep_bot_rollback_depth_max_ticks {}\n\
+         # HELP lockstep_bot_resimulated_ticks_total Ticks simulated again after rollbacks.\n\
+         # TYPE lockstep_bot_resimulated_ticks_total counter\n\
+         lockstep_bot_resimulated_ticks_total {}\n",
+        c.rollbacks, c.depth_sum, c.max_depth, c.resimulated
+    )
+}
+
+/// Answers `GET /metrics` (anything else: 404) until the process ends.
+async fn serve_metrics(
+    listener: tokio::net::TcpListener,
+    tally: Arc<lockstep_client::net::PredictionTally>,
+) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    while let Ok((mut s, _)) = listener.accept().await {
+        let tally = tally.clone();
+        tokio::spawn(async move {
+            let mut buf = [0u8; 1024];
+            let n = s.read(&mut buf).await.unwrap_or(0);
+            let head = String::from_utf8_lossy(&buf[..n]);
+            let (status, body) = if head.starts_with("GET /metrics ") {
+                ("200 OK", render_metrics(&tally.counts()))
+            } else {
+                ("404 Not Found", "not found\n".to_owned())
+            };
+            let reply = format!(
+                "HTTP/1.1 {status}\r\ncontent-type: text/plain; version=0.0.4\r\ncontent-length: {}\r\nconnection: close\r\n\r\n{body}",
+                body.len()
+            );
+            let _ = s.write_all(reply.as_bytes()).await;
+        });
+    }
+}
+
 /// A game whose bots play its scripted input, never its policy.
 struct Blind(Arc<dyn RulesFactory>);
 
@@ -144,6 +193,9 @@ impl RulesFactory for Blind {
     }
     fn bot_policy(&self, _: u64, _: u8) -> Option<Box<dyn BotPolicy>> {
         None
+    }
+    fn input_predictor(&self) -> Option<Box<dyn lockstep_client::net::InputPredictor>> {
+        self.0.input_predictor()
     }
 }
 
@@ -164,7 +216,23 @@ pub async fn run_bot_command(app: &App, cli: BotArgs) -> ExitCode {
     options.body_hashes_every = cli.body_hashes_every;
     options.tokens = cli.tokens;
     options.predict = cli.predict;
+    let predict = cli.predict;
     options.verbose = true;
+    let tally = Arc::new(lockstep_client::net::PredictionTally::default());
+    options.tally = Some(tally.clone());
+    if let Some(addr) = cli.metrics {
+        match tokio::net::TcpListener::bind(addr).await {
+            Ok(listener) => {
+                let local = listener.local_addr().unwrap_or(addr);
+                println!("bot metrics on http://{local}/metrics");
+                tokio::spawn(serve_metrics(listener, tally.clone()));
+            }
+            Err(e) => {
+                eprintln!("lockstep-bot: metrics on {addr}: {e}");
+                return ExitCode::from(2);
+            }
+        }
+    }
     let stop = async {
         let _ = tokio::signal::ctrl_c().await;
     };
@@ -192,6 +260,23 @@ pub async fn run_bot_command(app: &App, cli: BotArgs) -> ExitCode {
             Err(e) => {
                 failed = true;
                 println!("bot-{i}: error: {e}");
+            }
+        }
+    }
+    if predict {
+        for (i, rep) in results.iter().enumerate() {
+            if let Ok(rep) = rep {
+                println!(
+                    "bot-{i} slot {}: predicting: {} rollbacks (deepest {}), {} predictions confirmed bit for bit, {} wrong; \
+                     input to effect {:.1} ms predicted, {:.1} ms confirmed",
+                    rep.slot.0,
+                    rep.prediction.rollbacks,
+                    rep.prediction.max_depth,
+                    rep.prediction.confirmed_right,
+                    rep.prediction.state_wrong,
+                    rep.input_latency.predicted.mean().as_secs_f64() * 1e3,
+                    rep.input_latency.confirmed.mean().as_secs_f64() * 1e3,
+                );
             }
         }
     }

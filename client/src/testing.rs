@@ -66,6 +66,12 @@ impl RulesFactory for Diverge {
     fn bot_input(&self, seed: u64, slot: u8, tick: u64) -> Vec<u8> {
         self.inner.bot_input(seed, slot, tick)
     }
+    fn bot_policy(&self, seed: u64, slot: u8) -> Option<Box<dyn crate::game::BotPolicy>> {
+        self.inner.bot_policy(seed, slot)
+    }
+    fn input_predictor(&self) -> Option<Box<dyn crate::net::InputPredictor>> {
+        self.inner.input_predictor()
+    }
 }
 
 /// One ulp more x velocity on the first dynamic body.

@@ -343,9 +343,10 @@ fn its_binary_serves_verifies_views_and_reproduces_a_bundle() {
     assert!(out.starts_with("OK: example-paddles v2"), "{out}");
 }
 
-/// `example-game bots` against a server: the chase bots play (a drop at
-/// their first tick and then one every cooldown, which the blind script
-/// never does), and every hash agrees.
+/// `example-game bots --predict --metrics` against a server: the chase
+/// bots play (a drop at their first tick and then one every cooldown,
+/// which the blind script never does) on their predicted worlds, every
+/// hash agrees, and the metrics answer while they play.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn its_bots_play_with_the_world_aware_policy() {
     let dir = tmp("own-game-bots");
@@ -357,13 +358,55 @@ async fn its_bots_play_with_the_world_aware_policy() {
     let addr = server.addr.to_string();
     let cert = server.cert.display().to_string();
     let out = tokio::task::spawn_blocking(move || {
-        run_bin(&["bots", "--server", &addr, "--cert", &cert, "--count", "2"])
+        use std::io::{BufRead, Read, Write};
+        let mut child = Command::new(BIN)
+            .args(["bots", "--server", &addr, "--cert", &cert, "--count", "2"])
+            .args(["--predict", "--metrics", "127.0.0.1:0"])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("run example-game bots");
+        let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+        let mut first = String::new();
+        stdout.read_line(&mut first).unwrap();
+        // The metrics, scraped while the bots play.
+        let host = first
+            .trim()
+            .strip_prefix("bot metrics on http://")
+            .and_then(|u| u.strip_suffix("/metrics"))
+            .unwrap_or_else(|| panic!("{first}"))
+            .to_owned();
+        std::thread::sleep(Duration::from_millis(1500));
+        let mut conn = std::net::TcpStream::connect(&host).unwrap();
+        conn.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n")
+            .unwrap();
+        let mut metrics = String::new();
+        conn.read_to_string(&mut metrics).unwrap();
+        let mut rest = String::new();
+        stdout.read_to_string(&mut rest).unwrap();
+        let mut err = String::new();
+        child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .unwrap();
+        let code = child.wait().unwrap().code().unwrap_or(-1);
+        (code, first + &rest, err, metrics)
     })
     .await
     .unwrap();
-    let (code, stdout, stderr) = out;
+    let (code, stdout, stderr, metrics) = out;
     assert_eq!(code, 0, "{stdout}\n{stderr}");
     assert!(stdout.contains("bot-0 slot 0: 150 ticks"), "{stdout}");
+    // They predicted, and every prediction the server confirmed was right.
+    assert!(stdout.contains("bot-0 slot 0: predicting: "), "{stdout}");
+    assert!(stdout.contains(", 0 wrong;"), "{stdout}");
+    assert!(metrics.starts_with("HTTP/1.1 200 OK"), "{metrics}");
+    assert!(
+        metrics.contains("lockstep_bot_rollbacks_total "),
+        "{metrics}"
+    );
     let ended = server.ended().await;
     assert!(ended.desyncs.is_empty(), "{:?}", ended.desyncs);
     assert_eq!(ended.mismatched_ticks, 0);

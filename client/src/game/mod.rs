@@ -243,6 +243,14 @@ pub trait RulesFactory: Send + Sync {
         let _ = (seed, slot);
         None
     }
+
+    /// How a predicting client guesses the other players' inputs for the
+    /// ticks not confirmed yet
+    /// ([`ClientOptions::predict`](crate::net::ClientOptions::predict)).
+    /// Default: none, each player's last confirmed input.
+    fn input_predictor(&self) -> Option<Box<dyn crate::net::InputPredictor>> {
+        None
+    }
 }
 
 impl<T: RulesFactory + ?Sized> RulesFactory for Arc<T> {
@@ -260,6 +268,9 @@ impl<T: RulesFactory + ?Sized> RulesFactory for Arc<T> {
     }
     fn bot_policy(&self, seed: u64, slot: u8) -> Option<Box<dyn BotPolicy>> {
         (**self).bot_policy(seed, slot)
+    }
+    fn input_predictor(&self) -> Option<Box<dyn crate::net::InputPredictor>> {
+        (**self).input_predictor()
     }
 }
 

@@ -355,8 +355,10 @@ pub struct Client {
     session: Session,
     world: World,
     rules: Box<dyn GameRules>,
-    /// The predicted world's rules (with [`ClientOptions::predict`]).
+    /// The predicted world's rules and the game's input predictor (with
+    /// [`ClientOptions::predict`]).
     predicted_rules: Option<Box<dyn GameRules>>,
+    input_predictor: Option<Box<dyn super::predict::InputPredictor>>,
     rules_id: RulesId,
     options: ClientOptions,
 }
@@ -485,6 +487,11 @@ impl Client {
             world,
             rules,
             predicted_rules,
+            input_predictor: if options.predict {
+                game.input_predictor()
+            } else {
+                None
+            },
             rules_id: game.rules_id(),
             options,
         })
@@ -583,7 +590,7 @@ impl Client {
                 rules,
                 self.session.slot().0,
                 self.options.max_prediction,
-                None,
+                self.input_predictor,
             )
             .ok()
         });

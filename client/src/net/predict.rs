@@ -448,6 +448,38 @@ mod tests {
         }
     }
 
+    /// A game's own predictor: here one that knows slot 1's script, so
+    /// every prediction is right and only the first tick (a player the
+    /// prediction did not know yet) rolls back.
+    #[test]
+    fn a_game_s_input_predictor_is_used() {
+        struct Oracle;
+        impl InputPredictor for Oracle {
+            fn predict(&mut self, slot: u8, tick: u64, _: &[u8], _: u64) -> Vec<u8> {
+                assert_eq!(slot, 1);
+                other(tick)
+            }
+        }
+        let mut confirmed = DemoGame::world().unwrap();
+        crate::game::start_match(&mut confirmed, 5).unwrap();
+        let mut rules = Demo.rules_for(&confirmed).unwrap();
+        let fresh = Demo.rules_for(&confirmed).unwrap();
+        let mut p = Predictor::new(&confirmed, 0, fresh, 0, 8, Some(Box::new(Oracle))).unwrap();
+        for now in 0..200u64 {
+            p.own_input(now, &own(now));
+            if let Some(t) = now.checked_sub(4) {
+                let b = bundle(t, &[(0, own(t)), (1, other(t))]);
+                crate::offline::apply_bundle(&mut confirmed, &mut *rules, &b).unwrap();
+                p.confirmed(&b, confirmed.state_hash());
+            }
+            let next = now.saturating_sub(3);
+            p.advance(&confirmed, next, now).unwrap();
+        }
+        assert_eq!(p.stats().rollbacks, 1, "{:?}", p.stats());
+        assert_eq!(p.stats().state_wrong, 0);
+        assert!(p.stats().confirmed_right >= 190, "{:?}", p.stats());
+    }
+
     #[test]
     fn a_right_prediction_costs_no_rollback_and_never_runs_past_the_limit() {
         let mut confirmed = DemoGame::world().unwrap();
