@@ -416,13 +416,18 @@ async fn its_bots_play_with_the_world_aware_policy() {
             .ticks
             .iter()
             .filter(|b| {
+                // A late input is substituted by the player's last one (a
+                // press repeated): only the inputs that came count.
                 b.inputs.iter().any(|p| {
-                    p.slot.0 == slot && PaddleInput::decode(&p.input).is_some_and(|i| i.drop)
+                    p.slot.0 == slot
+                        && !p.substituted
+                        && PaddleInput::decode(&p.input).is_some_and(|i| i.drop)
                 })
             })
             .map(|b| b.tick)
             .collect();
-        // Pressed whenever ready: every 30 ticks from its first tick on.
+        // Pressed whenever ready: every 30 ticks from its first tick on
+        // (five in 150 ticks, one spared for a press that came late).
         assert!(drops.len() >= 4, "slot {slot}: {drops:?}");
         assert!(drops.windows(2).all(|w| w[1] - w[0] >= 30), "{drops:?}");
     }
