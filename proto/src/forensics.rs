@@ -377,6 +377,19 @@ fn words_text(kind: FieldKind, words: &[u64]) -> String {
     format!("[{}]", items.join(", "))
 }
 
+impl std::fmt::Display for FieldDiff {
+    /// `NAME: expected […], got […]` (a side without the field: `absent`).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: expected {}, got {}",
+            self.name,
+            words_text(self.kind, &self.expected),
+            words_text(self.kind, &self.got)
+        )
+    }
+}
+
 impl std::fmt::Display for BodyDiff {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(

@@ -387,19 +387,22 @@ mod tests {
         predict_and_confirm(3);
     }
 
-    fn predict_and_confirm(every: u64) {
+    /// The demo's world at the start of a match, its confirmed rules, and a
+    /// predictor for slot 0 at most `max` ticks ahead.
+    fn start(
+        max: u64,
+        predictor: Option<Box<dyn InputPredictor>>,
+    ) -> (World, Box<dyn GameRules>, Predictor) {
         let mut confirmed = DemoGame::world().unwrap();
         crate::game::start_match(&mut confirmed, 5).unwrap();
-        let mut rules = Demo.rules_for(&confirmed).unwrap();
-        let mut p = Predictor::new(
-            &confirmed,
-            0,
-            Demo.rules_for(&confirmed).unwrap(),
-            0,
-            8,
-            None,
-        )
-        .unwrap();
+        let rules = Demo.rules_for(&confirmed).unwrap();
+        let fresh = Demo.rules_for(&confirmed).unwrap();
+        let p = Predictor::new(&confirmed, 0, fresh, 0, max, predictor).unwrap();
+        (confirmed, rules, p)
+    }
+
+    fn predict_and_confirm(every: u64) {
+        let (mut confirmed, mut rules, mut p) = start(8, None);
         let lead = 4;
         let ticks = 400;
         let mut confirmed_hashes = Vec::new();
@@ -460,11 +463,7 @@ mod tests {
                 other(tick)
             }
         }
-        let mut confirmed = DemoGame::world().unwrap();
-        crate::game::start_match(&mut confirmed, 5).unwrap();
-        let mut rules = Demo.rules_for(&confirmed).unwrap();
-        let fresh = Demo.rules_for(&confirmed).unwrap();
-        let mut p = Predictor::new(&confirmed, 0, fresh, 0, 8, Some(Box::new(Oracle))).unwrap();
+        let (mut confirmed, mut rules, mut p) = start(8, Some(Box::new(Oracle)));
         for now in 0..200u64 {
             p.own_input(now, &own(now));
             if let Some(t) = now.checked_sub(4) {
@@ -482,18 +481,7 @@ mod tests {
 
     #[test]
     fn a_right_prediction_costs_no_rollback_and_never_runs_past_the_limit() {
-        let mut confirmed = DemoGame::world().unwrap();
-        crate::game::start_match(&mut confirmed, 5).unwrap();
-        let mut rules = Demo.rules_for(&confirmed).unwrap();
-        let mut p = Predictor::new(
-            &confirmed,
-            0,
-            Demo.rules_for(&confirmed).unwrap(),
-            0,
-            3,
-            None,
-        )
-        .unwrap();
+        let (mut confirmed, mut rules, mut p) = start(3, None);
         let still = DemoInput::default().encode();
         // Nothing confirmed yet: at most 3 ticks past the confirmed state
         // (its next tick 0): ticks 0..=3.

@@ -23,11 +23,11 @@
 use std::collections::VecDeque;
 
 use lockstep_core::World;
-use lockstep_core::world::FieldKind;
-use lockstep_proto::forensics::q32_decimal;
+use lockstep_proto::forensics::{field_diffs, list_diffs};
 use thiserror::Error;
 
 use crate::game::{GameRules, RulesFactory, apply_tick, start_match};
+use crate::net::{dump_bodies, dump_game};
 
 /// What the sync test runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -237,78 +237,42 @@ fn step(
     Ok(())
 }
 
-fn words_text(kind: FieldKind, words: &[u64]) -> String {
-    let items: Vec<String> = words
+/// What differs between `expected` and `got`, one line per field: the
+/// game state's fields, then the first bodies' (as a desync report
+/// dumps and diffs them).
+fn diverged(tick: u64, check: SyncCheck, expected: &World, got: &World) -> SyncTestError {
+    let mut lines: Vec<String> = list_diffs(&dump_game(expected), &dump_game(got))
         .iter()
-        .map(|&w| match kind {
-            FieldKind::Scalar => q32_decimal(w),
-            FieldKind::Int => (w as i64).to_string(),
-            FieldKind::Word => w.to_string(),
+        // The name quoted: a game names its fields freely.
+        .map(|d| {
+            format!(
+                "  game state {:?}{}",
+                d.name,
+                &d.to_string()[d.name.len()..]
+            )
         })
         .collect();
-    format!("[{}]", items.join(", "))
-}
-
-/// What differs between `expected` and `got`, one line per field.
-fn diverged(tick: u64, check: SyncCheck, expected: &World, got: &World) -> SyncTestError {
-    let mut lines = Vec::new();
-    let (a, b) = (expected.game_state(), got.game_state());
-    for f in a.fields() {
-        match b.fields().iter().find(|g| g.name() == f.name()) {
-            Some(g) if g.words() == f.words() => {}
-            Some(g) => lines.push(format!(
-                "  game state {:?}: expected {}, got {}",
-                f.name(),
-                words_text(f.kind(), f.words()),
-                words_text(g.kind(), g.words())
-            )),
-            None => lines.push(format!("  game state {:?}: missing", f.name())),
-        }
-    }
-    for g in b.fields() {
-        if !a.fields().iter().any(|f| f.name() == g.name()) {
-            lines.push(format!("  game state {:?}: unexpected", g.name()));
-        }
-    }
     let (ha, hb) = (expected.body_hashes(), got.body_hashes());
-    let mut listed = 0;
-    for i in 0..ha.len().max(hb.len()) {
-        if listed == MAX_BODIES_LISTED {
+    let differing = (0..ha.len().max(hb.len()))
+        .filter(|&i| ha.get(i).map(|e| e.1) != hb.get(i).map(|e| e.1))
+        .map(|i| i as u32);
+    for (n, i) in differing.enumerate() {
+        if n == MAX_BODIES_LISTED {
             lines.push("  (more bodies differ)".into());
             break;
         }
-        let (ea, eb) = (ha.get(i), hb.get(i));
-        if ea.map(|e| e.1) == eb.map(|e| e.1) {
-            continue;
-        }
-        listed += 1;
-        let Some(&(handle, _)) = ea.or(eb) else {
-            continue;
-        };
-        let name = expected
-            .body(handle)
-            .or_else(|_| got.body(handle))
-            .map(|b| b.name().to_string())
-            .unwrap_or_default();
-        match (ea, eb) {
-            (Some(_), None) => lines.push(format!("  body #{i} {name:?}: missing")),
-            (None, Some(_)) => lines.push(format!("  body #{i} {name:?}: unexpected")),
-            _ => {
-                let fa = expected.body_fields(handle).unwrap_or_default();
-                let fb = got.body_fields(handle).unwrap_or_default();
-                for f in &fa {
-                    if let Some(g) = fb.iter().find(|g| g.name == f.name)
-                        && g.words != f.words
-                    {
-                        lines.push(format!(
-                            "  body #{i} {name:?} {}: expected {}, got {}",
-                            f.name,
-                            words_text(f.kind, &f.words),
-                            words_text(g.kind, &g.words)
-                        ));
-                    }
-                }
-            }
+        match (
+            dump_bodies(expected, &[i]).pop(),
+            dump_bodies(got, &[i]).pop(),
+        ) {
+            (Some(a), Some(b)) => lines.extend(
+                field_diffs(&a, &b)
+                    .iter()
+                    .map(|d| format!("  body #{i} {:?} {d}", a.name)),
+            ),
+            (Some(a), None) => lines.push(format!("  body #{i} {:?}: missing", a.name)),
+            (None, Some(b)) => lines.push(format!("  body #{i} {:?}: unexpected", b.name)),
+            (None, None) => {}
         }
     }
     if lines.is_empty() && expected.contacts_hash() != got.contacts_hash() {
