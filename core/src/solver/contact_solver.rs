@@ -112,7 +112,8 @@ use narrow::lanes::{Batch, Kernel, LANES};
 use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
     BodyArrays, along, angular_along, apply_linear, combine3, cross, effective, inverse_or_zero,
-    linear_basis, mul, prefetch, push_angular, round_wide, scale, tangent_of, vel_or_zero,
+    linear_basis, mul, prefetch, prefetch_ptr, push_angular, round_wide, scale, tangent_of,
+    vel_or_zero,
 };
 
 use crate::body::{BodyHot, BodyKind};
@@ -413,6 +414,11 @@ pub(crate) struct ContactSolver {
     warm: Vec<BodyVel>,
     /// Whether `warm` holds the next warm start.
     warm_ready: bool,
+    /// In a world on the narrow rows, each solver body's velocity in
+    /// quanta during a pass, and its value when taken (see
+    /// [`narrow::Quanta`]); empty otherwise.
+    quanta: Vec<narrow::Quanta>,
+    quanta0: Vec<narrow::Quanta>,
     /// Slot → solver body index, or `NONE`. Only the slots of `bodies` hold
     /// an index, so a tick resets just those, never every slot.
     body_of_slot: Vec<u32>,
@@ -646,6 +652,17 @@ impl ContactSolver {
         });
     }
 
+    /// Gives every loaded lanes' batch's state back to its rows (see
+    /// `narrow::lanes::Batch`).
+    fn unload_batches(&mut self) {
+        let rows = &mut self.rows[..self.rows_len];
+        for batch in &mut self.batches[..self.lane_batches as usize] {
+            if let Some(r) = batch.loaded() {
+                batch.unload(&mut rows[r]);
+            }
+        }
+    }
+
     /// Applies last substep's (or last tick's) accumulated impulses again:
     /// the sums the last relax pass left in `warm` if it made them, else a
     /// pass over the constraints.
@@ -668,6 +685,8 @@ impl ContactSolver {
             });
             return;
         }
+        // The twin's warm start reads the rows.
+        self.unload_batches();
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
         let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         let visit = |c: &mut Constraint, r: Option<&mut NarrowRows>| {
@@ -709,7 +728,21 @@ impl ContactSolver {
         let fuse = warm_next && !use_bias && self.heavy.is_empty() && self.shock.is_empty();
         // SAFETY: the pass visits one colour at a time (`for_each_colored`),
         // then the heavy constraints on this thread alone.
-        let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
+        // On the narrow rows, the velocities are in quanta for the pass.
+        let quanta = self.rows_len > 0;
+        if quanta {
+            narrow::quantize(&self.vels, &mut self.quanta, &mut self.quanta0);
+        }
+        let mut arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
+        if quanta {
+            // SAFETY: as above.
+            arrays = unsafe { arrays.with_quanta(&mut self.quanta, &mut self.quanta0) };
+        }
+        let kernel = if params.narrow && self.lane_batches > 0 {
+            self.lanes()
+        } else {
+            None
+        };
         let pass = Pass {
             params,
             use_bias,
@@ -727,12 +760,8 @@ impl ContactSolver {
             lanes: self.wide_on && wide::available() && !params.narrow,
             poses: self.poses,
             fallbacks: &self.fallbacks,
-            batches: &self.batches[..self.lane_batches as usize],
-            kernel: if params.narrow && self.lane_batches > 0 {
-                self.lanes()
-            } else {
-                None
-            },
+            kernel,
+            batches: SharedMut::new(&mut self.batches[..self.lane_batches as usize]),
         };
         let counts = &self.lane_counts;
         let run = |cs: &mut [Constraint], rs: &mut [NarrowRows], independent: bool| {
@@ -753,6 +782,9 @@ impl ContactSolver {
             run,
         );
         self.warm_ready = fuse;
+        if quanta {
+            narrow::flush(&mut self.vels, &self.quanta, &mut self.quanta0);
+        }
         for _ in 0..HIGH_RATIO_PASSES {
             for &i in &self.heavy {
                 // The high-ratio constraints are on the Q32.32 rows.
@@ -812,6 +844,8 @@ impl ContactSolver {
     /// After the substeps: points that approached faster than the threshold
     /// and pushed get the normal velocity `−e·v_before`.
     pub(crate) fn restitution(&mut self, params: &SolverParams) {
+        // The write-back below reads the rows.
+        self.unload_batches();
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
         let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         let threshold = -params.restitution_threshold;

@@ -228,12 +228,6 @@ fn quanta(x: Scalar) -> i64 {
     ((x.to_bits() >> 1) + (1 << (TO_Q - 2))) >> (TO_Q - 1)
 }
 
-/// A velocity in quanta, per component.
-#[inline(always)]
-fn quanta3(v: Vec3) -> [i64; 3] {
-    [quanta(v.x), quanta(v.y), quanta(v.z)]
-}
-
 /// A change in quanta as Q32.32 (exact: `|q| < 2⁵¹`).
 #[inline(always)]
 fn from_quanta3(q: &[i64; 3]) -> Vec3 {
@@ -286,15 +280,110 @@ struct Bodies {
     wb: [i64; 3],
 }
 
-impl Bodies {
+/// A solver body's velocity in quanta during a narrow pass: `v` in
+/// `q[0..3]`, `ω` in `q[4..7]` (32 bytes, aligned for the lanes' loads).
+/// Each component is the Q32.32 velocity rounded to the quantum as
+/// [`quanta`] rounds it, saturated to 32 bits (a saturated component is
+/// past the guard, so no narrow visit writes its body).
+///
+/// A pass takes every body's quanta from its Q32.32 velocity once
+/// ([`quantize`]), the narrow visits read and write the quanta, and the
+/// pass gives the change back once ([`flush`]): `v += (q − q₀)·2^(32−S)`.
+/// That is the same bits as taking the quanta at every visit and adding
+/// each visit's change back at once, because adding a whole number of
+/// quanta to a Q32.32 velocity moves its rounded quanta by exactly that
+/// number. A Q32.32 visit inside a narrow pass gives its bodies' change
+/// back first and takes their quanta again after (see
+/// `BodyArrays::flush_one`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C, align(32))]
+pub(super) struct Quanta {
+    pub(super) q: [i32; 8],
+}
+
+impl Quanta {
+    /// The quanta of a Q32.32 velocity (saturated to 32 bits).
     #[inline(always)]
-    fn of(va: &BodyVel, vb: &BodyVel) -> Bodies {
-        Bodies {
-            va: quanta3(va.v),
-            wa: quanta3(va.w),
-            vb: quanta3(vb.v),
-            wb: quanta3(vb.w),
+    pub(super) fn of(vel: &BodyVel) -> Quanta {
+        let s = |x: Scalar| quanta(x).clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        Quanta {
+            q: [
+                s(vel.v.x),
+                s(vel.v.y),
+                s(vel.v.z),
+                0,
+                s(vel.w.x),
+                s(vel.w.y),
+                s(vel.w.z),
+                0,
+            ],
         }
+    }
+}
+
+/// Every body's quanta taken from its Q32.32 velocity, at a narrow pass's
+/// start.
+pub(super) fn quantize(vels: &[BodyVel], q: &mut [Quanta], q0: &mut [Quanta]) {
+    for ((v, q), q0) in vels.iter().zip(q.iter_mut()).zip(q0.iter_mut()) {
+        *q = Quanta::of(v);
+        *q0 = *q;
+    }
+}
+
+/// Every body's change in quanta given back to its Q32.32 velocity, at a
+/// narrow pass's end.
+pub(super) fn flush(vels: &mut [BodyVel], q: &[Quanta], q0: &mut [Quanta]) {
+    for ((v, q), q0) in vels.iter_mut().zip(q).zip(q0.iter_mut()) {
+        flush_body(v, q, q0);
+    }
+}
+
+/// One body's change in quanta since `q0` added to its Q32.32 velocity
+/// (exact: the change is below 2³⁰ quanta while the guard passes, and a
+/// body the guard refused did not change); `q0` moves to `q`.
+#[inline(always)]
+pub(super) fn flush_body(v: &mut BodyVel, q: &Quanta, q0: &mut Quanta) {
+    if q.q != q0.q {
+        let d = |k: usize| q.q[k] as i64 - q0.q[k] as i64;
+        v.v += from_quanta3(&[d(0), d(1), d(2)]);
+        v.w += from_quanta3(&[d(4), d(5), d(6)]);
+        *q0 = *q;
+    }
+}
+
+impl Bodies {
+    /// Bodies `a` and `b`'s velocities in quanta (zero for `NONE`).
+    #[inline(always)]
+    fn load(arrays: &BodyArrays, a: u32, b: u32) -> Bodies {
+        let (qa, qb) = (arrays.quanta(a), arrays.quanta(b));
+        let v = |q: &Quanta, k: usize| [q.q[k] as i64, q.q[k + 1] as i64, q.q[k + 2] as i64];
+        Bodies {
+            va: v(&qa, 0),
+            wa: v(&qa, 4),
+            vb: v(&qb, 0),
+            wb: v(&qb, 4),
+        }
+    }
+
+    /// Writes the velocities of the dynamic bodies `wa` and `wb` (`NONE`:
+    /// not written); each component is inside the guard, so 32 bits hold
+    /// it.
+    #[inline(always)]
+    fn store(&self, arrays: &BodyArrays, wa: u32, wb: u32) {
+        let q = |v: &[i64; 3], w: &[i64; 3]| Quanta {
+            q: [
+                v[0] as i32,
+                v[1] as i32,
+                v[2] as i32,
+                0,
+                w[0] as i32,
+                w[1] as i32,
+                w[2] as i32,
+                0,
+            ],
+        };
+        arrays.set_quanta(wa, q(&self.va, &self.wa));
+        arrays.set_quanta(wb, q(&self.vb, &self.wb));
     }
 
     #[inline(always)]
@@ -378,9 +467,15 @@ pub(super) fn write_back(r: &NarrowRows, c: &mut Constraint) {
 
 /// The total normal impulse (Q32.32) of the current Λ.
 fn normal_total(r: &NarrowRows) -> Scalar {
+    normal_total_of(r, &r.impulse)
+}
+
+/// The total normal impulse (Q32.32) of the points' Λ in `impulses` (the
+/// rows' own, or a lanes' batch's copy of them).
+fn normal_total_of(r: &NarrowRows, impulses: &[i32; ROWS]) -> Scalar {
     let mut total = Scalar::ZERO;
     for i in 0..r.count as usize {
-        total += impulse(r.impulse[i], r.mass[i]);
+        total += impulse(impulses[i], r.mass[i]);
     }
     total
 }
@@ -480,12 +575,10 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
     if r.bias_poses != args.poses {
         update_biases(r, args.bodies, args.params, args.poses);
     }
-    let (va0, vb0) = args.arrays.load(r.a, r.b);
-    let mut b = Bodies::of(&va0, &vb0);
+    let mut b = Bodies::load(args.arrays, r.a, r.b);
     if !b.fit() {
         return false;
     }
-    let begin = b;
     let (je, ae) = (r.je as u32, r.ae as u32);
     let count = r.count as usize;
     let mut ok = true;
@@ -578,42 +671,29 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
         impulse_w,
         impulses,
         first_vn,
-        moved: [
-            sub3(&b.va, &begin.va),
-            sub3(&b.wa, &begin.wa),
-            sub3(&b.vb, &begin.vb),
-            sub3(&b.wb, &begin.wb),
-        ],
     };
-    commit(args, r, &out, &va0, &vb0);
+    commit(r, &out);
+    b.store(args.arrays, r.wa, r.wb);
     if !args.use_bias {
         collect_angular(r, args.arrays);
     }
     true
 }
 
-/// What one accepted visit computed: the new impulses, restitution's
-/// bookkeeping and each body's change in velocity (quanta: `dv_A`, `dω_A`,
-/// `dv_B`, `dω_B`).
+/// What one accepted visit computed: the new impulses and restitution's
+/// bookkeeping.
 #[derive(Clone, Copy, Default)]
 struct Outcome {
     impulse_t: [i32; 2],
     impulse_w: i32,
     impulses: [i32; MAX_MANIFOLD_POINTS],
     first_vn: [i32; MAX_MANIFOLD_POINTS],
-    moved: [[i64; 3]; 4],
 }
 
+/// Writes an accepted visit's impulses and restitution's bookkeeping (its
+/// velocities are written by the caller, in quanta).
 #[inline(always)]
-fn sub3(a: &[i64; 3], b: &[i64; 3]) -> [i64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-/// Writes an accepted visit: impulses, restitution's bookkeeping and each
-/// body's exact change in velocity added to its Q32.32 velocity (`va0`,
-/// `vb0` as the visit read them).
-#[inline(always)]
-fn commit(args: &VisitArgs<'_>, r: &mut NarrowRows, out: &Outcome, va0: &BodyVel, vb0: &BodyVel) {
+fn commit(r: &mut NarrowRows, out: &Outcome) {
     r.impulse[T0] = out.impulse_t[0];
     r.impulse[T0 + 1] = out.impulse_t[1];
     r.impulse[TW] = out.impulse_w;
@@ -623,16 +703,6 @@ fn commit(args: &VisitArgs<'_>, r: &mut NarrowRows, out: &Outcome, va0: &BodyVel
         r.max_impulse[i] = r.max_impulse[i].max(out.impulses[i]);
         r.first_vn[i] = out.first_vn[i];
     }
-    let [dva, dwa, dvb, dwb] = &out.moved;
-    let va = BodyVel {
-        v: va0.v + from_quanta3(dva),
-        w: va0.w + from_quanta3(dwa),
-    };
-    let vb = BodyVel {
-        v: vb0.v + from_quanta3(dvb),
-        w: vb0.w + from_quanta3(dwb),
-    };
-    args.arrays.store(r.wa, r.wb, va, vb);
 }
 
 /// Adds the angular impulse of every impulse change since its mark to the
@@ -712,6 +782,25 @@ fn set_limits(r: &mut NarrowRows) {
     r.limits_set = total.is_positive();
     if r.limits_set {
         (r.disc_limit, r.twist_limit) = limits_for(r, total);
+    }
+}
+
+/// What [`set_limits`] writes, for the points' Λ in `impulses`: the warm
+/// start's total, whether it bounds friction, and the bounds (unchanged
+/// `disc`, `twist` when it does not).
+#[inline(always)]
+fn limits_of(
+    r: &NarrowRows,
+    impulses: &[i32; ROWS],
+    disc: i64,
+    twist: i64,
+) -> (Scalar, bool, i64, i64) {
+    let total = normal_total_of(r, impulses);
+    if total.is_positive() {
+        let (d, t) = limits_for(r, total);
+        (total, true, d, t)
+    } else {
+        (total, false, disc, twist)
     }
 }
 

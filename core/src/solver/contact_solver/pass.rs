@@ -21,9 +21,10 @@ pub(super) struct Pass<'a> {
     pub(super) poses: u32,
     /// Where a narrow visit whose guard failed is counted.
     pub(super) fallbacks: &'a narrow::Fallbacks,
-    /// The lanes' batches, and the kernel build that runs them (`None`:
-    /// the narrow rows' lanes are off).
-    pub(super) batches: &'a [Batch],
+    /// The lanes' batches (each visited by the worker whose block holds
+    /// its constraints), and the kernel build that runs them (`None`: the
+    /// narrow rows' lanes are off).
+    pub(super) batches: SharedMut<'a, Batch>,
     pub(super) kernel: Option<Kernel>,
 }
 
@@ -68,6 +69,7 @@ impl Pass<'_> {
     /// solve it from this visit to the end of the tick.
     #[inline(always)]
     pub(super) fn visit(&self, c: &mut Constraint, r: Option<&mut NarrowRows>) {
+        let narrow_world = r.is_some();
         if let Some(r) = r.filter(|r| r.on) {
             if narrow::visit(&self.narrow_args(), r) {
                 self.accepted(c, r);
@@ -76,7 +78,24 @@ impl Pass<'_> {
             }
             return;
         }
+        if narrow_world {
+            // A world on the narrow rows: its velocities are in quanta.
+            self.visit_exact_in_quanta(c);
+        } else {
+            self.visit_exact(c);
+        }
+    }
+
+    /// One visit of `c` on the Q32.32 rows during a narrow pass: its
+    /// bodies' Q32.32 velocities take their change in quanta first, and
+    /// their quanta are taken again after (see [`narrow::Quanta`]).
+    #[inline(never)]
+    pub(super) fn visit_exact_in_quanta(&self, c: &mut Constraint) {
+        self.arrays.flush_one(c.wa);
+        self.arrays.flush_one(c.wb);
         self.visit_exact(c);
+        self.arrays.requantize_one(c.wa);
+        self.arrays.requantize_one(c.wb);
     }
 
     /// What the narrow rows' visits read of this pass.
@@ -110,7 +129,7 @@ impl Pass<'_> {
         narrow::write_back(r, c);
         r.on = false;
         self.fallbacks.add();
-        self.visit_exact(c);
+        self.visit_exact_in_quanta(c);
     }
 
     /// Visits a run of constraints of one colour on the narrow rows: each
@@ -128,26 +147,31 @@ impl Pass<'_> {
         let mut i = 0;
         while i < len {
             let b = rs[i].batch;
-            if b != NONE && i + LANES <= len && Batch::fits(&rs[i..i + LANES]) {
-                // Ask for the next batch's rows while this one runs (the
-                // lanes read their state, and the biases their terms).
-                for r in rs.iter().skip(i + LANES).take(LANES) {
-                    prefetch(r);
+            if b != NONE && i + LANES <= len {
+                debug_assert!(Batch::fits(&rs[i..i + LANES]));
+                // Ask for the next batch while this one runs.
+                let next = rs.get(i + LANES).map(|r| r.batch);
+                if let Some(next) = next.filter(|&n| (n as usize) < self.batches.len()) {
+                    prefetch_ptr(self.batches.ptr_at(next as usize));
                 }
-                let next = rs.get(i + LANES).map(|r| r.batch as usize);
-                if let Some(next) = next.and_then(|b| self.batches.get(b)) {
-                    prefetch(next);
-                }
-                let batch = &self.batches[b as usize];
+                // SAFETY: batch `b` holds constraints `i..i + LANES` of
+                // this worker's block alone (`batch_lanes`).
+                let batch = unsafe { self.batches.get(b as usize) };
                 let rows = &mut rs[i..i + LANES];
                 let refused = narrow::lanes::visit(&args, batch, rows, kernel);
-                if self.fuse && !refused.contains(&true) {
-                    // The next warm start of the whole batch on the lanes.
-                    let warm = narrow::lanes::warm_start(batch, rows);
-                    for (c, (da, db)) in cs[i..i + LANES].iter().zip(warm) {
-                        self.arrays.add_warm(c.wa, c.wb, da, db);
+                if !refused.contains(&true) {
+                    if self.fuse {
+                        // The next warm start of the whole batch on the
+                        // lanes.
+                        let warm = narrow::lanes::warm_start(batch, rows);
+                        for (c, (da, db)) in cs[i..i + LANES].iter().zip(warm) {
+                            self.arrays.add_warm(c.wa, c.wb, da, db);
+                        }
                     }
                 } else {
+                    // The batch's state went back to the rows: the twin
+                    // visits these constraints for the rest of the tick.
+                    rows[0].batch = NONE;
                     for (l, &no) in refused.iter().enumerate() {
                         let (c, r) = (&mut cs[i + l], &mut rs[i + l]);
                         if no {

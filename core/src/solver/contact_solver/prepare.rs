@@ -47,7 +47,10 @@ impl ContactSolver {
         let caps = (
             self.bodies.capacity(),
             self.vels.capacity(),
-            (self.dls.capacity(), self.warm.capacity()),
+            (
+                (self.dls.capacity(), self.warm.capacity()),
+                (self.quanta.capacity(), self.quanta0.capacity()),
+            ),
             self.body_of_slot.capacity(),
             (
                 self.constraints.capacity(),
@@ -75,6 +78,8 @@ impl ContactSolver {
         self.vels.clear();
         self.dls.clear();
         self.warm.clear();
+        self.quanta.clear();
+        self.quanta0.clear();
         self.warm_ready = false;
         let moves = |slot: u32| {
             let b = &hot[slot as usize];
@@ -244,6 +249,10 @@ impl ContactSolver {
             });
             self.dls.push(Vec3::ZERO);
             self.warm.push(BodyVel::default());
+            if params.narrow {
+                self.quanta.push(Default::default());
+                self.quanta0.push(Default::default());
+            }
         }
         // Step 4's shortcut, known now: when even the lightest solver body
         // against the heaviest is not a high ratio, every contact keeps the
@@ -406,7 +415,10 @@ impl ContactSolver {
         let grew = (
             self.bodies.capacity(),
             self.vels.capacity(),
-            (self.dls.capacity(), self.warm.capacity()),
+            (
+                (self.dls.capacity(), self.warm.capacity()),
+                (self.quanta.capacity(), self.quanta0.capacity()),
+            ),
             self.body_of_slot.capacity(),
             (
                 self.constraints.capacity(),
@@ -453,7 +465,7 @@ impl ContactSolver {
                         if used == self.batches.len() {
                             self.batches.push(Batch::default());
                         }
-                        self.batches[used].fill(rows);
+                        self.batches[used].fill(rows, i);
                         rows[0].batch = used as u32;
                         for r in &mut rows[1..] {
                             r.batch = NONE;

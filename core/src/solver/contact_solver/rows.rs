@@ -3,6 +3,7 @@
 //! (ties toward +∞, see [`mul`]). Kept apart from the passes so the passes
 //! read as the algorithm.
 
+use super::narrow::{Quanta, flush_body};
 use super::{BodyVel, Constraint, NONE, SolverBody};
 use crate::math::lanes::narrow;
 use crate::math::scalar::wide_sum;
@@ -205,15 +206,22 @@ pub(super) fn store(vels: &mut [BodyVel], a: u32, b: u32, va: BodyVel, vb: BodyV
 /// changes no value, so results do not depend on it).
 #[inline(always)]
 pub(super) fn prefetch<T>(x: &T) {
+    prefetch_ptr(x as *const T);
+}
+
+/// [`prefetch`] of the `T` at `x`, which need not be valid (nothing is
+/// read).
+#[inline(always)]
+pub(super) fn prefetch_ptr<T>(x: *const T) {
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let base = x as *const T as *const i8;
+        let base = x as *const i8;
         let mut off = 0;
         while off < size_of::<T>() {
             // SAFETY: a prefetch never faults and reads nothing into the
-            // program; the address lies inside `x`.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.add(off)) };
+            // program (the address is only computed, wrapping).
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.wrapping_add(off)) };
             off += 64;
         }
     }
@@ -228,6 +236,11 @@ pub(super) struct BodyArrays {
     vels: *mut BodyVel,
     dls: *mut Vec3,
     warm: *mut BodyVel,
+    /// The narrow rows' velocities in quanta during a pass, and their
+    /// values when last taken from `vels` (see [`Quanta`]); null
+    /// outside the narrow rows' passes.
+    q: *mut Quanta,
+    q0: *mut Quanta,
     len: usize,
 }
 
@@ -257,7 +270,80 @@ impl BodyArrays {
             vels: vels.as_mut_ptr(),
             dls: dls.as_mut_ptr(),
             warm: warm.as_mut_ptr(),
+            q: std::ptr::null_mut(),
+            q0: std::ptr::null_mut(),
             len: vels.len().min(dls.len()).min(warm.len()),
+        }
+    }
+
+    /// Also shares the narrow rows' velocities in quanta (`q`, `q0`: one
+    /// entry per solver body), taken from `vels` by the caller
+    /// ([`super::narrow::quantize`]) and given back after the pass
+    /// ([`super::narrow::flush`]).
+    ///
+    /// # Safety
+    /// As [`BodyArrays::new`], for `q` and `q0` too.
+    pub(super) unsafe fn with_quanta(self, q: &mut [Quanta], q0: &mut [Quanta]) -> BodyArrays {
+        assert!(q.len() >= self.len && q0.len() >= self.len);
+        BodyArrays {
+            q: q.as_mut_ptr(),
+            q0: q0.as_mut_ptr(),
+            ..self
+        }
+    }
+
+    /// Body `i`'s velocity in quanta (zero for `NONE`).
+    #[inline(always)]
+    pub(super) fn quanta(&self, i: u32) -> Quanta {
+        if i == NONE {
+            return Quanta::default();
+        }
+        assert!((i as usize) < self.len && !self.q.is_null());
+        // SAFETY: in bounds; no other thread writes this entry now (`new`).
+        unsafe { *self.q.add(i as usize) }
+    }
+
+    /// Writes dynamic body `i`'s velocity in quanta (`NONE`: not written).
+    #[inline(always)]
+    pub(super) fn set_quanta(&self, i: u32, q: Quanta) {
+        if i != NONE {
+            assert!((i as usize) < self.len && !self.q.is_null());
+            // SAFETY: as in `store`.
+            unsafe { *self.q.add(i as usize) = q };
+        }
+    }
+
+    /// Before a Q32.32 visit in a narrow pass: dynamic body `i`'s Q32.32
+    /// velocity takes the change its quanta made since they were taken
+    /// (`NONE`: nothing; a kinematic body's quanta never change).
+    #[inline(always)]
+    pub(super) fn flush_one(&self, i: u32) {
+        if i != NONE && !self.q.is_null() {
+            assert!((i as usize) < self.len);
+            // SAFETY: as in `store`.
+            unsafe {
+                let (v, q, q0) = (
+                    &mut *self.vels.add(i as usize),
+                    &*self.q.add(i as usize),
+                    &mut *self.q0.add(i as usize),
+                );
+                flush_body(v, q, q0);
+            }
+        }
+    }
+
+    /// After a Q32.32 visit in a narrow pass: dynamic body `i`'s quanta
+    /// taken again from its Q32.32 velocity.
+    #[inline(always)]
+    pub(super) fn requantize_one(&self, i: u32) {
+        if i != NONE && !self.q.is_null() {
+            assert!((i as usize) < self.len);
+            // SAFETY: as in `store`.
+            unsafe {
+                let q = Quanta::of(&*self.vels.add(i as usize));
+                *self.q.add(i as usize) = q;
+                *self.q0.add(i as usize) = q;
+            }
         }
     }
 

@@ -24,10 +24,10 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{
-    Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NarrowRows, Outcome, ROW_LIMIT, ROWS, Row, T0, TW,
-    VisitArgs, add_momenta, clamp_to_disc, commit, limits_for, normal_total, set_limits,
-    update_biases,
+    Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NarrowRows, ROW_LIMIT, ROWS, Row, T0, TW,
+    VisitArgs, add_momenta, clamp_to_disc, limits_for, limits_of, normal_total_of, update_biases,
 };
+use crate::math::Scalar;
 use crate::solver::contact_solver::rows::BodyArrays;
 
 /// Constraints per batch.
@@ -66,7 +66,8 @@ impl LaneRow {
 }
 
 /// The constants of eight constraints' narrow rows, as a structure of
-/// arrays.
+/// arrays, and their state during the passes of a tick (see
+/// [`LaneState`]).
 #[derive(Clone, Debug, Default)]
 pub(in crate::solver::contact_solver) struct Batch {
     /// Points per constraint (the same in every lane).
@@ -74,12 +75,40 @@ pub(in crate::solver::contact_solver) struct Batch {
     /// Exponents (shift counts) of the Jacobian and response entries.
     je: L64,
     ae: L64,
+    /// Solver bodies (or `NONE`) of each lane.
+    a: [u32; LANES],
+    b: [u32; LANES],
     n: [L32; 3],
     t: [[L32; 3]; 2],
     mass_t: [L32; 2],
     /// The rows: the points' normal rows, the two tangents, the twist (as
     /// the twin's `rows`).
     rows: [LaneRow; ROWS],
+    /// The index of the batch's first constraint (and row).
+    first: usize,
+    /// Whether `state` holds the lanes' state (else the twin's rows do).
+    loaded: bool,
+    state: LaneState,
+}
+
+/// The state the twin keeps in its rows' first cache lines, lane by lane:
+/// while a batch is loaded (from its first pass of a tick until its state
+/// goes back, see [`Batch::unload`]) the lanes read and write it here, so
+/// a visit streams one compact array instead of eight rows.
+#[derive(Clone, Copy, Debug, Default)]
+struct LaneState {
+    impulse: [L32; ROWS],
+    mark: [L32; ROWS],
+    max_impulse: [L32; MAX_MANIFOLD_POINTS],
+    first_vn: [L32; MAX_MANIFOLD_POINTS],
+    bias: [L32; MAX_MANIFOLD_POINTS],
+    speculative: [Mask; MAX_MANIFOLD_POINTS],
+    saturated: [Mask; MAX_MANIFOLD_POINTS],
+    bias_poses: [u32; LANES],
+    limits_set: Mask,
+    disc: L64,
+    twist_limit: L64,
+    warm_total: [Scalar; LANES],
 }
 
 impl Batch {
@@ -89,12 +118,18 @@ impl Batch {
         rows.len() == LANES && rows.iter().all(|r| r.on && r.count == rows[0].count)
     }
 
-    /// Copies the constants of `rows` (eight, see [`Batch::fits`]).
-    pub(in crate::solver::contact_solver) fn fill(&mut self, rows: &[NarrowRows]) {
+    /// Copies the constants of `rows` (eight, see [`Batch::fits`], from
+    /// constraint `first` on); the state stays in the rows until the first
+    /// visit.
+    pub(in crate::solver::contact_solver) fn fill(&mut self, rows: &[NarrowRows], first: usize) {
         self.count = rows[0].count as usize;
+        self.first = first;
+        self.loaded = false;
         for (l, r) in rows.iter().enumerate().take(LANES) {
             self.je[l] = r.je as i64;
             self.ae[l] = r.ae as i64;
+            self.a[l] = r.a;
+            self.b[l] = r.b;
             for c in 0..3 {
                 self.n[c][l] = r.n[c];
                 self.t[0][c][l] = r.t[0][c];
@@ -106,6 +141,64 @@ impl Batch {
                 self.rows[k].set(l, &r.rows[k]);
             }
         }
+    }
+
+    /// The rows of the batch's constraints, if the lanes hold their state.
+    pub(in crate::solver::contact_solver) fn loaded(&self) -> Option<std::ops::Range<usize>> {
+        self.loaded.then_some(self.first..self.first + LANES)
+    }
+
+    /// Takes the state from the twin's rows (the batch's eight).
+    fn load(&mut self, rows: &[NarrowRows]) {
+        let st = &mut self.state;
+        for (l, r) in rows.iter().enumerate().take(LANES) {
+            for k in 0..ROWS {
+                st.impulse[k][l] = r.impulse[k];
+                st.mark[k][l] = r.mark[k];
+            }
+            for i in 0..MAX_MANIFOLD_POINTS {
+                st.max_impulse[i][l] = r.max_impulse[i];
+                st.first_vn[i][l] = r.first_vn[i];
+                st.bias[i][l] = r.bias[i];
+                st.speculative[i][l] = r.speculative[i];
+                st.saturated[i][l] = r.saturated[i];
+            }
+            st.bias_poses[l] = r.bias_poses;
+            st.limits_set[l] = r.limits_set;
+            st.disc[l] = r.disc_limit;
+            st.twist_limit[l] = r.twist_limit;
+            st.warm_total[l] = r.warm_total;
+        }
+        self.loaded = true;
+    }
+
+    /// Gives the state back to the twin's rows (the batch's eight), for
+    /// what reads it there: the twin's visits after a lane's guard failed,
+    /// the twin's warm start, restitution's write-back.
+    pub(in crate::solver::contact_solver) fn unload(&mut self, rows: &mut [NarrowRows]) {
+        if !self.loaded {
+            return;
+        }
+        let st = &self.state;
+        for (l, r) in rows.iter_mut().enumerate().take(LANES) {
+            for k in 0..ROWS {
+                r.impulse[k] = st.impulse[k][l];
+                r.mark[k] = st.mark[k][l];
+            }
+            for i in 0..MAX_MANIFOLD_POINTS {
+                r.max_impulse[i] = st.max_impulse[i][l];
+                r.first_vn[i] = st.first_vn[i][l];
+                r.bias[i] = st.bias[i][l];
+                r.speculative[i] = st.speculative[i][l];
+                r.saturated[i] = st.saturated[i][l];
+            }
+            r.bias_poses = st.bias_poses[l];
+            r.limits_set = st.limits_set[l];
+            r.disc_limit = st.disc[l];
+            r.twist_limit = st.twist_limit[l];
+            r.warm_total = st.warm_total[l];
+        }
+        self.loaded = false;
     }
 }
 
@@ -392,30 +485,30 @@ impl Kernel {
 }
 
 /// One visit of eight constraints (`rows`, one batch, all on the narrow
-/// rows) on the lanes of `kernel`: each accepted lane is committed as the
-/// twin commits it. Returns the mask of lanes whose guard failed (nothing
-/// of theirs written but their biases), for the caller to solve on the
-/// Q32.32 rows.
+/// rows) on the lanes of `kernel`, with their state in the batch (taken
+/// from the rows at the tick's first visit). Each accepted lane is written
+/// as the twin writes it. Returns the mask of lanes whose guard failed
+/// (nothing of theirs written but their biases): then the whole batch's
+/// state has gone back to the rows, for the caller to solve the refused
+/// constraints on the Q32.32 rows and the others with the twin from then
+/// on.
 pub(in crate::solver::contact_solver) fn visit(
     args: &VisitArgs<'_>,
-    batch: &Batch,
+    batch: &mut Batch,
     rows: &mut [NarrowRows],
     kernel: Kernel,
 ) -> Mask {
+    if !batch.loaded {
+        batch.load(rows);
+    }
     let mut st = State::default();
-    let mut begin = [[BodyVel::default(); 2]; LANES];
     let first = if batch.count == 0 {
         0
     } else {
         args.rot % batch.count
     };
-    for (l, r) in rows.iter_mut().enumerate().take(LANES) {
-        if r.bias_poses != args.poses {
-            update_biases(r, args.bodies, args.params, args.poses);
-        }
-        let (va0, vb0) = args.arrays.load(r.a, r.b);
-        let b = Bodies::of(&va0, &vb0);
-        begin[l] = [va0, vb0];
+    for l in 0..LANES {
+        let b = Bodies::load(args.arrays, batch.a[l], batch.b[l]);
         st.ok[l] = b.fit();
         for c in 0..3 {
             st.v.va[c][l] = b.va[c] as i32;
@@ -423,51 +516,72 @@ pub(in crate::solver::contact_solver) fn visit(
             st.v.vb[c][l] = b.vb[c] as i32;
             st.v.wb[c][l] = b.wb[c] as i32;
         }
-        (st.disc[l], st.twist_limit[l]) = if r.limits_set {
-            (r.disc_limit, r.twist_limit)
+    }
+    let bs = &mut batch.state;
+    for (l, r) in rows.iter_mut().enumerate().take(LANES) {
+        if bs.bias_poses[l] != args.poses {
+            // The twin's own function, on the row's separation terms.
+            update_biases(r, args.bodies, args.params, args.poses);
+            bs.bias_poses[l] = args.poses;
+            for i in 0..batch.count {
+                bs.bias[i][l] = r.bias[i];
+                bs.speculative[i][l] = r.speculative[i];
+                bs.saturated[i][l] = r.saturated[i];
+            }
+        }
+        (st.disc[l], st.twist_limit[l]) = if bs.limits_set[l] {
+            (bs.disc[l], bs.twist_limit[l])
         } else {
-            limits_for(r, normal_total(r))
+            let imp: [i32; ROWS] = std::array::from_fn(|k| bs.impulse[k][l]);
+            limits_for(r, normal_total_of(r, &imp))
         };
-        st.impulse_t[0][l] = r.impulse[T0] as i64;
-        st.impulse_t[1][l] = r.impulse[T0 + 1] as i64;
-        st.impulse_w[l] = r.impulse[TW] as i64;
-        for i in 0..batch.count {
-            st.impulses[i][l] = r.impulse[i] as i64;
-            st.first_vn[i][l] = r.first_vn[i] as i64;
-            st.bias[i][l] = r.bias[i] as i64;
-            st.speculative[i][l] = r.speculative[i];
-            st.saturated[i][l] = r.saturated[i];
+    }
+    for l in 0..LANES {
+        st.impulse_t[0][l] = bs.impulse[T0][l] as i64;
+        st.impulse_t[1][l] = bs.impulse[T0 + 1][l] as i64;
+        st.impulse_w[l] = bs.impulse[TW][l] as i64;
+    }
+    for i in 0..batch.count {
+        for l in 0..LANES {
+            st.impulses[i][l] = bs.impulse[i][l] as i64;
+            st.first_vn[i][l] = bs.first_vn[i][l] as i64;
+            st.bias[i][l] = bs.bias[i][l] as i64;
+            st.speculative[i][l] = bs.speculative[i][l];
+            st.saturated[i][l] = bs.saturated[i][l];
         }
     }
-    let start = st.v;
     let ms = super::rsh(args.params.softness.mass_scale.to_bits(), 2);
     let ok = kernel.run(batch, &mut st, ms, args.use_bias, first);
+    let bs = &mut batch.state;
     let mut refused = [false; LANES];
-    for (l, r) in rows.iter_mut().enumerate().take(LANES) {
+    for l in 0..LANES {
         if !ok[l] {
             refused[l] = true;
             continue;
         }
-        let mut out = Outcome {
-            impulse_t: [st.impulse_t[0][l] as i32, st.impulse_t[1][l] as i32],
-            impulse_w: st.impulse_w[l] as i32,
-            ..Outcome::default()
-        };
+        bs.impulse[T0][l] = st.impulse_t[0][l] as i32;
+        bs.impulse[T0 + 1][l] = st.impulse_t[1][l] as i32;
+        bs.impulse[TW][l] = st.impulse_w[l] as i32;
         for i in 0..batch.count {
-            out.impulses[i] = st.impulses[i][l] as i32;
-            out.first_vn[i] = st.first_vn[i][l] as i32;
+            let new = st.impulses[i][l] as i32;
+            bs.impulse[i][l] = new;
+            bs.max_impulse[i][l] = bs.max_impulse[i][l].max(new);
+            bs.first_vn[i][l] = st.first_vn[i][l] as i32;
         }
-        for c in 0..3 {
-            out.moved[0][c] = st.v.va[c][l] as i64 - start.va[c][l] as i64;
-            out.moved[1][c] = st.v.wa[c][l] as i64 - start.wa[c][l] as i64;
-            out.moved[2][c] = st.v.vb[c][l] as i64 - start.vb[c][l] as i64;
-            out.moved[3][c] = st.v.wb[c][l] as i64 - start.wb[c][l] as i64;
-        }
-        let [va0, vb0] = &begin[l];
-        commit(args, r, &out, va0, vb0);
+        let v = |x: &[L32; 3]| [x[0][l] as i64, x[1][l] as i64, x[2][l] as i64];
+        let b = Bodies {
+            va: v(&st.v.va),
+            wa: v(&st.v.wa),
+            vb: v(&st.v.vb),
+            wb: v(&st.v.wb),
+        };
+        b.store(args.arrays, rows[l].wa, rows[l].wb);
     }
     if !args.use_bias {
         collect_angular(batch, rows, &refused, args.arrays);
+    }
+    if refused.contains(&true) {
+        batch.unload(rows);
     }
     refused
 }
@@ -475,18 +589,19 @@ pub(in crate::solver::contact_solver) fn visit(
 /// The twin's `collect_angular` for the accepted lanes: `Σ g·ΔΛ` per body
 /// since the marks (each lane's sum exact in `i64`, as the twin's), then
 /// the marks moved and the sums added to the bodies' write-back.
-fn collect_angular(batch: &Batch, rows: &mut [NarrowRows], refused: &Mask, arrays: &BodyArrays) {
+fn collect_angular(batch: &mut Batch, rows: &[NarrowRows], refused: &Mask, arrays: &BodyArrays) {
     let mut la = [[0i64; LANES]; 3];
     let mut lb = [[0i64; LANES]; 3];
     let mut any = [false; LANES];
+    let st = &mut batch.state;
     for k in (0..batch.count).chain(T0..ROWS) {
         let mut d = [0i64; LANES];
-        for (l, r) in rows.iter_mut().enumerate().take(LANES) {
+        for l in 0..LANES {
             if refused[l] {
                 continue;
             }
-            d[l] = (r.impulse[k] - r.mark[k]) as i64;
-            r.mark[k] = r.impulse[k];
+            d[l] = (st.impulse[k][l] - st.mark[k][l]) as i64;
+            st.mark[k][l] = st.impulse[k][l];
             any[l] |= d[l] != 0;
         }
         let g = &batch.rows[k];
@@ -506,23 +621,22 @@ fn collect_angular(batch: &Batch, rows: &mut [NarrowRows], refused: &Mask, array
     }
 }
 
-/// The twin's `warm_start` of eight constraints (one batch): each lane's
-/// velocity changes of A and B, with the marks cleared and the friction
-/// bounds set in the twin's rows.
+/// The twin's `warm_start` of eight constraints (one loaded batch): each
+/// lane's velocity changes of A and B, with the marks cleared and the
+/// friction bounds set in the batch's state (`rows`: the batch's eight,
+/// for their constants).
 pub(in crate::solver::contact_solver) fn warm_start(
-    batch: &Batch,
-    rows: &mut [NarrowRows],
+    batch: &mut Batch,
+    rows: &[NarrowRows],
 ) -> [(BodyVel, BodyVel); LANES] {
     let mut v = Vels64::default();
+    let st = &mut batch.state;
     for k in (0..batch.count).chain(T0..ROWS) {
-        let mut d = [0i64; LANES];
-        for (l, r) in rows.iter().enumerate().take(LANES) {
-            d[l] = r.impulse[k] as i64;
-        }
+        let d = st.impulse[k];
         let g = &batch.rows[k];
         for c in 0..3 {
             for l in 0..LANES {
-                let p = |e: i32| rsh(mul(d[l] as i32, e), batch.ae[l]);
+                let p = |e: i32| rsh(mul(d[l], e), batch.ae[l]);
                 v.va[c][l] = v.va[c][l].wrapping_sub(p(g.ea[c][l]));
                 v.wa[c][l] = v.wa[c][l].wrapping_sub(p(g.ca[c][l]));
                 v.vb[c][l] = v.vb[c][l].wrapping_add(p(g.eb[c][l]));
@@ -530,10 +644,17 @@ pub(in crate::solver::contact_solver) fn warm_start(
             }
         }
     }
+    st.mark = [[0; LANES]; ROWS];
+    for (l, r) in rows.iter().enumerate().take(LANES) {
+        let imp: [i32; ROWS] = std::array::from_fn(|k| st.impulse[k][l]);
+        (
+            st.warm_total[l],
+            st.limits_set[l],
+            st.disc[l],
+            st.twist_limit[l],
+        ) = limits_of(r, &imp, st.disc[l], st.twist_limit[l]);
+    }
     std::array::from_fn(|l| {
-        let r = &mut rows[l];
-        r.mark = [0; ROWS];
-        set_limits(r);
         let b = Bodies {
             va: [v.va[0][l], v.va[1][l], v.va[2][l]],
             wa: [v.wa[0][l], v.wa[1][l], v.wa[2][l]],
@@ -555,7 +676,7 @@ struct Vels64 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{LIMIT, ROWS, S};
+    use super::super::{LIMIT, Quanta, ROWS, S, flush, quantize};
     use super::*;
     use crate::math::{Scalar, Vec3};
     use crate::solver::contact_solver::rows::BodyArrays;
@@ -681,8 +802,12 @@ mod tests {
         let run = |visit: &dyn Fn(&VisitArgs<'_>, &mut [NarrowRows]) -> Mask| {
             let (mut rows, mut vels) = (rows, vels.clone());
             let (mut dls, mut warm) = (vec![Vec3::ZERO; n], vec![BodyVel::default(); n]);
+            let (mut q, mut q0) = (vec![Quanta::default(); n], vec![Quanta::default(); n]);
+            quantize(&vels, &mut q, &mut q0);
             // SAFETY: one thread; the vectors outlive the arrays.
-            let arrays = unsafe { BodyArrays::new(&mut vels, &mut dls, &mut warm) };
+            let arrays = unsafe {
+                BodyArrays::new(&mut vels, &mut dls, &mut warm).with_quanta(&mut q, &mut q0)
+            };
             let args = VisitArgs {
                 params: &params,
                 bodies: &[],
@@ -692,12 +817,13 @@ mod tests {
                 poses: 7,
             };
             let refused = visit(&args, &mut rows);
+            flush(&mut vels, &q, &mut q0);
             (refused, rows, vels, dls)
         };
         let twin =
             run(&|args, rows| std::array::from_fn(|l| !super::super::visit(args, &mut rows[l])));
         let mut batch = Batch::default();
-        batch.fill(&rows);
+        batch.fill(&rows, 0);
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::arch::is_x86_feature_detected!("avx2");
         #[cfg(not(target_arch = "x86_64"))]
@@ -708,7 +834,12 @@ mod tests {
             (Kernel::best() == Kernel::Avx512).then_some(Kernel::Avx512),
         ];
         for kernel in kernels.into_iter().flatten() {
-            let lanes = run(&|args, rows| visit(args, &batch, rows, kernel));
+            let lanes = run(&|args, rows| {
+                let mut batch = batch.clone();
+                let refused = visit(args, &mut batch, rows, kernel);
+                batch.unload(rows);
+                refused
+            });
             assert_eq!(lanes.0, twin.0, "{kernel:?}: refusals");
             for l in 0..LANES {
                 assert_eq!(lanes.1[l], twin.1[l], "{kernel:?}: lane {l}'s rows");
@@ -749,9 +880,11 @@ mod tests {
         for round in 0..200 {
             let (rows, _) = inputs(&mut rng, 1 + round % MAX_MANIFOLD_POINTS, 1 << 20, 1 << 30);
             let mut batch = Batch::default();
-            batch.fill(&rows);
+            batch.fill(&rows, 0);
             let (mut a, mut b) = (rows, rows);
-            let lanes = warm_start(&batch, &mut a);
+            batch.load(&a);
+            let lanes = warm_start(&mut batch, &a);
+            batch.unload(&mut a);
             for l in 0..LANES {
                 assert_eq!(lanes[l], super::super::warm_start(&mut b[l]), "lane {l}");
                 assert_eq!(a[l], b[l], "lane {l}'s rows");
