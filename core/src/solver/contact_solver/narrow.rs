@@ -474,8 +474,8 @@ fn normal_total(r: &NarrowRows) -> Scalar {
 /// rows' own, or a lanes' batch's copy of them).
 fn normal_total_of(r: &NarrowRows, impulses: &[i32; ROWS]) -> Scalar {
     let mut total = Scalar::ZERO;
-    for i in 0..r.count as usize {
-        total += impulse(impulses[i], r.mass[i]);
+    for (&big, &m) in impulses.iter().zip(&r.mass).take(r.count as usize) {
+        total += impulse(big, m);
     }
     total
 }
