@@ -112,8 +112,7 @@ use narrow::lanes::{Batch, Kernel, LANES};
 use patch::{Patch, prepare_patch, solve_patch};
 use rows::{
     BodyArrays, along, angular_along, apply_linear, combine3, cross, effective, inverse_or_zero,
-    linear_basis, mul, prefetch, prefetch_ptr, push_angular, round_wide, scale, tangent_of,
-    vel_or_zero,
+    linear_basis, mul, prefetch, push_angular, round_wide, scale, tangent_of, vel_or_zero,
 };
 
 use crate::body::{BodyHot, BodyKind};
@@ -419,6 +418,10 @@ pub(crate) struct ContactSolver {
     /// [`narrow::Quanta`]); empty otherwise.
     quanta: Vec<narrow::Quanta>,
     quanta0: Vec<narrow::Quanta>,
+    /// In a world on the narrow rows, each solver body's pose change as
+    /// the narrow separations read it (see [`narrow::PoseQ`]); empty
+    /// otherwise.
+    pq: Vec<narrow::PoseQ>,
     /// Slot → solver body index, or `NONE`. Only the slots of `bodies` hold
     /// an index, so a tick resets just those, never every slot.
     body_of_slot: Vec<u32>,
@@ -578,15 +581,27 @@ impl ContactSolver {
             SharedMut::new(&mut self.bodies),
             SharedMut::new(&mut self.vels),
         );
+        // In a world on the narrow rows, the pose changes as its
+        // separations read them (one per solver body).
+        let pq = SharedMut::new(&mut self.pq);
         self.workers.for_each_block(len, BODY_BLOCK, |r| {
             // SAFETY: each block goes to one worker alone.
-            let (bodies, vels) = unsafe { (bodies.slice(r.clone()), vels.slice(r)) };
+            let (bodies, vels) = unsafe { (bodies.slice(r.clone()), vels.slice(r.clone())) };
+            let pq = if pq.is_empty() {
+                &mut []
+            } else {
+                // SAFETY: as above.
+                unsafe { pq.slice(r) }
+            };
             for (sb, vel) in bodies.iter_mut().zip(vels) {
                 let b = &hot[sb.slot as usize];
                 vel.v = b.linear_velocity;
                 vel.w = b.angular_velocity;
                 sb.dp = b.center - sb.center0;
                 sb.dr = Mat3::from_quat(b.rotation * sb.rotation0_inv);
+            }
+            for (sb, pq) in bodies.iter().zip(pq) {
+                *pq = narrow::PoseQ::of(sb.dp, &sb.dr);
             }
         });
     }
@@ -755,6 +770,7 @@ impl ContactSolver {
             // within a millimetre).
             rot: self.substeps as usize,
             bodies: &self.bodies,
+            pq: &self.pq,
             arrays,
             // The wide kernels are the Q32.32 rows' lanes.
             lanes: self.wide_on && wide::available() && !params.narrow,

@@ -329,18 +329,6 @@ impl<'a, T> SharedMut<'a, T> {
         self.len == 0
     }
 
-    /// How many items it shares.
-    pub(crate) fn len(&self) -> usize {
-        self.len
-    }
-
-    /// The address of item `i` (`i < len`), for a prefetch: computing it
-    /// touches nothing.
-    pub(crate) fn ptr_at(&self, i: usize) -> *const T {
-        assert!(i < self.len);
-        self.ptr.wrapping_add(i)
-    }
-
     /// The items of `range`.
     ///
     /// # Safety

@@ -38,13 +38,14 @@
 //!
 //! # What stays Q32.32
 //!
-//! The bodies' velocities between visits (a visit reads them rounded to the
-//! quantum and adds back the exact change it made, so a body's low bits are
-//! never lost) and angular momenta, positions and orientations, the
-//! separation frame (once per pose change), the accumulated impulses the
-//! pairs store (`λ = Λ·m_eff`, rounded once, written back before
-//! restitution), restitution, and the high-mass-ratio contacts (their rows
-//! and the shock pass).
+//! The bodies' velocities between passes (a pass works on each body's
+//! velocity in quanta, see [`Quanta`], and adds the exact change back at
+//! its end, so a body's low bits are never lost) and angular momenta,
+//! positions and orientations, the accumulated impulses the pairs store
+//! (`λ = Λ·m_eff`, rounded once, written back before restitution),
+//! restitution, and the high-mass-ratio contacts (their rows and the shock
+//! pass). The points' separations, from which the biases come, are in the
+//! narrow kind of arithmetic too (see [`separations`]).
 //!
 //! # The guard
 //!
@@ -59,11 +60,9 @@
 use std::sync::atomic::{AtomicU32, Ordering};
 
 use super::rows::{BodyArrays, mul};
-use super::{
-    BodyVel, Constraint, MAX_MANIFOLD_POINTS, NONE, SeparationFrame, SolverBody, SolverParams,
-};
+use super::{BodyVel, Constraint, MAX_MANIFOLD_POINTS, NONE, SolverParams};
 use crate::math::lanes::narrow as narrow_q32;
-use crate::math::{Scalar, Vec3};
+use crate::math::{Mat3, Scalar, Vec3};
 
 pub(super) mod lanes;
 mod prepare;
@@ -182,13 +181,13 @@ pub(super) struct NarrowRows {
     n: [i32; 3],
     t: [[i32; 3]; 2],
     rows: [Row; ROWS],
-    /// The normal (Q32.32) and, per point, the anchors and adjusted
-    /// separation the separation is followed through (see
-    /// `ConstraintPoint`).
-    normal: Vec3,
-    ra: [Vec3; MAX_MANIFOLD_POINTS],
-    rb: [Vec3; MAX_MANIFOLD_POINTS],
-    adjusted: [Scalar; MAX_MANIFOLD_POINTS],
+    /// The separations' terms (see [`separations`]): the normal at
+    /// `2^-N_EXP`, per point the anchors at `2^-R_EXP` m and the
+    /// separation at the tick's start (Q32.32 bits).
+    nq: [i32; 3],
+    raq: [[i32; 3]; MAX_MANIFOLD_POINTS],
+    rbq: [[i32; 3]; MAX_MANIFOLD_POINTS],
+    sep0: [i64; MAX_MANIFOLD_POINTS],
 }
 
 /// Visits whose guard failed since the counts were last taken.
@@ -531,33 +530,183 @@ fn clamp_to_disc(want: [i64; 2], mass: &[i32; 2], limit: i64) -> [i64; 2] {
     [scaled(want[0]), scaled(want[1])]
 }
 
-/// The points' separations at the current poses and their biases in
-/// quanta (from the rows' own copy of the separation terms: the Q32.32
-/// constraint is not read).
-#[inline(always)]
-fn update_biases(r: &mut NarrowRows, bodies: &[SolverBody], params: &SolverParams, poses: u32) {
-    let count = r.count as usize;
-    let frame = SeparationFrame::at(r.normal, r.a, r.b, bodies);
-    r.bias_poses = poses;
-    let rate = params.softness.bias_rate;
-    for i in 0..count {
-        let s = frame.separation_at(r.ra[i], r.rb[i], r.adjusted[i]);
-        r.speculative[i] = s.is_positive();
-        let bias = if r.speculative[i] {
-            s * params.inv_h
-        } else {
-            (rate * s).max(-params.max_push_out)
-        };
-        let q = quanta(bias);
-        r.saturated[i] = q.abs() > 1 << 30;
-        r.bias[i] = q.clamp(-(1 << 30), 1 << 30) as i32;
+/// The exponents of the separations' terms: a body's displacement since
+/// the tick's start at `2^-DP_EXP` m (within ±8 m), its rotation since then
+/// minus the identity (`D = ΔR − I`, entries within ±2) at `2^-D_EXP`, the
+/// normal at `2^-N_EXP`, the anchors at `2^-R_EXP` m (within ±128 m).
+const DP_EXP: u32 = 28;
+const D_EXP: u32 = 29;
+pub(super) const N_EXP: u32 = 30;
+pub(super) const R_EXP: u32 = 24;
+
+/// The largest separation at the tick's start a narrow constraint takes
+/// (Q32.32 bits: 256 m), so that every separation stays far inside 64 bits.
+pub(super) const SEP0_LIMIT: i64 = 1 << 40;
+
+/// A solver body's pose change since the tick's start, as the narrow
+/// separations read it: `dp` at `2^-DP_EXP` m, `D = ΔR − I` by columns
+/// (as `Mat3`) at `2^-D_EXP`, each rounded once from Q32.32; `fit` when
+/// every entry is inside 32 bits (a body that moved 8 m or more in a tick
+/// does not fit, and its constraints go to the Q32.32 rows).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct PoseQ {
+    dp: [i32; 3],
+    d: [[i32; 3]; 3],
+    fit: bool,
+}
+
+impl Default for PoseQ {
+    fn default() -> PoseQ {
+        PoseQ::ZERO
     }
+}
+
+impl PoseQ {
+    /// No change: the tick's start, and a static body.
+    pub(super) const ZERO: PoseQ = PoseQ {
+        dp: [0; 3],
+        d: [[0; 3]; 3],
+        fit: true,
+    };
+
+    /// The narrow form of displacement `dp` and rotation `dr`.
+    pub(super) fn of(dp: Vec3, dr: &Mat3) -> PoseQ {
+        let mut fit = true;
+        let mut at = |x: i64, sh: u32| {
+            let v = rsh(x, sh);
+            fit &= v.abs() < 1 << 31;
+            v as i32
+        };
+        let dp = [
+            at(dp.x.to_bits(), 32 - DP_EXP),
+            at(dp.y.to_bits(), 32 - DP_EXP),
+            at(dp.z.to_bits(), 32 - DP_EXP),
+        ];
+        let mut d = [[0; 3]; 3];
+        for (j, col) in dr.cols.iter().enumerate() {
+            for (k, e) in d[j].iter_mut().enumerate() {
+                let one = if j == k { 1i64 << 32 } else { 0 };
+                *e = at(col.get(k).to_bits().wrapping_sub(one), 32 - D_EXP);
+            }
+        }
+        PoseQ { dp, d, fit }
+    }
+
+    /// `Dᵀn` at `2^-D_EXP` (`n` at `2^-N_EXP`): each component a sum of
+    /// three products below `|D col|·|n| ≤ 2·2^(D_EXP+N_EXP)` = 2⁶⁰ in
+    /// every partial sum, rounded once.
+    #[inline(always)]
+    fn turned(&self, n: &[i32; 3]) -> [i64; 3] {
+        std::array::from_fn(|j| {
+            let c = &self.d[j];
+            rsh(
+                (c[0] as i64 * n[0] as i64)
+                    .wrapping_add(c[1] as i64 * n[1] as i64)
+                    .wrapping_add(c[2] as i64 * n[2] as i64),
+                N_EXP,
+            )
+        })
+    }
+}
+
+/// The current separations (Q32.32 bits) of a constraint's points from its
+/// narrow terms (normal `n`, anchors `ra`, `rb`, separations at the tick's
+/// start `sep0`) and its bodies' pose changes: `sep0 + n·(dp_B − dp_A) +
+/// (D_Bᵀn)·r_B − (D_Aᵀn)·r_A`. Each dot product is exact in `i64` and
+/// rounded once to Q32.32: `n·Δdp` below `|n||Δdp|` < 2³⁰·2^32.8 (every
+/// partial sum too, by Cauchy–Schwarz), `(Dᵀn)·r` below (2³⁰ + 2)·2^31.8;
+/// the sum below 2⁴² (`|sep0|` < [`SEP0_LIMIT`]). `None` when a pose does
+/// not fit.
+#[inline(always)]
+pub(super) fn separations(
+    n: &[i32; 3],
+    pa: &PoseQ,
+    pb: &PoseQ,
+    ra: &[[i32; 3]; MAX_MANIFOLD_POINTS],
+    rb: &[[i32; 3]; MAX_MANIFOLD_POINTS],
+    sep0: &[i64; MAX_MANIFOLD_POINTS],
+    count: usize,
+) -> Option<[i64; MAX_MANIFOLD_POINTS]> {
+    if !(pa.fit && pb.fit) {
+        return None;
+    }
+    let mut base = 0i64;
+    for ((&n, &b), &a) in n.iter().zip(&pb.dp).zip(&pa.dp) {
+        base = base.wrapping_add((n as i64).wrapping_mul(b as i64 - a as i64));
+    }
+    let base = rsh(base, N_EXP + DP_EXP - 32);
+    let (ma, mb) = (pa.turned(n), pb.turned(n));
+    let dot = |m: &[i64; 3], r: &[i32; 3]| {
+        rsh(
+            m[0].wrapping_mul(r[0] as i64)
+                .wrapping_add(m[1].wrapping_mul(r[1] as i64))
+                .wrapping_add(m[2].wrapping_mul(r[2] as i64)),
+            D_EXP + R_EXP - 32,
+        )
+    };
+    let mut out = [0i64; MAX_MANIFOLD_POINTS];
+    for i in 0..count.min(MAX_MANIFOLD_POINTS) {
+        out[i] = sep0[i] + base + dot(&mb, &rb[i]) - dot(&ma, &ra[i]);
+    }
+    Some(out)
+}
+
+/// A point's bias from its separation `s` (Q32.32 bits): the speculative
+/// `s/h` for a gap, else the soft push-out, in quanta saturated at ±2³⁰;
+/// with whether it is a gap and whether it saturated.
+#[inline(always)]
+pub(super) fn bias_of(s: i64, params: &SolverParams) -> (i32, bool, bool) {
+    let s = Scalar::from_bits(s);
+    let speculative = s.is_positive();
+    let bias = if speculative {
+        s * params.inv_h
+    } else {
+        (params.softness.bias_rate * s).max(-params.max_push_out)
+    };
+    let q = quanta(bias);
+    (
+        q.clamp(-(1 << 30), 1 << 30) as i32,
+        speculative,
+        q.abs() > 1 << 30,
+    )
+}
+
+/// The points' separations at the current poses and their biases in
+/// quanta, from the rows' own narrow separation terms (the Q32.32
+/// constraint is not read). `false`, with nothing written, when a body's
+/// pose change does not fit.
+#[inline(always)]
+fn update_biases(r: &mut NarrowRows, pq: &[PoseQ], params: &SolverParams, poses: u32) -> bool {
+    let count = r.count as usize;
+    let pose = |i: u32| {
+        if i == NONE {
+            PoseQ::ZERO
+        } else {
+            pq[i as usize]
+        }
+    };
+    let Some(s) = separations(
+        &r.nq,
+        &pose(r.a),
+        &pose(r.b),
+        &r.raq,
+        &r.rbq,
+        &r.sep0,
+        count,
+    ) else {
+        return false;
+    };
+    r.bias_poses = poses;
+    for (i, &s) in s.iter().enumerate().take(count) {
+        (r.bias[i], r.speculative[i], r.saturated[i]) = bias_of(s, params);
+    }
+    true
 }
 
 /// What one visit needs beside the constraint.
 pub(super) struct VisitArgs<'a> {
     pub params: &'a SolverParams,
-    pub bodies: &'a [SolverBody],
+    pub pq: &'a [PoseQ],
     pub arrays: &'a BodyArrays,
     pub use_bias: bool,
     pub rot: usize,
@@ -572,8 +721,8 @@ pub(super) struct VisitArgs<'a> {
 /// momenta.
 #[inline(always)]
 pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
-    if r.bias_poses != args.poses {
-        update_biases(r, args.bodies, args.params, args.poses);
+    if r.bias_poses != args.poses && !update_biases(r, args.pq, args.params, args.poses) {
+        return false;
     }
     let mut b = Bodies::load(args.arrays, r.a, r.b);
     if !b.fit() {
@@ -729,15 +878,15 @@ fn collect_angular(r: &mut NarrowRows, arrays: &BodyArrays) {
         }
     }
     if any {
-        add_momenta(r, arrays, &la, &lb);
+        add_momenta(arrays, (r.ge, r.wa, r.wb), &la, &lb);
     }
 }
 
 /// Adds `−la` and `lb` (at `2^-(S+ge)`) to the write-back sums of A and B,
 /// rounded once to Q32.32 (`S + ge ≥ 36`: a right shift).
 #[inline(always)]
-fn add_momenta(r: &NarrowRows, arrays: &BodyArrays, la: &[i64; 3], lb: &[i64; 3]) {
-    let sh = S + r.ge as u32 - 32;
+fn add_momenta(arrays: &BodyArrays, (ge, wa, wb): (u8, u32, u32), la: &[i64; 3], lb: &[i64; 3]) {
+    let sh = S + ge as u32 - 32;
     let q32 = |x: &[i64; 3]| {
         Vec3::new(
             Scalar::from_bits(rsh(x[0], sh)),
@@ -745,11 +894,11 @@ fn add_momenta(r: &NarrowRows, arrays: &BodyArrays, la: &[i64; 3], lb: &[i64; 3]
             Scalar::from_bits(rsh(x[2], sh)),
         )
     };
-    if r.wa != NONE {
-        arrays.add_dl(r.wa, -q32(la));
+    if wa != NONE {
+        arrays.add_dl(wa, -q32(la));
     }
-    if r.wb != NONE {
-        arrays.add_dl(r.wb, q32(lb));
+    if wb != NONE {
+        arrays.add_dl(wb, q32(lb));
     }
 }
 

@@ -14,6 +14,8 @@ pub(super) struct Pass<'a> {
     /// The substep count: where each manifold's points start.
     pub(super) rot: usize,
     pub(super) bodies: &'a [SolverBody],
+    /// The narrow separations' pose changes (empty off the narrow rows).
+    pub(super) pq: &'a [narrow::PoseQ],
     pub(super) arrays: BodyArrays,
     /// Whether runs inside a colour go to the wide kernels.
     pub(super) lanes: bool,
@@ -103,7 +105,7 @@ impl Pass<'_> {
     pub(super) fn narrow_args(&self) -> narrow::VisitArgs<'_> {
         narrow::VisitArgs {
             params: self.params,
-            bodies: self.bodies,
+            pq: self.pq,
             arrays: &self.arrays,
             use_bias: self.use_bias,
             rot: self.rot,
@@ -149,11 +151,6 @@ impl Pass<'_> {
             let b = rs[i].batch;
             if b != NONE && i + LANES <= len {
                 debug_assert!(Batch::fits(&rs[i..i + LANES]));
-                // Ask for the next batch while this one runs.
-                let next = rs.get(i + LANES).map(|r| r.batch);
-                if let Some(next) = next.filter(|&n| (n as usize) < self.batches.len()) {
-                    prefetch_ptr(self.batches.ptr_at(next as usize));
-                }
                 // SAFETY: batch `b` holds constraints `i..i + LANES` of
                 // this worker's block alone (`batch_lanes`).
                 let batch = unsafe { self.batches.get(b as usize) };

@@ -49,7 +49,11 @@ impl ContactSolver {
             self.vels.capacity(),
             (
                 (self.dls.capacity(), self.warm.capacity()),
-                (self.quanta.capacity(), self.quanta0.capacity()),
+                (
+                    self.quanta.capacity(),
+                    self.quanta0.capacity(),
+                    self.pq.capacity(),
+                ),
             ),
             self.body_of_slot.capacity(),
             (
@@ -80,6 +84,7 @@ impl ContactSolver {
         self.warm.clear();
         self.quanta.clear();
         self.quanta0.clear();
+        self.pq.clear();
         self.warm_ready = false;
         let moves = |slot: u32| {
             let b = &hot[slot as usize];
@@ -252,6 +257,7 @@ impl ContactSolver {
             if params.narrow {
                 self.quanta.push(Default::default());
                 self.quanta0.push(Default::default());
+                self.pq.push(narrow::PoseQ::ZERO);
             }
         }
         // Step 4's shortcut, known now: when even the lightest solver body
@@ -417,7 +423,11 @@ impl ContactSolver {
             self.vels.capacity(),
             (
                 (self.dls.capacity(), self.warm.capacity()),
-                (self.quanta.capacity(), self.quanta0.capacity()),
+                (
+                    self.quanta.capacity(),
+                    self.quanta0.capacity(),
+                    self.pq.capacity(),
+                ),
             ),
             self.body_of_slot.capacity(),
             (

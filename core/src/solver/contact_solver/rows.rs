@@ -206,22 +206,15 @@ pub(super) fn store(vels: &mut [BodyVel], a: u32, b: u32, va: BodyVel, vb: BodyV
 /// changes no value, so results do not depend on it).
 #[inline(always)]
 pub(super) fn prefetch<T>(x: &T) {
-    prefetch_ptr(x as *const T);
-}
-
-/// [`prefetch`] of the `T` at `x`, which need not be valid (nothing is
-/// read).
-#[inline(always)]
-pub(super) fn prefetch_ptr<T>(x: *const T) {
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let base = x as *const i8;
+        let base = x as *const T as *const i8;
         let mut off = 0;
         while off < size_of::<T>() {
             // SAFETY: a prefetch never faults and reads nothing into the
-            // program (the address is only computed, wrapping).
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.wrapping_add(off)) };
+            // program; the address lies inside `x`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.add(off)) };
             off += 64;
         }
     }

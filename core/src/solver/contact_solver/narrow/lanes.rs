@@ -24,8 +24,9 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{
-    Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NarrowRows, ROW_LIMIT, ROWS, Row, T0, TW,
-    VisitArgs, add_momenta, clamp_to_disc, limits_for, limits_of, normal_total_of, update_biases,
+    Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NONE, NarrowRows, PoseQ, ROW_LIMIT, ROWS, Row, T0,
+    TW, VisitArgs, add_momenta, bias_of, clamp_to_disc, limits_for, limits_of, normal_total_of,
+    separations,
 };
 use crate::math::Scalar;
 use crate::solver::contact_solver::rows::BodyArrays;
@@ -75,9 +76,18 @@ pub(in crate::solver::contact_solver) struct Batch {
     /// Exponents (shift counts) of the Jacobian and response entries.
     je: L64,
     ae: L64,
-    /// Solver bodies (or `NONE`) of each lane.
+    /// Solver bodies (or `NONE`) of each lane, the dynamic ones the
+    /// passes write, and the angular-momentum entries' exponent.
     a: [u32; LANES],
     b: [u32; LANES],
+    wa: [u32; LANES],
+    wb: [u32; LANES],
+    ge: [u8; LANES],
+    /// The separations' terms (the twin's `nq`, `raq`, `rbq`, `sep0`).
+    nq: [L32; 3],
+    raq: [[L32; 3]; MAX_MANIFOLD_POINTS],
+    rbq: [[L32; 3]; MAX_MANIFOLD_POINTS],
+    sep0: [L64; MAX_MANIFOLD_POINTS],
     n: [L32; 3],
     t: [[L32; 3]; 2],
     mass_t: [L32; 2],
@@ -130,7 +140,18 @@ impl Batch {
             self.ae[l] = r.ae as i64;
             self.a[l] = r.a;
             self.b[l] = r.b;
+            self.wa[l] = r.wa;
+            self.wb[l] = r.wb;
+            self.ge[l] = r.ge;
+            for i in 0..self.count {
+                for c in 0..3 {
+                    self.raq[i][c][l] = r.raq[i][c];
+                    self.rbq[i][c][l] = r.rbq[i][c];
+                }
+                self.sep0[i][l] = r.sep0[i];
+            }
             for c in 0..3 {
+                self.nq[c][l] = r.nq[c];
                 self.n[c][l] = r.n[c];
                 self.t[0][c][l] = r.t[0][c];
                 self.t[1][c][l] = r.t[1][c];
@@ -517,18 +538,37 @@ pub(in crate::solver::contact_solver) fn visit(
             st.v.wb[c][l] = b.wb[c] as i32;
         }
     }
+    let count = batch.count;
+    let pose = |i: u32| {
+        if i == NONE {
+            PoseQ::ZERO
+        } else {
+            args.pq[i as usize]
+        }
+    };
     let bs = &mut batch.state;
-    for (l, r) in rows.iter_mut().enumerate().take(LANES) {
+    for l in 0..LANES {
         if bs.bias_poses[l] != args.poses {
-            // The twin's own function, on the row's separation terms.
-            update_biases(r, args.bodies, args.params, args.poses);
-            bs.bias_poses[l] = args.poses;
-            for i in 0..batch.count {
-                bs.bias[i][l] = r.bias[i];
-                bs.speculative[i][l] = r.speculative[i];
-                bs.saturated[i][l] = r.saturated[i];
+            // The twin's functions on the batch's copy of the separation
+            // terms; a pose change that does not fit refuses the lane.
+            let n = [batch.nq[0][l], batch.nq[1][l], batch.nq[2][l]];
+            let ra = std::array::from_fn(|i| std::array::from_fn(|c| batch.raq[i][c][l]));
+            let rb = std::array::from_fn(|i| std::array::from_fn(|c| batch.rbq[i][c][l]));
+            let sep0 = std::array::from_fn(|i| batch.sep0[i][l]);
+            let (pa, pb) = (pose(batch.a[l]), pose(batch.b[l]));
+            match separations(&n, &pa, &pb, &ra, &rb, &sep0, count) {
+                Some(s) => {
+                    bs.bias_poses[l] = args.poses;
+                    for i in 0..count {
+                        (bs.bias[i][l], bs.speculative[i][l], bs.saturated[i][l]) =
+                            bias_of(s[i], args.params);
+                    }
+                }
+                None => st.ok[l] = false,
             }
         }
+    }
+    for (l, r) in rows.iter().enumerate().take(LANES) {
         (st.disc[l], st.twist_limit[l]) = if bs.limits_set[l] {
             (bs.disc[l], bs.twist_limit[l])
         } else {
@@ -575,10 +615,10 @@ pub(in crate::solver::contact_solver) fn visit(
             vb: v(&st.v.vb),
             wb: v(&st.v.wb),
         };
-        b.store(args.arrays, rows[l].wa, rows[l].wb);
+        b.store(args.arrays, batch.wa[l], batch.wb[l]);
     }
     if !args.use_bias {
-        collect_angular(batch, rows, &refused, args.arrays);
+        collect_angular(batch, &refused, args.arrays);
     }
     if refused.contains(&true) {
         batch.unload(rows);
@@ -589,7 +629,7 @@ pub(in crate::solver::contact_solver) fn visit(
 /// The twin's `collect_angular` for the accepted lanes: `Σ g·ΔΛ` per body
 /// since the marks (each lane's sum exact in `i64`, as the twin's), then
 /// the marks moved and the sums added to the bodies' write-back.
-fn collect_angular(batch: &mut Batch, rows: &[NarrowRows], refused: &Mask, arrays: &BodyArrays) {
+fn collect_angular(batch: &mut Batch, refused: &Mask, arrays: &BodyArrays) {
     let mut la = [[0i64; LANES]; 3];
     let mut lb = [[0i64; LANES]; 3];
     let mut any = [false; LANES];
@@ -612,11 +652,11 @@ fn collect_angular(batch: &mut Batch, rows: &[NarrowRows], refused: &Mask, array
             }
         }
     }
-    for (l, r) in rows.iter().enumerate().take(LANES) {
+    for l in 0..LANES {
         if any[l] {
             let a = [la[0][l], la[1][l], la[2][l]];
             let b = [lb[0][l], lb[1][l], lb[2][l]];
-            add_momenta(r, arrays, &a, &b);
+            add_momenta(arrays, (batch.ge[l], batch.wa[l], batch.wb[l]), &a, &b);
         }
     }
 }
@@ -724,7 +764,12 @@ mod tests {
     /// `v` the velocities' and `j` the entries' largest magnitude (quanta,
     /// and at `2^30`). Lane `l` holds bodies `2l` and `2l + 1`, some of
     /// them `NONE` (static) or not written (kinematic).
-    fn inputs(rng: &mut Rng, count: usize, v: i64, j: i64) -> ([NarrowRows; LANES], Vec<BodyVel>) {
+    fn inputs(
+        rng: &mut Rng,
+        count: usize,
+        v: i64,
+        j: i64,
+    ) -> ([NarrowRows; LANES], Vec<BodyVel>, Vec<PoseQ>) {
         let rows = std::array::from_fn(|l| {
             let mut r = NarrowRows {
                 on: true,
@@ -740,7 +785,15 @@ mod tests {
             r.b = 2 * l as u32 + 1;
             r.wa = r.a;
             r.wb = if l % 4 == 1 { NONE } else { r.b };
-            r.bias_poses = 7;
+            // Half the lanes' biases are at the visit's poses (7), the
+            // others are computed by the visit from the separation terms.
+            r.bias_poses = if rng.next().is_multiple_of(2) { 7 } else { 6 };
+            r.nq = rng.i32s(1 << 30);
+            for i in 0..MAX_MANIFOLD_POINTS {
+                r.raq[i] = rng.i32s(1 << 30);
+                r.rbq[i] = rng.i32s(1 << 30);
+                r.sep0[i] = rng.within(1 << 36);
+            }
             r.n = rng.i32s(1 << 30);
             r.t = [rng.i32s(1 << 30), rng.i32s(1 << 30)];
             r.mass_t = [0; 2].map(|_| rng.within(1 << 30).abs() as i32);
@@ -790,13 +843,25 @@ mod tests {
                 w: Vec3::new(q(rng.within(v)), q(rng.within(v)), q(rng.within(v))),
             })
             .collect();
-        (rows, vels)
+        // Pose changes: one body in sixteen does not fit.
+        let pq = (0..2 * LANES)
+            .map(|_| PoseQ {
+                dp: rng.i32s(1 << 31),
+                d: [0; 3].map(|_| rng.i32s(1 << 30)),
+                fit: !rng.next().is_multiple_of(16),
+            })
+            .collect();
+        (rows, vels, pq)
     }
 
     /// Runs the twin on each row, then every lane kernel this CPU has on
     /// the same inputs, and compares rows, velocities, momenta and
     /// refusals.
-    fn compare(rows: [NarrowRows; LANES], vels: Vec<BodyVel>, use_bias: bool, rot: usize) -> usize {
+    fn compare(
+        (rows, vels, pq): ([NarrowRows; LANES], Vec<BodyVel>, Vec<PoseQ>),
+        use_bias: bool,
+        rot: usize,
+    ) -> usize {
         let params = params();
         let n = vels.len();
         let run = |visit: &dyn Fn(&VisitArgs<'_>, &mut [NarrowRows]) -> Mask| {
@@ -810,7 +875,7 @@ mod tests {
             };
             let args = VisitArgs {
                 params: &params,
-                bodies: &[],
+                pq: &pq,
                 arrays: &arrays,
                 use_bias,
                 rot,
@@ -863,8 +928,7 @@ mod tests {
                 2 => (1 << 27, 1 << 30),
                 _ => (1 << 30, 1 << 30),
             };
-            let (rows, vels) = inputs(&mut rng, count, v, j);
-            let ok = compare(rows, vels, round % 2 == 0, round);
+            let ok = compare(inputs(&mut rng, count, v, j), round % 2 == 0, round);
             accepted += ok;
             refused += LANES - ok;
         }
@@ -878,7 +942,7 @@ mod tests {
     fn the_lanes_warm_start_is_the_twins() {
         let mut rng = Rng(5);
         for round in 0..200 {
-            let (rows, _) = inputs(&mut rng, 1 + round % MAX_MANIFOLD_POINTS, 1 << 20, 1 << 30);
+            let (rows, _, _) = inputs(&mut rng, 1 + round % MAX_MANIFOLD_POINTS, 1 << 20, 1 << 30);
             let mut batch = Batch::default();
             batch.fill(&rows, 0);
             let (mut a, mut b) = (rows, rows);

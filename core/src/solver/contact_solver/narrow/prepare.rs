@@ -3,9 +3,9 @@
 //! constraint's largest entry fits 31 bits), the entries, and the
 //! accumulated impulses in velocity units (see the parent module).
 
-use super::super::rows::mul;
+use super::super::rows::{mul, round_wide};
 use super::super::{Constraint, MAX_MANIFOLD_POINTS};
-use super::{LIMIT, MAX_EXP, MIN_EXP, NarrowRows, ROWS, Row, S, T0, TW};
+use super::{LIMIT, MAX_EXP, MIN_EXP, N_EXP, NarrowRows, R_EXP, ROWS, Row, S, SEP0_LIMIT, T0, TW};
 use crate::math::{Scalar, Vec3};
 
 /// A Q32.32 value at `2^e` (`e ≤ 62`), rounded as [`super::rsh`]; the caller
@@ -246,6 +246,21 @@ pub(in crate::solver::contact_solver) fn prepare(
     ) else {
         return false;
     };
+    // The separations' terms (see `separations`): anchors within ±128 m,
+    // separations at the tick's start within ±256 m.
+    let r_limit = 1u64 << (31 + 32 - R_EXP);
+    let mut sep0 = [0i64; MAX_MANIFOLD_POINTS];
+    for (i, cp) in c.points[..count].iter().enumerate() {
+        if max_abs(cp.ra) >= r_limit || max_abs(cp.rb) >= r_limit {
+            return false;
+        }
+        let s = n.dot_wide(cp.rb) - n.dot_wide(cp.ra);
+        let s = round_wide(s) + cp.adjusted_separation;
+        if s.to_bits().abs() >= SEP0_LIMIT {
+            return false;
+        }
+        sep0[i] = s.to_bits();
+    }
     r.count = count as u8;
     r.je = je as u8;
     r.ae = ae as u8;
@@ -263,13 +278,13 @@ pub(in crate::solver::contact_solver) fn prepare(
     r.first_vn = [i32::MAX; MAX_MANIFOLD_POINTS];
     r.mass = [Scalar::ZERO; ROWS];
     r.n = at_exp3(n, je);
-    r.normal = n;
+    r.nq = at_exp3(n, N_EXP as i32);
+    r.sep0 = sep0;
     for (i, cp) in c.points[..count].iter().enumerate() {
         let (d, ja, jb, ia, ib, m) = point(cp);
         r.rows[i] = row(d, ja, jb, &ia, &ib, m, im).narrow(je, ae, ge);
-        r.ra[i] = cp.ra;
-        r.rb[i] = cp.rb;
-        r.adjusted[i] = cp.adjusted_separation;
+        r.raq[i] = at_exp3(cp.ra, R_EXP as i32);
+        r.rbq[i] = at_exp3(cp.rb, R_EXP as i32);
         r.mass[i] = cp.normal_mass;
     }
     for (j, tangent) in tangents.iter().enumerate() {
