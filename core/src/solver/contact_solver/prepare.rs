@@ -44,31 +44,7 @@ impl ContactSolver {
         params: &SolverParams,
         info: impl Fn(&ContactPair) -> Option<PairInfo> + Sync,
     ) -> SolverStats {
-        let caps = (
-            self.bodies.capacity(),
-            self.vels.capacity(),
-            (
-                (self.dls.capacity(), self.warm.capacity()),
-                (
-                    self.quanta.capacity(),
-                    self.quanta0.capacity(),
-                    self.pq.capacity(),
-                ),
-            ),
-            self.body_of_slot.capacity(),
-            (
-                self.constraints.capacity(),
-                self.rows.capacity(),
-                self.batches.capacity(),
-            ),
-            self.touched.capacity(),
-            self.heaviest.capacity(),
-            self.heavy.capacity(),
-            self.level.capacity(),
-            self.shock.capacity(),
-            (self.pending.capacity(), self.placed.capacity()),
-            self.coloring.capacities(),
-        );
+        let caps = self.capacities();
         self.substeps = 0;
         self.poses = 1;
         for sb in &self.bodies {
@@ -418,31 +394,7 @@ impl ContactSolver {
         // 6. The lanes' batches: runs of eight constraints of one colour on
         //    the narrow rows with one point count, from each colour's start.
         self.batch_lanes(lanes);
-        let grew = (
-            self.bodies.capacity(),
-            self.vels.capacity(),
-            (
-                (self.dls.capacity(), self.warm.capacity()),
-                (
-                    self.quanta.capacity(),
-                    self.quanta0.capacity(),
-                    self.pq.capacity(),
-                ),
-            ),
-            self.body_of_slot.capacity(),
-            (
-                self.constraints.capacity(),
-                self.rows.capacity(),
-                self.batches.capacity(),
-            ),
-            self.touched.capacity(),
-            self.heaviest.capacity(),
-            self.heavy.capacity(),
-            self.level.capacity(),
-            self.shock.capacity(),
-            (self.pending.capacity(), self.placed.capacity()),
-            self.coloring.capacities(),
-        ) != caps;
+        let grew = self.capacities() != caps;
         let (colors, overflow) = self.coloring.report();
         SolverStats {
             constraints: self.constraints.len() as u32,
@@ -452,6 +404,35 @@ impl ContactSolver {
             narrow: on_narrow,
             lane_batches: self.lane_batches,
         }
+    }
+
+    /// Every buffer's capacity: a tick whose `prepare` changed one grew a
+    /// buffer (`SolverStats::growths`).
+    fn capacities(&self) -> [usize; 21] {
+        let (c0, c1, c2) = self.coloring.capacities();
+        [
+            self.bodies.capacity(),
+            self.vels.capacity(),
+            self.dls.capacity(),
+            self.warm.capacity(),
+            self.quanta.capacity(),
+            self.quanta0.capacity(),
+            self.pq.capacity(),
+            self.body_of_slot.capacity(),
+            self.constraints.capacity(),
+            self.rows.capacity(),
+            self.batches.capacity(),
+            self.touched.capacity(),
+            self.heaviest.capacity(),
+            self.heavy.capacity(),
+            self.level.capacity(),
+            self.shock.capacity(),
+            self.pending.capacity(),
+            self.placed.capacity(),
+            c0,
+            c1,
+            c2,
+        ]
     }
 
     /// Step 6 of [`prepare`](Self::prepare): copies the constants of every
