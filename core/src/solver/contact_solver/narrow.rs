@@ -569,6 +569,16 @@ impl PoseQ {
         fit: true,
     };
 
+    /// Solver body `i`'s pose change in `pq` (no change for `NONE`).
+    #[inline(always)]
+    pub(super) fn of_body(pq: &[PoseQ], i: u32) -> PoseQ {
+        if i == NONE {
+            PoseQ::ZERO
+        } else {
+            pq[i as usize]
+        }
+    }
+
     /// The narrow form of displacement `dp` and rotation `dr`.
     pub(super) fn of(dp: Vec3, dr: &Mat3) -> PoseQ {
         let mut fit = true;
@@ -678,22 +688,8 @@ pub(super) fn bias_of(s: i64, params: &SolverParams) -> (i32, bool, bool) {
 #[inline(always)]
 fn update_biases(r: &mut NarrowRows, pq: &[PoseQ], params: &SolverParams, poses: u32) -> bool {
     let count = r.count as usize;
-    let pose = |i: u32| {
-        if i == NONE {
-            PoseQ::ZERO
-        } else {
-            pq[i as usize]
-        }
-    };
-    let Some(s) = separations(
-        &r.nq,
-        &pose(r.a),
-        &pose(r.b),
-        &r.raq,
-        &r.rbq,
-        &r.sep0,
-        count,
-    ) else {
+    let (pa, pb) = (PoseQ::of_body(pq, r.a), PoseQ::of_body(pq, r.b));
+    let Some(s) = separations(&r.nq, &pa, &pb, &r.raq, &r.rbq, &r.sep0, count) else {
         return false;
     };
     r.bias_poses = poses;
@@ -926,12 +922,8 @@ pub(super) fn warm_start(r: &mut NarrowRows) -> (BodyVel, BodyVel) {
 /// The friction bounds from the total normal impulse of the warm start.
 #[inline(always)]
 fn set_limits(r: &mut NarrowRows) {
-    let total = normal_total(r);
-    r.warm_total = total;
-    r.limits_set = total.is_positive();
-    if r.limits_set {
-        (r.disc_limit, r.twist_limit) = limits_for(r, total);
-    }
+    (r.warm_total, r.limits_set, r.disc_limit, r.twist_limit) =
+        limits_of(r, &r.impulse, r.disc_limit, r.twist_limit);
 }
 
 /// What [`set_limits`] writes, for the points' Λ in `impulses`: the warm

@@ -24,8 +24,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{
-    Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NONE, NarrowRows, PoseQ, ROW_LIMIT, ROWS, Row, T0,
-    TW, VisitArgs, add_momenta, bias_of, clamp_to_disc, limits_for, limits_of, normal_total_of,
+    Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NarrowRows, PoseQ, ROW_LIMIT, ROWS, Row, T0, TW,
+    VisitArgs, add_momenta, bias_of, clamp_to_disc, limits_for, limits_of, normal_total_of,
     separations,
 };
 use crate::math::Scalar;
@@ -539,13 +539,6 @@ pub(in crate::solver::contact_solver) fn visit(
         }
     }
     let count = batch.count;
-    let pose = |i: u32| {
-        if i == NONE {
-            PoseQ::ZERO
-        } else {
-            args.pq[i as usize]
-        }
-    };
     let bs = &mut batch.state;
     for l in 0..LANES {
         if bs.bias_poses[l] != args.poses {
@@ -555,7 +548,10 @@ pub(in crate::solver::contact_solver) fn visit(
             let ra = std::array::from_fn(|i| std::array::from_fn(|c| batch.raq[i][c][l]));
             let rb = std::array::from_fn(|i| std::array::from_fn(|c| batch.rbq[i][c][l]));
             let sep0 = std::array::from_fn(|i| batch.sep0[i][l]);
-            let (pa, pb) = (pose(batch.a[l]), pose(batch.b[l]));
+            let (pa, pb) = (
+                PoseQ::of_body(args.pq, batch.a[l]),
+                PoseQ::of_body(args.pq, batch.b[l]),
+            );
             match separations(&n, &pa, &pb, &ra, &rb, &sep0, count) {
                 Some(s) => {
                     bs.bias_poses[l] = args.poses;
