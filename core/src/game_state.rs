@@ -33,9 +33,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::hash::FieldKind;
 use crate::hash::StateHasher;
 use crate::math::Scalar;
-use crate::world::FieldKind;
 
 /// Most fields a game state holds; a setter refuses a new field beyond it.
 pub const MAX_GAME_FIELDS: usize = 256;

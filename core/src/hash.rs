@@ -157,6 +157,18 @@ pub fn shape_hash(shape: &crate::shape::Shape) -> u64 {
     h.finish()
 }
 
+/// How a dumped field's words read (the state hash's field dumps: the
+/// world's bodies and pairs, and the game's own state).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum FieldKind {
+    /// Unsigned words (flags, counts, handles, hashes).
+    Word,
+    /// Signed integers (two's complement).
+    Int,
+    /// Q32.32 fixed-point values: the raw bits of a [`Scalar`](crate::Scalar).
+    Scalar,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

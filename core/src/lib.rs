@@ -20,6 +20,7 @@ pub mod scene;
 pub mod shape;
 pub mod snapshot;
 pub mod solver;
+pub(crate) mod workers;
 pub mod world;
 
 pub use body::{BodyDesc, BodyHandle, BodyKind};

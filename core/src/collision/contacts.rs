@@ -36,7 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::collider::ColliderHandle;
 use crate::math::Scalar;
-use crate::solver::workers::{SharedMut, Workers};
+use crate::workers::{SharedMut, Workers};
 
 use super::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
 use super::reuse::ReuseCache;
@@ -993,9 +993,9 @@ impl ContactSet {
     pub(crate) fn visit_pairs_of(
         &self,
         colliders: &[ColliderHandle],
-        field: &mut impl FnMut(String, crate::world::FieldKind, &[u64]),
+        field: &mut impl FnMut(String, crate::hash::FieldKind, &[u64]),
     ) {
-        use crate::world::FieldKind::{Scalar as Q, Word};
+        use crate::hash::FieldKind::{Scalar as Q, Word};
         let s = |v: Scalar| v.to_bits() as u64;
         for p in &self.pairs {
             let carries = p.touching || p.manifold.count != 0;

@@ -105,7 +105,7 @@ use color::{COLORS, Coloring};
 use std::ops::Range;
 use std::sync::atomic::{AtomicU32, Ordering};
 
-use super::workers::{ColorGate, SharedMut, Workers};
+use crate::workers::{ColorGate, SharedMut, Workers};
 
 use narrow::NarrowRows;
 use narrow::lanes::{Batch, Kernel, LANES};
@@ -446,9 +446,6 @@ pub(crate) struct ContactSolver {
     /// Where each colour's constraints start in `constraints` (colour `c`
     /// is `starts[c]..starts[c + 1]`, the overflow last).
     starts: [u32; COLORS + 2],
-    /// The threads the colour passes are split over (not simulation state:
-    /// any count gives the same bits).
-    workers: Workers,
     /// Per solver body, the smallest inverse mass among it and the dynamic
     /// bodies it touches (`prepare` only).
     heaviest: Vec<Scalar>,
@@ -521,14 +518,6 @@ impl ContactSolver {
         (self.lanes_on && self.kernel() != Kernel::Plain).then(|| self.kernel())
     }
 
-    /// Sets the number of threads the colour passes use (1: this thread
-    /// only). Starts or stops threads only when the count changes.
-    pub(crate) fn set_workers(&mut self, count: usize) {
-        if count.clamp(1, super::workers::MAX_WORKERS) != self.workers.count() {
-            self.workers = Workers::new(count);
-        }
-    }
-
     /// Turns the wide kernels on where the CPU has them (`true`), or off.
     /// Not simulation state: the results are the same bits.
     pub(crate) fn set_wide(&mut self, on: bool) {
@@ -554,17 +543,6 @@ impl ContactSolver {
         self.fallbacks.take()
     }
 
-    /// The number of threads the colour passes use.
-    pub(crate) fn workers(&self) -> usize {
-        self.workers.count()
-    }
-
-    /// The world's worker pool (the solver holds it; the narrow phase and
-    /// the integrators split their work over it too).
-    pub(crate) fn pool(&self) -> &Workers {
-        &self.workers
-    }
-
     /// Whether there is anything to solve this tick.
     pub(crate) fn is_empty(&self) -> bool {
         self.constraints.is_empty()
@@ -572,7 +550,7 @@ impl ContactSolver {
 
     /// Reads the bodies' current velocities and pose changes (after the
     /// integrator touched them).
-    pub(crate) fn gather(&mut self, hot: &[BodyHot]) {
+    pub(crate) fn gather(&mut self, hot: &[BodyHot], workers: &Workers) {
         // New poses: every cached separation frame is stale (a tick has a
         // few gathers, so the number never wraps to 0).
         self.poses = self.poses.wrapping_add(1).max(1);
@@ -584,7 +562,7 @@ impl ContactSolver {
         // In a world on the narrow rows, the pose changes as its
         // separations read them (one per solver body).
         let pq = SharedMut::new(&mut self.pq);
-        self.workers.for_each_block(len, BODY_BLOCK, |r| {
+        workers.for_each_block(len, BODY_BLOCK, |r| {
             // SAFETY: each block goes to one worker alone.
             let (bodies, vels) = unsafe { (bodies.slice(r.clone()), vels.slice(r.clone())) };
             let pq = if pq.is_empty() {
@@ -608,10 +586,10 @@ impl ContactSolver {
 
     /// Reads only the velocities (the poses did not change since the last
     /// [`gather`](Self::gather)).
-    pub(crate) fn gather_velocities(&mut self, hot: &[BodyHot]) {
+    pub(crate) fn gather_velocities(&mut self, hot: &[BodyHot], workers: &Workers) {
         let len = self.bodies.len();
         let (bodies, vels) = (&self.bodies, SharedMut::new(&mut self.vels));
-        self.workers.for_each_block(len, BODY_BLOCK, |r| {
+        workers.for_each_block(len, BODY_BLOCK, |r| {
             // SAFETY: each block goes to one worker alone.
             let vels = unsafe { vels.slice(r.clone()) };
             for (sb, vel) in bodies[r].iter().zip(vels) {
@@ -626,10 +604,10 @@ impl ContactSolver {
     /// the next [`scatter`](Self::scatter): between a solve pass and the
     /// relax pass of one substep only the position integration runs, and it
     /// reads `ω`, not `L`.
-    pub(crate) fn scatter_velocities(&self, hot: &mut [BodyHot]) {
+    pub(crate) fn scatter_velocities(&self, hot: &mut [BodyHot], workers: &Workers) {
         let (bodies, vels) = (&self.bodies, &self.vels);
         let hot = SharedMut::new(hot);
-        self.workers.for_each_block(bodies.len(), BODY_BLOCK, |r| {
+        workers.for_each_block(bodies.len(), BODY_BLOCK, |r| {
             for (sb, vel) in bodies[r.clone()].iter().zip(&vels[r]) {
                 if sb.dynamic {
                     // SAFETY: solver bodies have distinct slots, and each
@@ -645,11 +623,11 @@ impl ContactSolver {
     /// Writes the solved velocities back, and the angular impulses summed
     /// since the last `scatter` (by the relax and restitution passes, see
     /// [`Constraint::collect_angular`]) into the angular momenta.
-    pub(crate) fn scatter(&mut self, hot: &mut [BodyHot]) {
+    pub(crate) fn scatter(&mut self, hot: &mut [BodyHot], workers: &Workers) {
         let (bodies, vels) = (&self.bodies, &self.vels);
         let dls = SharedMut::new(&mut self.dls);
         let hot = SharedMut::new(hot);
-        self.workers.for_each_block(bodies.len(), BODY_BLOCK, |r| {
+        workers.for_each_block(bodies.len(), BODY_BLOCK, |r| {
             // SAFETY: each block goes to one worker alone.
             let dls = unsafe { dls.slice(r.clone()) };
             for ((sb, vel), dl) in bodies[r.clone()].iter().zip(&vels[r]).zip(dls) {
@@ -681,7 +659,7 @@ impl ContactSolver {
     /// Applies last substep's (or last tick's) accumulated impulses again:
     /// the sums the last relax pass left in `warm` if it made them, else a
     /// pass over the constraints.
-    pub(crate) fn warm_start(&mut self) {
+    pub(crate) fn warm_start(&mut self, workers: &Workers) {
         self.substeps = self.substeps.wrapping_add(1);
         if std::mem::take(&mut self.warm_ready) {
             let len = self.vels.len();
@@ -689,7 +667,7 @@ impl ContactSolver {
                 SharedMut::new(&mut self.vels),
                 SharedMut::new(&mut self.warm),
             );
-            self.workers.for_each_block(len, BODY_BLOCK, |r| {
+            workers.for_each_block(len, BODY_BLOCK, |r| {
                 // SAFETY: each block goes to one worker alone.
                 let (vels, warm) = unsafe { (vels.slice(r.clone()), warm.slice(r)) };
                 for (vel, w) in vels.iter_mut().zip(warm) {
@@ -718,7 +696,7 @@ impl ContactSolver {
             &mut self.constraints,
             &mut self.rows[..self.rows_len],
             &self.starts,
-            &self.workers,
+            workers,
             one_by_one(visit),
         );
     }
@@ -739,7 +717,13 @@ impl ContactSolver {
     /// then adds the sums instead of reading every constraint again: the
     /// same bits. Not when the high-ratio visits or the shock pass change
     /// impulses after the pass.
-    pub(crate) fn solve(&mut self, params: &SolverParams, use_bias: bool, warm_next: bool) {
+    pub(crate) fn solve(
+        &mut self,
+        params: &SolverParams,
+        use_bias: bool,
+        warm_next: bool,
+        workers: &Workers,
+    ) {
         let fuse = warm_next && !use_bias && self.heavy.is_empty() && self.shock.is_empty();
         // SAFETY: the pass visits one colour at a time (`for_each_colored`),
         // then the heavy constraints on this thread alone.
@@ -790,13 +774,7 @@ impl ContactSolver {
             }
         };
         let rows = &mut self.rows[..self.rows_len];
-        for_each_colored(
-            &mut self.constraints,
-            rows,
-            &self.starts,
-            &self.workers,
-            run,
-        );
+        for_each_colored(&mut self.constraints, rows, &self.starts, workers, run);
         self.warm_ready = fuse;
         if quanta {
             narrow::flush(&mut self.vels, &self.quanta, &mut self.quanta0);
@@ -859,7 +837,7 @@ impl ContactSolver {
 
     /// After the substeps: points that approached faster than the threshold
     /// and pushed get the normal velocity `−e·v_before`.
-    pub(crate) fn restitution(&mut self, params: &SolverParams) {
+    pub(crate) fn restitution(&mut self, params: &SolverParams, workers: &Workers) {
         // The write-back below reads the rows.
         self.unload_batches();
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
@@ -904,7 +882,7 @@ impl ContactSolver {
             &mut self.constraints,
             &mut self.rows[..self.rows_len],
             &self.starts,
-            &self.workers,
+            workers,
             one_by_one(visit),
         );
     }
@@ -914,25 +892,24 @@ impl ContactSolver {
     ///
     /// In blocks of constraints over the workers: each constraint writes
     /// its own pair (`prepare` makes at most one constraint per pair).
-    pub(crate) fn store_impulses(&self, pairs: &mut [ContactPair]) {
+    pub(crate) fn store_impulses(&self, pairs: &mut [ContactPair], workers: &Workers) {
         let constraints = &self.constraints;
         let pairs = SharedMut::new(pairs);
-        self.workers
-            .for_each_block(constraints.len(), STORE_BLOCK, |r| {
-                for c in &constraints[r] {
-                    // SAFETY: no other constraint holds this pair (above), and
-                    // each block goes to one worker alone.
-                    let p = unsafe { pairs.get(c.pair as usize) };
-                    for (k, cp) in c.points[..c.count].iter().enumerate() {
-                        p.impulses[k] = PointImpulse {
-                            normal: cp.normal_impulse,
-                        };
-                    }
-                    p.friction = PatchFriction {
-                        tangent: c.patch.tangent_impulse,
-                        twist: c.patch.twist_impulse,
+        workers.for_each_block(constraints.len(), STORE_BLOCK, |r| {
+            for c in &constraints[r] {
+                // SAFETY: no other constraint holds this pair (above), and
+                // each block goes to one worker alone.
+                let p = unsafe { pairs.get(c.pair as usize) };
+                for (k, cp) in c.points[..c.count].iter().enumerate() {
+                    p.impulses[k] = PointImpulse {
+                        normal: cp.normal_impulse,
                     };
                 }
-            });
+                p.friction = PatchFriction {
+                    tangent: c.patch.tangent_impulse,
+                    twist: c.patch.twist_impulse,
+                };
+            }
+        });
     }
 }

@@ -29,7 +29,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use crate::body::{BodyHot, BodyKind};
 use crate::math::{Quat, Scalar, SymMat3, Vec3};
 
-use super::workers::{SharedMut, Workers};
+use crate::workers::{SharedMut, Workers};
 
 /// Awake slots a worker claims at a time.
 const BLOCK: usize = 128;

@@ -5,4 +5,3 @@ pub(crate) mod contact_solver;
 pub mod integrate;
 pub(crate) mod joint_solver;
 pub mod sleep;
-pub(crate) mod workers;

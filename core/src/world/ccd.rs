@@ -311,14 +311,6 @@ fn sweep_pair<B: SupportShape + ?Sized>(
     }
 }
 
-/// The collider handle behind a broad-phase key.
-fn collider_of(key: ProxyKey) -> crate::collider::ColliderHandle {
-    crate::collider::ColliderHandle(crate::arena::RawHandle {
-        index: (key.0 >> 32) as u32,
-        generation: key.0 as u32,
-    })
-}
-
 impl World {
     /// Recomputes a body's CCD extents from its solid colliders (after a
     /// collider or the mass changed).
@@ -506,7 +498,7 @@ impl World {
 
         let mut best: Option<Scalar> = None;
         for &key in keys.iter() {
-            let Some(target) = colliders.get(collider_of(key).0) else {
+            let Some(target) = colliders.get(super::collide::collider_of(key).0) else {
                 continue;
             };
             if target.is_trigger || target.body == h {

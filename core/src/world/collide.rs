@@ -15,8 +15,8 @@ pub(crate) fn proxy_key(c: ColliderHandle) -> ProxyKey {
     ProxyKey(((c.0.index as u64) << 32) | c.0.generation as u64)
 }
 
-/// The collider handle behind a key.
-fn collider_of(key: ProxyKey) -> ColliderHandle {
+/// The collider handle behind a key (the inverse of [`proxy_key`]).
+pub(crate) fn collider_of(key: ProxyKey) -> ColliderHandle {
     ColliderHandle(crate::arena::RawHandle {
         index: (key.0 >> 32) as u32,
         generation: key.0 as u32,
@@ -162,7 +162,7 @@ impl World {
             colliders,
             contacts,
             candidates,
-            solver,
+            workers,
             ..
         } = self;
         let cands = candidates.iter().map(|&(ka, kb)| {
@@ -238,7 +238,7 @@ impl World {
                 ) | (Some(ProxyKind::Static), Some(ProxyKind::Sleeping))
             )
         };
-        let stats = contacts.update(cands, narrow_phase, resting, solver.pool());
+        let stats = contacts.update(cands, narrow_phase, resting, workers);
         debug_assert!(
             self.active_pairs_cover_moving(),
             "active pair list misses a pair"

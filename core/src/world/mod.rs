@@ -10,7 +10,9 @@ mod query;
 mod state_hash;
 mod step;
 
-pub use crate::solver::workers::MAX_WORKERS;
+pub use crate::hash::FieldKind;
+pub use crate::workers::MAX_WORKERS;
+use crate::workers::Workers;
 pub use body_ref::BodyRef;
 pub use ccd::{CCD_MAX_ITERATIONS, CCD_TARGET_GAP, CCD_TOLERANCE};
 pub use config::{
@@ -18,7 +20,7 @@ pub use config::{
     WorldConfig, WorldError,
 };
 pub use observe::{Stage, StepObserver};
-pub use state_hash::{BodyField, FieldKind, STATE_HASH_VERSION};
+pub use state_hash::{BodyField, STATE_HASH_VERSION};
 
 use serde::{Deserialize, Serialize};
 
@@ -91,6 +93,11 @@ pub struct World {
     /// step).
     #[serde(skip)]
     solver: ContactSolver,
+    /// The threads a step splits its work over (the narrow phase, the
+    /// integrators, the contact solver's set-up and colour passes). Not
+    /// simulation state: any count gives the same bits.
+    #[serde(skip)]
+    workers: Workers,
     /// Scratch: the sleep stage's union–find (reused every step).
     #[serde(skip)]
     islands: IslandScratch,
@@ -135,6 +142,7 @@ impl World {
             joint_solver: Default::default(),
             candidates: Vec::new(),
             solver: ContactSolver::default(),
+            workers: Workers::default(),
             islands: IslandScratch::default(),
             ccd: ccd::CcdScratch::default(),
         })
@@ -162,7 +170,9 @@ impl World {
     /// has one worker until this is called, a clone as many as the world
     /// it was cloned from.
     pub fn set_workers(&mut self, count: usize) {
-        self.solver.set_workers(count);
+        if count.clamp(1, MAX_WORKERS) != self.workers.count() {
+            self.workers = Workers::new(count);
+        }
     }
 
     /// Turns the solver's exact wide lanes on (`true`) or off (the
@@ -218,7 +228,7 @@ impl World {
 
     /// The threads a step uses (see [`World::set_workers`]).
     pub fn workers(&self) -> usize {
-        self.solver.workers()
+        self.workers.count()
     }
 
     /// Changes gravity (takes effect at the next step).

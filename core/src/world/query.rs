@@ -20,7 +20,6 @@
 //! (only with coordinates beyond the ranges the per-shape code documents)
 //! are contained: the thread's fault flags are restored when it returns.
 
-use crate::arena::RawHandle;
 use crate::collider::{Collider, ColliderHandle};
 use crate::collision::ProxyKey;
 use crate::math::{Aabb, FaultScope, Scalar, Transform, Vec3};
@@ -32,14 +31,6 @@ use crate::query::{
 use crate::shape::Shape;
 
 use super::World;
-
-/// The collider handle behind a broad-phase key (see `collide::proxy_key`).
-fn collider_of(key: ProxyKey) -> ColliderHandle {
-    ColliderHandle(RawHandle {
-        index: (key.0 >> 32) as u32,
-        generation: key.0 as u32,
-    })
-}
 
 /// Refuses query shapes that are not convex, before any candidate is seen
 /// (so the error does not depend on what is nearby).
@@ -63,7 +54,7 @@ impl World {
         key: ProxyKey,
         filter: &QueryFilter<'_>,
     ) -> Option<(ColliderHandle, &Collider, Transform)> {
-        let h = collider_of(key);
+        let h = super::collide::collider_of(key);
         let c = self.colliders.get(h.0)?;
         if !filter.accepts(h, c) {
             return None;

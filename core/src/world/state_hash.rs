@@ -3,7 +3,7 @@
 
 use crate::body::{BodyCold, BodyHandle, BodyHot};
 use crate::collider::MassSpec;
-use crate::hash::StateHasher;
+use crate::hash::{FieldKind, StateHasher};
 
 use super::{ContactOrder, ContactRows, World};
 
@@ -267,17 +267,6 @@ impl World {
             sink.field(FieldName::Collider(i, "shape_hash"), Word, &[c.shape_hash]);
         }
     }
-}
-
-/// How a dumped field's words read.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-pub enum FieldKind {
-    /// Unsigned words (flags, counts, handles, hashes).
-    Word,
-    /// Signed integers (two's complement).
-    Int,
-    /// Q32.32 fixed-point values: the raw bits of a [`Scalar`](crate::Scalar).
-    Scalar,
 }
 
 /// One field of a body's state as its hash sees it: a name, how to read it,

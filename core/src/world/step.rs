@@ -14,7 +14,7 @@ use crate::solver::contact_solver::{ContactSolver, PairInfo, Softness, SolverPar
 use crate::solver::integrate::{self, VelocityCounters};
 use crate::solver::joint_solver::{JOINT_DAMPING_RATIO, JointParams, JointSolver};
 use crate::solver::sleep;
-use crate::solver::workers::Workers;
+use crate::workers::Workers;
 
 use super::observe::{Guarded, Notify, Quiet, Stage, StepObserver};
 use super::{ContactOrder, ContactRows, StepReport, World, rotation_delta};
@@ -127,11 +127,13 @@ impl World {
         let World {
             bodies,
             solver,
+            workers,
             contacts,
             joints,
             joint_solver,
             ..
         } = self;
+        let workers = &*workers;
         let (hot, awake) = bodies.awake_slots_mut();
         let mut js = Joints {
             solver: joint_solver,
@@ -139,7 +141,7 @@ impl World {
             params: jparams,
         };
         for substep in 0..cfg.substeps {
-            let c = stage_integrate_velocities(hot, awake, cfg.gravity, h, solver.pool());
+            let c = stage_integrate_velocities(hot, awake, cfg.gravity, h, workers);
             n.finished(Stage::IntegrateVelocities);
             report.awake_bodies = c.integrated;
             report.gyroscopic_solves += c.gyroscopic;
@@ -149,15 +151,23 @@ impl World {
             // relax's, after the positions moved) is still at these poses:
             // only the velocities changed since.
             let measured = substep > 0 && cfg.relax_iterations > 0;
-            stage_warm_start(solver, &mut js, hot, !measured);
+            stage_warm_start(solver, workers, &mut js, hot, !measured);
             n.finished(Stage::WarmStart);
-            stage_solve(solver, &mut js, &params, cfg.solver_iterations, hot);
+            stage_solve(
+                solver,
+                workers,
+                &mut js,
+                &params,
+                cfg.solver_iterations,
+                hot,
+            );
             n.finished(Stage::Solve);
-            stage_integrate_positions(hot, awake, h, solver.pool());
+            stage_integrate_positions(hot, awake, h, workers);
             n.finished(Stage::IntegratePositions);
             let warm_next = substep + 1 < cfg.substeps;
             stage_relax(
                 solver,
+                workers,
                 &mut js,
                 &params,
                 cfg.relax_iterations,
@@ -166,11 +176,11 @@ impl World {
             );
             n.finished(Stage::Relax);
         }
-        stage_restitution(solver, &params, hot);
+        stage_restitution(solver, workers, &params, hot);
         n.finished(Stage::Restitution);
-        stage_store_impulses(solver, contacts.pairs_mut());
+        stage_store_impulses(solver, workers, contacts.pairs_mut());
         n.finished(Stage::StoreImpulses);
-        stage_finish_velocities(hot, awake, solver.pool());
+        stage_finish_velocities(hot, awake, workers);
         // Joints past their thresholds break (after the last substep's
         // impulses are known).
         let (broken, grew) = self.stage_break_joints();
@@ -346,10 +356,11 @@ impl World {
             colliders,
             contacts,
             solver,
+            workers,
             ..
         } = self;
         let (hot, _) = bodies.hot_slots_mut();
-        solver.prepare(contacts.pairs(), contacts.active(), hot, params, |p| {
+        let info = |p: &ContactPair| {
             let ca = colliders.get(p.a.0)?;
             let cb = colliders.get(p.b.0)?;
             let m = ca.material.combine(&cb.material);
@@ -360,7 +371,15 @@ impl World {
                 restitution: m.restitution,
                 rounding: [ca.shape.rounding(), cb.shape.rounding()],
             })
-        })
+        };
+        solver.prepare(
+            contacts.pairs(),
+            contacts.active(),
+            hot,
+            params,
+            info,
+            workers,
+        )
     }
 
     /// Kinematic bodies with a target get the constant velocities that carry
@@ -444,6 +463,7 @@ impl Joints<'_> {
 #[inline(never)]
 fn stage_warm_start(
     solver: &mut ContactSolver,
+    workers: &Workers,
     js: &mut Joints<'_>,
     hot: &mut [BodyHot],
     measure_joints: bool,
@@ -454,10 +474,10 @@ fn stage_warm_start(
     if solver.is_empty() {
         return;
     }
-    solver.gather_velocities(hot);
-    solver.warm_start();
+    solver.gather_velocities(hot, workers);
+    solver.warm_start(workers);
     if !js.is_empty() {
-        solver.scatter_velocities(hot);
+        solver.scatter_velocities(hot, workers);
     }
 }
 
@@ -466,6 +486,7 @@ fn stage_warm_start(
 #[inline(never)]
 fn stage_solve(
     solver: &mut ContactSolver,
+    workers: &Workers,
     js: &mut Joints<'_>,
     params: &SolverParams,
     iterations: u32,
@@ -481,13 +502,13 @@ fn stage_solve(
         return;
     }
     if !js.is_empty() {
-        solver.gather_velocities(hot);
+        solver.gather_velocities(hot, workers);
     }
     for _ in 0..iterations {
-        solver.solve(params, true, false);
+        solver.solve(params, true, false, workers);
     }
     solver.shock(params, false);
-    solver.scatter_velocities(hot);
+    solver.scatter_velocities(hot, workers);
 }
 
 /// Positions and orientations advance by one substep.
@@ -502,6 +523,7 @@ fn stage_integrate_positions(hot: &mut [BodyHot], awake: &[u32], h: Scalar, work
 #[inline(never)]
 fn stage_relax(
     solver: &mut ContactSolver,
+    workers: &Workers,
     js: &mut Joints<'_>,
     params: &SolverParams,
     iterations: u32,
@@ -518,32 +540,37 @@ fn stage_relax(
     if solver.is_empty() {
         return;
     }
-    solver.gather(hot);
+    solver.gather(hot, workers);
     for i in 0..iterations {
-        solver.solve(params, false, warm_next && i + 1 == iterations);
+        solver.solve(params, false, warm_next && i + 1 == iterations, workers);
     }
     solver.shock(params, true);
-    solver.scatter(hot);
+    solver.scatter(hot, workers);
 }
 
 /// The restitution pass after the last substep.
 #[inline(never)]
-fn stage_restitution(solver: &mut ContactSolver, params: &SolverParams, hot: &mut [BodyHot]) {
+fn stage_restitution(
+    solver: &mut ContactSolver,
+    workers: &Workers,
+    params: &SolverParams,
+    hot: &mut [BodyHot],
+) {
     if solver.is_empty() {
         return;
     }
-    solver.gather_velocities(hot);
-    solver.restitution(params);
-    solver.scatter(hot);
+    solver.gather_velocities(hot, workers);
+    solver.restitution(params, workers);
+    solver.scatter(hot, workers);
 }
 
 /// The accumulated impulses go into the pairs, for warm starting next tick.
 #[inline(never)]
-fn stage_store_impulses(solver: &ContactSolver, pairs: &mut [ContactPair]) {
+fn stage_store_impulses(solver: &ContactSolver, workers: &Workers, pairs: &mut [ContactPair]) {
     if solver.is_empty() {
         return;
     }
-    solver.store_impulses(pairs);
+    solver.store_impulses(pairs, workers);
 }
 
 /// End-of-tick angular velocities from the momenta.

@@ -5,7 +5,7 @@ use super::*;
 use crate::arena::RawHandle;
 use crate::collision::manifold::FeatureId;
 use crate::math::Vec3;
-use crate::solver::workers::Workers;
+use crate::workers::Workers;
 
 fn point(at: Vec3, depth: Scalar, id: u32) -> ContactPoint {
     ContactPoint {

@@ -43,6 +43,7 @@ impl ContactSolver {
         hot: &[BodyHot],
         params: &SolverParams,
         info: impl Fn(&ContactPair) -> Option<PairInfo> + Sync,
+        workers: &Workers,
     ) -> SolverStats {
         let caps = self.capacities();
         self.substeps = 0;
@@ -105,7 +106,7 @@ impl ContactSolver {
                     rounding: pi.rounding,
                 })
             };
-            self.workers.for_each_block(candidates, SCAN_BLOCK, |r| {
+            workers.for_each_block(candidates, SCAN_BLOCK, |r| {
                 // SAFETY: each block goes to one worker alone.
                 let out = unsafe { found.slice(r.clone()) };
                 for (k, pc) in r.zip(out) {
@@ -353,7 +354,7 @@ impl ContactSolver {
         }
         let both = Both::new(&mut self.constraints, &mut self.rows[..self.rows_len]);
         let on_narrow = AtomicU32::new(0);
-        self.workers.for_each_block(used, BLOCK, |r| {
+        workers.for_each_block(used, BLOCK, |r| {
             // SAFETY: each block goes to one worker alone.
             let (block, rows) = unsafe { both.slices(r.clone()) };
             let placed = &placed[r];
