@@ -178,11 +178,17 @@ impl BodySet {
         true
     }
 
-    /// Records that bodies in the awake list may have fallen asleep by a
-    /// direct write to their hot state (the sleep stage); the next
-    /// [`refresh_awake`](Self::refresh_awake) drops them.
-    pub(crate) fn note_fell_asleep(&mut self) {
-        self.awake.left = true;
+    /// The number of awake slots, as of the last refresh.
+    pub(crate) fn awake_len(&self) -> usize {
+        self.awake.slots.len()
+    }
+
+    /// The `k`-th awake body (slot order) and its hot state, as of the last
+    /// refresh.
+    pub(crate) fn awake_at(&self, k: usize) -> Option<(BodyHandle, &BodyHot)> {
+        let s = *self.awake.slots.get(k)?;
+        let h = self.cold.handle_at(s)?;
+        Some((BodyHandle(h), &self.hot[s as usize]))
     }
 
     /// Brings the awake list up to date (one scan of all slots if it is

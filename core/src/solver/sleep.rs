@@ -25,7 +25,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::body::{BodyHot, BodyKind};
-use crate::math::{Scalar, Vec3};
+use crate::math::Scalar;
 
 /// When bodies fall asleep.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -72,6 +72,19 @@ pub(crate) struct IslandScratch {
     parent: Vec<u32>,
     /// Per island root: the fewest rest ticks of its bodies.
     min_rest: Vec<u32>,
+    /// The rest ticks an island needs to fall asleep (as of the last
+    /// [`update_sleep`]).
+    ticks_to_sleep: u32,
+}
+
+impl IslandScratch {
+    /// Whether the awake dynamic body in slot `s` is in an island that
+    /// [`update_sleep`] found rested: it falls asleep now. Valid for the
+    /// awake dynamic slots of the last `update_sleep`, until the next.
+    pub(crate) fn rested(&mut self, s: u32) -> bool {
+        let root = find(&mut self.parent, s) as usize;
+        self.min_rest[root] >= self.ticks_to_sleep
+    }
 }
 
 /// What the sleep stage did.
@@ -119,8 +132,9 @@ fn is_moving_kinematic(b: &BodyHot) -> bool {
 /// never visited); `links` yields the body slots of the touching solid
 /// contact pairs, and must include every such pair with an awake dynamic
 /// body (pairs between sleeping or static bodies change nothing and may be
-/// left out). Bodies that fall asleep get `sleeping` set here: the caller
-/// must tell the body set (`BodySet::note_fell_asleep`).
+/// left out). Decides and counts; writes no sleep flag: the awake set puts
+/// each awake dynamic body whose island rested
+/// ([`IslandScratch::rested`]) to sleep.
 ///
 /// Determinism: slot order for the counters; union by the lower root (any
 /// union order gives the same partition); decisions read only the
@@ -201,18 +215,11 @@ pub(crate) fn update_sleep(
         }
         scratch.min_rest[root] = scratch.min_rest[root].min(b.rest_ticks);
     }
-    // 4. Rested islands fall asleep whole.
+    // 4. Rested islands fall asleep whole (counted here, put to sleep by
+    //    the caller).
+    scratch.ticks_to_sleep = ticks_to_sleep;
     for &s in awake {
-        let b = &mut hot[s as usize];
-        if !is_awake_dynamic(b) {
-            continue;
-        }
-        let root = find(&mut scratch.parent, s) as usize;
-        if scratch.min_rest[root] >= ticks_to_sleep {
-            b.sleeping = true;
-            b.linear_velocity = Vec3::ZERO;
-            b.angular_velocity = Vec3::ZERO;
-            b.angular_momentum = Vec3::ZERO;
+        if is_awake_dynamic(&hot[s as usize]) && scratch.rested(s) {
             stats.fell_asleep += 1;
         }
     }

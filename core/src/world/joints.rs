@@ -457,30 +457,4 @@ impl World {
         }
         (n as u32, self.joint_events.capacity() != cap)
     }
-
-    /// Wakes the sleeping dynamic bodies joined to a moving body. Returns
-    /// how many woke.
-    pub(crate) fn wake_joined(&mut self) -> u32 {
-        let mut woken = 0;
-        for i in 0..self.joints.arena.slot_count() as u32 {
-            let Some(j) = self.joints.arena.get_by_index(i) else {
-                continue;
-            };
-            let (a, b) = (j.desc.body_a, j.desc.body_b);
-            for (sleeper, other) in [(a, b), (b, a)] {
-                let moving = self.bodies.hot(other).is_some_and(|o| match o.kind {
-                    BodyKind::Dynamic => !o.sleeping,
-                    BodyKind::Kinematic => {
-                        !o.linear_velocity.is_zero() || !o.angular_velocity.is_zero()
-                    }
-                    BodyKind::Static => false,
-                });
-                if moving && self.bodies.hot(sleeper).is_some_and(|s| s.sleeping) {
-                    self.wake(sleeper);
-                    woken += 1;
-                }
-            }
-        }
-        woken
-    }
 }

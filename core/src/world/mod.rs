@@ -1,5 +1,7 @@
 //! The `World`: bodies, colliders, settings, and the step that advances them.
 
+mod awake;
+use awake::Toucher;
 mod body_ref;
 mod ccd;
 mod collide;
@@ -27,9 +29,7 @@ use serde::{Deserialize, Serialize};
 use crate::arena::Arena;
 use crate::body::{BodyCold, BodyDesc, BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::collider::{Collider, ColliderDesc, ColliderHandle, MassSpec};
-use crate::collision::{
-    BroadPhase, ContactEvent, ContactPair, ContactSet, PairKind, ProxyId, ProxyKey,
-};
+use crate::collision::{BroadPhase, ContactEvent, ContactPair, ContactSet, ProxyId, ProxyKey};
 use crate::math::{FaultScope, Faults, Quat, Scalar, SymMat3, Transform, Vec3};
 use crate::shape::MassProperties;
 use crate::solver::contact_solver::ContactSolver;
@@ -124,14 +124,10 @@ impl World {
     /// [`WorldError::InvalidConfig`] if a setting is out of range.
     pub fn new(config: WorldConfig) -> Result<World, WorldError> {
         config.validate()?;
-        let mut bodies = BodySet::default();
-        // An index that describes the (empty) set from the start, so counts
-        // are exact before the first step.
-        bodies.refresh_awake();
-        Ok(World {
+        let mut world = World {
             config,
             tick: 0,
-            bodies,
+            bodies: BodySet::default(),
             colliders: Arena::default(),
             broad: BroadPhase::new(config.broad_phase_margin),
             contacts: ContactSet::default(),
@@ -145,7 +141,11 @@ impl World {
             workers: Workers::default(),
             islands: IslandScratch::default(),
             ccd: ccd::CcdScratch::default(),
-        })
+        };
+        // An index that describes the (empty) set from the start, so counts
+        // are exact before the first step.
+        world.refresh_awake_set();
+        Ok(world)
     }
 
     /// The settings.
@@ -808,54 +808,14 @@ impl World {
         Ok(())
     }
 
-    /// Wakes a live body (see the free function [`wake`]).
-    fn wake(&mut self, h: BodyHandle) {
-        wake(&mut self.bodies, &mut self.contacts, h);
-    }
-
     /// Puts a dynamic body to sleep now (velocities zeroed).
     ///
     /// # Errors
     /// [`WorldError::InvalidBody`].
     pub fn sleep_body(&mut self, h: BodyHandle) -> Result<(), WorldError> {
-        let hot = self.hot_mut(h)?;
-        if hot.kind == BodyKind::Dynamic {
-            hot.linear_velocity = Vec3::ZERO;
-            hot.angular_velocity = Vec3::ZERO;
-            hot.angular_momentum = Vec3::ZERO;
-            self.bodies.set_sleeping(h, true);
-        }
+        self.hot_mut(h)?;
+        self.put_to_sleep(h);
         Ok(())
-    }
-
-    /// Wakes the sleeping dynamic bodies in solid contact (any manifold
-    /// point) with `toucher`, because what they rest on is about to move or
-    /// vanish: one pass over the pairs. The next step's `wake_touched`
-    /// passes the wake on to the rest of their islands.
-    fn wake_touching(&mut self, toucher: Toucher) {
-        let body_of = |c: ColliderHandle| self.colliders.get(c.0).map(|o| o.body);
-        let mut i = 0;
-        while let Some(p) = self.contacts.pairs().get(i) {
-            i += 1;
-            if p.kind != PairKind::Solid || p.manifold.is_empty() {
-                continue;
-            }
-            let is_toucher = |c: ColliderHandle| match toucher {
-                Toucher::Collider(t) => c == t,
-                Toucher::Body(b) => body_of(c) == Some(b),
-            };
-            let other = if is_toucher(p.a) {
-                p.b
-            } else if is_toucher(p.b) {
-                p.a
-            } else {
-                continue;
-            };
-            let Some(body) = body_of(other) else { continue };
-            if self.bodies.hot(body).is_some_and(|b| b.sleeping) {
-                wake(&mut self.bodies, &mut self.contacts, body);
-            }
-        }
     }
 
     /// Runs `f` with this world's faults attributed to it.
@@ -865,27 +825,6 @@ impl World {
         let faults = scope.finish();
         self.faults = self.faults.union(faults);
         (v, faults)
-    }
-}
-
-/// Whose contacts [`World::wake_touching`] follows.
-#[derive(Clone, Copy)]
-enum Toucher {
-    /// One collider's.
-    Collider(ColliderHandle),
-    /// Every collider of a body.
-    Body(BodyHandle),
-}
-
-/// Wakes a body (any kind: its rest counter restarts) through the body set,
-/// so the awake list learns of it; a sleeper that wakes may turn resting
-/// contact pairs active, so the contact set's active list is dropped.
-fn wake(bodies: &mut BodySet, contacts: &mut ContactSet, h: BodyHandle) {
-    if let Some(b) = bodies.hot_mut(h) {
-        b.rest_ticks = 0;
-    }
-    if bodies.set_sleeping(h, false) {
-        contacts.invalidate_active();
     }
 }
 
@@ -930,7 +869,7 @@ impl World {
     /// (the awake index: [`BodySet::sleeping_count`] read 0 in a restored
     /// world until its first step).
     pub(crate) fn rebuild_derived(&mut self) {
-        self.bodies.refresh_awake();
+        self.refresh_awake_set();
         self.joints.rebuild();
     }
 

@@ -7,13 +7,11 @@
 use crate::arena::Arena;
 use crate::body::{BodyHot, BodyKind};
 use crate::collision::ContactPair;
-use crate::collision::contacts::PairKind;
 use crate::joint::Joint;
 use crate::math::{Scalar, Vec3};
 use crate::solver::contact_solver::{ContactSolver, PairInfo, Softness, SolverParams, SolverStats};
 use crate::solver::integrate::{self, VelocityCounters};
 use crate::solver::joint_solver::{JOINT_DAMPING_RATIO, JointParams, JointSolver};
-use crate::solver::sleep;
 use crate::workers::Workers;
 
 use super::observe::{Guarded, Notify, Quiet, Stage, StepObserver};
@@ -216,60 +214,6 @@ impl World {
         self.tick += 1;
         report.tick = self.tick;
         report
-    }
-
-    /// The per-body stages walk the awake slots only: sleeping and static
-    /// bodies cost nothing (see `body/awake.rs`). Growths of the awake
-    /// bookkeeping between steps (the game's calls) are not the step's.
-    #[inline(never)]
-    fn stage_awake_list(&mut self) {
-        self.bodies.take_awake_growths();
-        self.bodies.refresh_awake();
-    }
-
-    /// Rest counters advance; islands of touching awake bodies that all
-    /// rested long enough fall asleep together (and leave the awake list).
-    #[inline(never)]
-    fn stage_sleep(&mut self) -> sleep::SleepStats {
-        let World {
-            bodies,
-            colliders,
-            contacts,
-            islands,
-            config,
-            joints,
-            ..
-        } = self;
-        // Only pairs with an awake body can join islands or stop a body
-        // resting: the active pairs hold all of them.
-        let pairs = contacts.pairs();
-        let all = 0..pairs.len() as u32;
-        let indices: &mut dyn Iterator<Item = u32> = match contacts.active() {
-            Some(active) => &mut active.iter().copied(),
-            None => &mut all.into_iter(),
-        };
-        let links = indices
-            .map(|i| &pairs[i as usize])
-            .filter(|p| p.touching && p.kind == PairKind::Solid)
-            .filter_map(|p| {
-                let a = colliders.get(p.a.0)?.body.0.index;
-                let b = colliders.get(p.b.0)?.body.0.index;
-                Some(sleep::Link { a, b })
-            });
-        // Joined bodies share an island: they sleep and wake together.
-        let joined = joints.arena.iter().map(|(_, j)| sleep::Link {
-            a: j.desc.body_a.index(),
-            b: j.desc.body_b.index(),
-        });
-        let links = links.chain(joined);
-        let (hot, awake) = bodies.awake_slots_mut();
-        let slept =
-            sleep::update_sleep(hot, awake, links, &config.sleep, config.tick_rate, islands);
-        if slept.fell_asleep > 0 {
-            self.bodies.note_fell_asleep();
-            self.bodies.refresh_awake();
-        }
-        slept
     }
 
     /// Broad phase: proxies follow this step's motion, so queries between
