@@ -14,8 +14,8 @@ use std::fmt::Write as _;
 use std::sync::Arc;
 use std::time::Instant;
 
+use lockstep_core::SleepConfig;
 use lockstep_core::shape::{ConvexHull, Cuboid, Shape, Sphere};
-use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, ContactOrder, ContactRows, JointDesc,
     Material, Scalar, Vec3, World, WorldConfig,

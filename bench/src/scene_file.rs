@@ -21,9 +21,9 @@ use lockstep_core::collider::MassSpec;
 use std::collections::BTreeMap;
 
 use crate::accuracy::sim::RAPIER_MOTOR_FACTOR;
+use lockstep_core::SleepConfig;
 use lockstep_core::joint::{JointKind, Motor};
 use lockstep_core::scene::{GeometryDesc, SceneDesc, build_world_with_config};
-use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{
     BodyHandle, BodyKind, ContactOrder, ContactRows, Quat, Scalar, Vec3, World, WorldConfig,
 };

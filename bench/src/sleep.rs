@@ -18,7 +18,7 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use lockstep_core::solver::sleep::SleepConfig;
+use lockstep_core::SleepConfig;
 use lockstep_core::{BodyDesc, ColliderDesc, Scalar, StepReport, Vec3, World};
 
 use crate::engines::build_ours;

@@ -10,7 +10,7 @@ pub mod arena;
 pub mod body;
 pub mod character;
 pub mod collider;
-pub mod collision;
+pub(crate) mod collision;
 pub mod game_state;
 pub mod hash;
 pub mod joint;
@@ -19,16 +19,33 @@ pub mod query;
 pub mod scene;
 pub mod shape;
 pub mod snapshot;
-pub mod solver;
+pub(crate) mod solver;
 pub(crate) mod workers;
 pub mod world;
 
+/// Contacts as the world reports them: the pairs of colliders whose boxes
+/// overlap, with their manifolds and accumulated impulses
+/// ([`World::contact_pairs`]), and the begin and end events of the last
+/// step ([`World::contact_events`]). The collision pipeline that makes them
+/// is internal.
+pub mod contact {
+    pub use crate::collision::contacts::{MATCH_DISTANCE, TOUCH_TOLERANCE};
+    pub use crate::collision::reuse::{REUSE_ANGLE_SIN_HALF, REUSE_DISTANCE};
+    pub use crate::collision::{
+        ContactEvent, ContactEventKind, ContactPair, ContactPoint, FeatureId, MAX_MANIFOLD_POINTS,
+        Manifold, PairKind, PatchFriction, PointImpulse, ReuseCache,
+    };
+}
+
 pub use body::{BodyDesc, BodyHandle, BodyKind};
 pub use collider::{ColliderDesc, ColliderHandle, CollisionFilter, Material};
+pub use contact::{ContactEvent, ContactEventKind};
 pub use game_state::{GameField, GameState, GameStateError};
 pub use joint::{JointDesc, JointEvent, JointHandle, JointKind, Motor, Spring};
 /// The elementary functions rules use most (exact to the documented ulp, the
 /// same bits on every machine; the rest are in [`math::elem`]).
 pub use math::elem::{atan2, sin_cos};
 pub use math::{Aabb, Faults, Mat3, Quat, Scalar, SymMat3, Transform, Vec3};
-pub use world::{BodyRef, ContactOrder, ContactRows, StepReport, World, WorldConfig, WorldError};
+pub use world::{
+    BodyRef, ContactOrder, ContactRows, SleepConfig, StepReport, World, WorldConfig, WorldError,
+};

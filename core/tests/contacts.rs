@@ -4,7 +4,7 @@
 mod common;
 
 use common::{s, v, zero_g};
-use lockstep_core::collision::{ContactEventKind, PairKind};
+use lockstep_core::contact::{ContactEventKind, PairKind};
 use lockstep_core::shape::{Capsule, Cuboid, Shape, Sphere};
 use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, Quat, Transform, Vec3, World, WorldConfig,
@@ -390,7 +390,7 @@ fn a_sleeping_pile_stays_asleep_until_a_moving_ball_hits_it() {
 /// The default world with sleeping on or off and the default ground.
 fn grounded_world(sleep: bool) -> World {
     let mut w = World::new(WorldConfig {
-        sleep: lockstep_core::solver::sleep::SleepConfig {
+        sleep: lockstep_core::SleepConfig {
             enabled: sleep,
             ..Default::default()
         },
@@ -586,7 +586,7 @@ fn a_ball_on_a_box_never_reuses_while_the_box_on_the_ground_does() {
     // manifold every tick, the ball–box pair never (either collider round
     // is enough; with reuse it did too, 2 reuses a tick).
     let mut w = World::new(WorldConfig {
-        sleep: lockstep_core::solver::sleep::SleepConfig {
+        sleep: lockstep_core::SleepConfig {
             enabled: false,
             ..Default::default()
         },

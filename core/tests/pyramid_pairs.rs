@@ -13,7 +13,7 @@ use lockstep_core::{BodyDesc, ColliderDesc, Scalar, Vec3, World, WorldConfig};
 fn pyramids(grid: i32, base: i32, ground: i32) -> World {
     let mut w = World::new(WorldConfig {
         gravity: Vec3::new(Scalar::ZERO, Scalar::from_int(-10), Scalar::ZERO),
-        sleep: lockstep_core::solver::sleep::SleepConfig {
+        sleep: lockstep_core::SleepConfig {
             enabled: false,
             ..Default::default()
         },

@@ -13,7 +13,7 @@ fn zero_g(substeps: u32) -> World {
     World::new(WorldConfig {
         gravity: Vec3::ZERO,
         substeps,
-        sleep: lockstep_core::solver::sleep::SleepConfig {
+        sleep: lockstep_core::SleepConfig {
             enabled: false,
             ..Default::default()
         },
@@ -139,7 +139,7 @@ fn spin_faster_than_a_quarter_turn_per_substep_is_capped_and_reported() {
     // 60 Hz × 4 substeps: at most π/4 per substep, 60π ≈ 188.5 rad/s. A box
     // set spinning at 1,000 rad/s about a non-principal axis is capped (its
     // momentum scaled with it) and the step says so; 100 rad/s is untouched.
-    let limit = lockstep_core::solver::integrate::max_angular_speed(s(1.0 / 240.0)).to_f64();
+    let limit = lockstep_core::world::max_angular_speed(s(1.0 / 240.0)).to_f64();
     assert!(
         (limit - 60.0 * std::f64::consts::PI).abs() < 1e-3,
         "{limit}"

@@ -10,7 +10,7 @@
 mod common;
 
 use common::{s, v};
-use lockstep_core::collision::ContactEvent;
+use lockstep_core::ContactEvent;
 use lockstep_core::scene::{build_world_with_config, parse_scene};
 use lockstep_core::{BodyDesc, ColliderDesc, ContactOrder, StepReport, World, WorldConfig};
 

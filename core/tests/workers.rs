@@ -8,7 +8,7 @@
 mod common;
 
 use common::{pile, step_pile};
-use lockstep_core::collision::ContactEvent;
+use lockstep_core::ContactEvent;
 use lockstep_core::scene::{build_world_with_config, parse_scene};
 use lockstep_core::{ContactOrder, StepReport, World, WorldConfig};
 

@@ -9,9 +9,9 @@
 
 use std::sync::Arc;
 
+use lockstep_core::SleepConfig;
 use lockstep_core::joint::{JointDesc, JointKind, Motor};
 use lockstep_core::shape::{Capsule, ConvexHull, Cuboid, Shape, Sphere};
-use lockstep_core::solver::sleep::SleepConfig;
 use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, ContactRows, Material, Quat, Scalar, Transform, Vec3,
     World, WorldConfig,

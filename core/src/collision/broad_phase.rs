@@ -224,11 +224,6 @@ impl BroadPhase {
         self.proxy_count as usize
     }
 
-    /// The fattening margin.
-    pub fn margin(&self) -> Scalar {
-        self.moving_tree.margin()
-    }
-
     /// Returns and clears the count of buffer growths since the last call or
     /// [`update_pairs`](Self::update_pairs), which otherwise reports them.
     ///
@@ -237,11 +232,6 @@ impl BroadPhase {
     /// that growth is the step's, not the next one's.
     pub fn take_growths(&mut self) -> u32 {
         std::mem::take(&mut self.growths)
-    }
-
-    /// The counters of the last [`update_pairs`](Self::update_pairs).
-    pub fn last_stats(&self) -> PairStats {
-        self.last
     }
 
     /// The tree of static and sleeping proxies (read-only: statistics).
@@ -414,6 +404,7 @@ impl BroadPhase {
     ///
     /// # Errors
     /// [`BroadPhaseError::InvalidProxy`] if `id` is not live.
+    #[cfg(test)]
     pub fn fat_aabb(&self, id: ProxyId) -> Result<Aabb, BroadPhaseError> {
         let s = self.slot(id)?;
         Ok(self.tree(s.kind).fat_aabb(LeafId::from_raw(s.leaf))?)
@@ -511,6 +502,7 @@ impl BroadPhase {
     /// Rebuilds both trees with the binned SAH (see
     /// [`DynamicTree::rebuild`]); pairs are not affected. Useful after
     /// loading a level proxy by proxy.
+    #[cfg(test)]
     pub fn rebuild_trees(&mut self) {
         self.static_tree.rebuild();
         self.moving_tree.rebuild();
@@ -672,13 +664,9 @@ impl BroadPhase {
         stats
     }
 
-    /// The current pair set (as returned by the last update), sorted.
-    pub fn pairs(&self) -> impl ExactSizeIterator<Item = (ProxyKey, ProxyKey)> + '_ {
-        self.pairs.iter().map(|p| (p.a, p.b))
-    }
-
     /// Sum of the capacities of the per-step buffers: unchanged between two
     /// updates means nothing was reallocated.
+    #[cfg(test)]
     pub fn buffer_capacity(&self) -> usize {
         self.move_buffer.capacity()
             + self.pairs.capacity()

@@ -104,7 +104,7 @@ pub struct ContactPair {
     /// Accumulated friction of the whole manifold.
     pub friction: PatchFriction,
     /// What the last full narrow-phase test left for reuse (see
-    /// [`super::reuse`]); never valid for triggers, nor for a pair with a
+    /// `docs/determinism.md`, contact reuse); never valid for triggers, nor for a pair with a
     /// sphere or capsule.
     pub reuse: ReuseCache,
 }

@@ -11,12 +11,10 @@ pub mod narrow;
 pub mod reuse;
 pub mod toi;
 
-pub use broad_phase::{BroadPhase, BroadPhaseError, PairStats, ProxyId, ProxyKey, ProxyKind};
+pub use broad_phase::{BroadPhase, PairStats, ProxyId, ProxyKey, ProxyKind};
 pub use contacts::{
-    ContactEvent, ContactEventKind, ContactPair, ContactSet, ContactStats, PairKind, PatchFriction,
-    PointImpulse,
+    ContactEvent, ContactEventKind, ContactPair, ContactSet, PairKind, PatchFriction, PointImpulse,
 };
-pub use dynamic_tree::{DynamicTree, LeafId, TreeError};
 pub use manifold::{ContactPoint, FeatureId, MAX_MANIFOLD_POINTS, Manifold};
 pub use reuse::ReuseCache;
 

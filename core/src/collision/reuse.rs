@@ -124,7 +124,7 @@ impl ReuseCache {
     /// manifold: B's origin within [`REUSE_DISTANCE`] of where it was in
     /// A's frame and its rotation relative to A within 2° of what it was.
     /// Compared in exact squares.
-    pub fn holds_for(&self, rel: &RelativePose) -> bool {
+    pub(crate) fn holds_for(&self, rel: &RelativePose) -> bool {
         if !self.valid {
             return false;
         }
@@ -142,9 +142,15 @@ impl ReuseCache {
     }
 
     /// Records a manifold the narrow phase just built for colliders at
-    /// `a` and `b` (`rel` is [`RelativePose::between`] them); an empty
+    /// `a` and `b` (`rel` is `RelativePose::between` them); an empty
     /// manifold leaves the cache invalid.
-    pub fn record(&mut self, a: &Transform, b: &Transform, rel: &RelativePose, m: &Manifold) {
+    pub(crate) fn record(
+        &mut self,
+        a: &Transform,
+        b: &Transform,
+        rel: &RelativePose,
+        m: &Manifold,
+    ) {
         self.valid = !m.is_empty();
         if !self.valid {
             return;
@@ -171,7 +177,7 @@ impl ReuseCache {
     /// recorded normal turned with A, and per point its anchors moved with
     /// their bodies, the depth their distance along the normal, the point
     /// their midpoint. Ids stay.
-    pub fn rebuild(&self, a: &Transform, b: &Transform, m: &mut Manifold) {
+    pub(crate) fn rebuild(&self, a: &Transform, b: &Transform, m: &mut Manifold) {
         let ra = Mat3::from_quat(a.rotation);
         let rb = Mat3::from_quat(b.rotation);
         let ab = b.translation - a.translation;

@@ -83,7 +83,7 @@ pub(crate) fn box_in_frame(query: &Shape, pose: &Transform, target_pose: &Transf
 
 /// Whether the convex shape `query` at `pose` intersects `target` at
 /// `target_pose` (touching within 16 ulps counts, as for
-/// [`distance`](crate::collision::narrow::gjk::distance)). Exact GJK for a
+/// the narrow phase's GJK distance). Exact GJK for a
 /// convex target; for a mesh or height field, GJK against each triangle
 /// whose box touches the query's box.
 ///

@@ -2,7 +2,7 @@
 //! the first time it touches another shape.
 //!
 //! Method: the time-of-impact routine shared with continuous collision
-//! ([`crate::collision::toi`]), with a motion of translation only. Each
+//! (the collision pipeline's `toi`), with a motion of translation only. Each
 //! advance aims at a gap of `TOL/2`; a gap of at most `TOL` is a hit. A shape
 //! touching the target at the start is a hit at fraction 0 only while it
 //! moves towards it by more than its gap over the whole translation: one

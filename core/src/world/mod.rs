@@ -13,6 +13,8 @@ mod state_hash;
 mod step;
 
 pub use crate::hash::FieldKind;
+pub use crate::solver::integrate::max_angular_speed;
+pub use crate::solver::sleep::SleepConfig;
 pub use crate::workers::MAX_WORKERS;
 use crate::workers::Workers;
 pub use body_ref::BodyRef;

@@ -26,11 +26,15 @@ use thiserror::Error;
 use crate::math::{Aabb, Scalar, Vec3};
 
 mod ray;
+// The SAH rebuild: not called by the step (the trees stay balanced by
+// rotations as proxies move); its tests compare tree quality against it.
+#[cfg(test)]
 mod rebuild;
 mod validate;
 
 pub(crate) use ray::{Frac, segment_box};
 
+#[cfg(test)]
 use rebuild::RebuildScratch;
 
 /// The "no node" index.
@@ -125,6 +129,7 @@ pub struct DynamicTree {
     free_list: u32,
     leaf_count: u32,
     margin: Scalar,
+    #[cfg(test)]
     #[serde(skip)]
     scratch: RebuildScratch,
 }
@@ -219,6 +224,7 @@ impl Stack {
 impl DynamicTree {
     /// An empty tree whose leaves are their tight boxes grown by `margin` on
     /// every side (a negative margin is treated as zero).
+    #[cfg(test)]
     pub fn new(margin: Scalar) -> DynamicTree {
         DynamicTree::with_capacity(margin, 0)
     }
@@ -232,13 +238,9 @@ impl DynamicTree {
             free_list: NULL,
             leaf_count: 0,
             margin: margin.max(Scalar::ZERO),
+            #[cfg(test)]
             scratch: RebuildScratch::default(),
         }
-    }
-
-    /// The fattening margin.
-    pub fn margin(&self) -> Scalar {
-        self.margin
     }
 
     /// Number of live proxies.
@@ -248,6 +250,7 @@ impl DynamicTree {
 
     /// Number of node slots allocated so far (live + free): grows only when
     /// the free list is empty.
+    #[cfg(test)]
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -259,6 +262,7 @@ impl DynamicTree {
     }
 
     /// Height of the tree: 0 for a single leaf or an empty tree.
+    #[cfg(test)]
     pub fn height(&self) -> u32 {
         if self.root == NULL {
             0
@@ -270,6 +274,7 @@ impl DynamicTree {
     /// Sum of the half areas of the internal nodes, in ulps²: the quantity
     /// the SAH minimises. Two trees over the same leaves with different
     /// costs have different shapes; a rebuild should lower it.
+    #[cfg(test)]
     pub fn internal_area(&self) -> u128 {
         self.nodes
             .iter()
@@ -369,6 +374,7 @@ impl DynamicTree {
     /// Calls `f(leaf, user_data, fat_box)` for every live proxy in node-index
     /// order (independent of the tree's shape): for brute-force checks and
     /// snapshots.
+    #[cfg(test)]
     pub fn for_each_proxy(&self, mut f: impl FnMut(LeafId, u64, &Aabb)) {
         for (i, n) in self.nodes.iter().enumerate() {
             if n.height == 0 {

@@ -189,6 +189,7 @@ impl DynamicTree {
     /// Whether the segment touches `aabb` (the test [`ray_cast`](Self::ray_cast)
     /// applies to each node), for callers that prune their own boxes the
     /// same way.
+    #[cfg(test)]
     pub fn segment_touches(origin: Vec3, translation: Vec3, max: Scalar, aabb: &Aabb) -> bool {
         segment_box(
             origin,

@@ -47,11 +47,11 @@ pub use hull_contact::{
     contact_box_hull, contact_capsule_hull, contact_hull_hull, contact_sphere_hull,
 };
 pub use mesh_contact::{
-    MAX_MESH_TRIANGLES, MeshContact, contact_box_heightfield, contact_box_trimesh,
-    contact_capsule_heightfield, contact_capsule_trimesh, contact_hull_heightfield,
-    contact_hull_trimesh, contact_sphere_heightfield, contact_sphere_trimesh,
+    contact_box_heightfield, contact_box_trimesh, contact_capsule_heightfield,
+    contact_capsule_trimesh, contact_hull_heightfield, contact_hull_trimesh,
+    contact_sphere_heightfield, contact_sphere_trimesh,
 };
-pub use segment::{SegmentClosest, closest_point_on_segment, closest_points_segments};
+pub use segment::closest_point_on_segment;
 pub use sphere_box::contact_sphere_box;
 pub use sphere_capsule::contact_sphere_capsule;
 pub use sphere_sphere::contact_sphere_sphere;

@@ -277,3 +277,123 @@ fn same_operations_give_bit_identical_trees() {
     assert_eq!(back.validate(), Ok(()));
     assert_eq!(back.internal_area(), scripted_tree(5).internal_area());
 }
+
+/// The ray test's numbers: `x` in Q32.32.
+fn s(x: f64) -> Scalar {
+    Scalar::from_f64_lossy(x)
+}
+
+fn v(x: f64, y: f64, z: f64) -> Vec3 {
+    Vec3::new(s(x), s(y), s(z))
+}
+
+/// A uniform number in [0, 1) from a 64-bit LCG.
+fn lcg(state: &mut u64) -> f64 {
+    *state = state
+        .wrapping_mul(6_364_136_223_846_793_005)
+        .wrapping_add(1_442_695_040_888_963_407);
+    (*state >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// The f64 slab test (the parameter interval of the segment `o + t·d`
+/// inside `[lo, hi]`), for cross-checking the exact one away from ties.
+fn slab_f64(o: [f64; 3], d: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..3 {
+        if d[k] == 0.0 {
+            if o[k] < lo[k] || o[k] > hi[k] {
+                return None;
+            }
+            continue;
+        }
+        let (a, b) = ((lo[k] - o[k]) / d[k], (hi[k] - o[k]) / d[k]);
+        t0 = t0.max(a.min(b));
+        t1 = t1.min(a.max(b));
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+#[test]
+fn tree_ray_traversal_visits_exactly_the_boxes_the_segment_touches() {
+    let mut st = 17u64;
+    let mut tree = DynamicTree::new(s(0.1));
+    for i in 0..400u64 {
+        let c = [
+            lcg(&mut st) * 100.0 - 50.0,
+            lcg(&mut st) * 20.0,
+            lcg(&mut st) * 100.0 - 50.0,
+        ];
+        let h = [lcg(&mut st) * 3.0, lcg(&mut st) * 3.0, lcg(&mut st) * 3.0];
+        tree.create_proxy(
+            Aabb::new(
+                v(c[0] - h[0], c[1] - h[1], c[2] - h[2]),
+                v(c[0] + h[0], c[1] + h[1], c[2] + h[2]),
+            ),
+            i,
+        );
+    }
+    let (mut checked, mut visited_total) = (0, 0);
+    for _ in 0..300 {
+        let mut p = || {
+            v(
+                lcg(&mut st) * 120.0 - 60.0,
+                lcg(&mut st) * 30.0 - 5.0,
+                lcg(&mut st) * 120.0 - 60.0,
+            )
+        };
+        let (o, e) = (p(), p());
+        let d = e - o;
+        let mut visited = Vec::new();
+        tree.ray_cast(o, d, Scalar::ONE, |_, data, max| {
+            visited.push(data);
+            Some(max)
+        });
+        visited.sort_unstable();
+        let mut want = Vec::new();
+        tree.for_each_proxy(|_, data, fat| {
+            if DynamicTree::segment_touches(o, d, Scalar::ONE, fat) {
+                want.push(data);
+            }
+            // The exact test agrees with f64 wherever f64 is not near a tie.
+            let f = |x: Vec3| [x.x.to_f64(), x.y.to_f64(), x.z.to_f64()];
+            let r = slab_f64(f(o), f(d), f(fat.min), f(fat.max));
+            let margin = r.is_none_or(|(t0, t1)| t1 - t0 > 1e-9);
+            if margin {
+                checked += 1;
+                assert_eq!(
+                    r.is_some(),
+                    DynamicTree::segment_touches(o, d, Scalar::ONE, fat)
+                );
+            }
+        });
+        want.sort_unstable();
+        assert_eq!(visited, want);
+        visited_total += visited.len();
+        // Clipping at the nearest box entry still finds every box entered
+        // there and none beyond.
+        let entry = |data: u64| {
+            let mut t = None;
+            tree.for_each_proxy(|_, d2, fat| {
+                if d2 == data {
+                    let f = |x: Vec3| [x.x.to_f64(), x.y.to_f64(), x.z.to_f64()];
+                    t = slab_f64(f(o), f(d), f(fat.min), f(fat.max)).map(|r| r.0);
+                }
+            });
+            t.unwrap_or(2.0)
+        };
+        let nearest = want.iter().map(|&x| entry(x)).fold(2.0, f64::min);
+        let mut clipped = Vec::new();
+        tree.ray_cast(o, d, Scalar::ONE, |_, data, max| {
+            clipped.push(data);
+            Some(max.min(s(entry(data)).max(Scalar::ZERO)))
+        });
+        if nearest <= 1.0 {
+            assert!(clipped.iter().any(|&x| (entry(x) - nearest).abs() < 1e-9));
+        }
+        assert!(clipped.len() <= want.len());
+    }
+    assert!(
+        visited_total > 300 && checked > 100_000,
+        "{visited_total} {checked}"
+    );
+}
