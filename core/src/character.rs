@@ -29,7 +29,9 @@
 //!    climbed by walking into them.
 //! 5. **Ground snap.** A character that was on the ground, did not jump and
 //!    has left it this tick (walking down stairs or a slope) is moved down
-//!    onto walkable ground within [`CharacterConfig::snap_distance`].
+//!    onto walkable ground within [`CharacterConfig::snap_distance`]; one
+//!    that is still on the ground settles onto it, one skin above it (a
+//!    slide over a stair nose can leave it up to a skin higher).
 //! 6. **Platforms.** A character that stood on a moving body (kinematic or
 //!    dynamic) moves with the point of that body under it: exactly along a
 //!    kinematic target the game set before this call, or with the body's
@@ -445,7 +447,20 @@ impl CharacterController {
         // The ground is read before the carry, against the poses the
         // ground body has now: the carry moves the character with it.
         plan.ground = self.probe_ground(world, pos, &filter, cfg.skin);
-        if on_ground && cfg.snap_distance > Scalar::ZERO && plan.ground.is_none() {
+        if on_ground && plan.ground.is_some() {
+            // Still on the ground: settle onto it, one skin from it. The
+            // probe finds ground up to two skins below the capsule, and a
+            // character on the ground gets no vertical speed, so a slide
+            // over a stair nose or a step landing that left it higher
+            // would otherwise walk on that high for good.
+            let down = Vec3::new(Scalar::ZERO, -cfg.skin, Scalar::ZERO);
+            if let Some(hit) = self.sweep(world, pos, down, &filter)
+                && !hit.initially_overlapping
+                && self.walkable(world, &hit, &filter)
+            {
+                pos += down * hit.fraction;
+            }
+        } else if on_ground && cfg.snap_distance > Scalar::ZERO && plan.ground.is_none() {
             let down = Vec3::new(Scalar::ZERO, -cfg.snap_distance, Scalar::ZERO);
             if let Some(hit) = self.sweep(world, pos, down, &filter)
                 && !hit.initially_overlapping
