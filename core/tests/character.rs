@@ -587,7 +587,7 @@ fn a_100_tick_course_replays_to_the_same_bits_as_recorded() {
     // any bit changes it on purpose.
     assert_eq!(
         a,
-        (0x1b3b_9e77_2675_c572, 0x9ad8_5c09_160b_8128),
+        (0x53d9_9c0e_5b29_75ad, 0x26a2_5de1_a3cc_e5d2),
         "folded {:#018x}, final {:#018x}",
         a.0,
         a.1
