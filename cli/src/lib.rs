@@ -149,6 +149,23 @@ impl App {
         self.run_server(args)
     }
 
+    /// The server configuration `lockstep-server` would run with for
+    /// these command-line arguments (the program's name first), without
+    /// running it: what the flags and their defaults mean, for tests and
+    /// for programs that run the server library themselves.
+    ///
+    /// # Errors
+    /// The flags do not parse, or name a file that cannot be read or a
+    /// scene the game's rules refuse.
+    pub fn server_config<I, T>(&self, args: I) -> Result<lockstep_server::ServerConfig, String>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        let args = server::ServerArgs::try_parse_from(args).map_err(|e| e.to_string())?;
+        server::build_config(self, &args)
+    }
+
     /// `lockstep-bot`'s command line: the bots alone.
     pub fn bots_main(self) -> ExitCode {
         let args = bots::BotArgs::parse();

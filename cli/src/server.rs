@@ -61,7 +61,7 @@ pub struct ServerArgs {
     /// Id of the game rules the players run, announced in the welcome and
     /// recorded in every replay (default: this program's game; give another
     /// game's with its --scene to relay a game this program does not have,
-    /// without --verify or --view).
+    /// without --verify or --view: such a server does not verify).
     #[arg(long, requires = "rules_version", env = "LOCKSTEP_RULES_ID")]
     rules_id: Option<String>,
     /// Version of those rules.
@@ -114,9 +114,25 @@ pub struct ServerArgs {
     /// Re-simulate every match on the server with the game's rules and
     /// judge every hash report against the server's own hash, so a
     /// majority of liars cannot outvote honest players (costs one
-    /// simulation per room).
-    #[arg(long, env = "LOCKSTEP_VERIFY")]
+    /// simulation per room). The default whenever the match is played with
+    /// this program's rules; the flag is kept for scripts that pass it.
+    #[arg(long, env = "LOCKSTEP_VERIFY", conflicts_with = "no_verify")]
     verify: bool,
+    /// Do not re-simulate: relay and compare only. Nobody is then dropped
+    /// for its hash (mismatches are announced as undecided) unless --vote,
+    /// and the replay records only hashes every reporter agreed on.
+    #[arg(long, env = "LOCKSTEP_NO_VERIFY")]
+    no_verify: bool,
+    /// Without verifying: the players seated with a join token vote, and a
+    /// player whose hash stays outside their strict majority is dropped as
+    /// diverged (needs --no-verify and --token-secret-file).
+    #[arg(
+        long,
+        env = "LOCKSTEP_VOTE",
+        requires = "no_verify",
+        requires = "token_secret_file"
+    )]
+    vote: bool,
     /// Let players join a running match: they start from the last agreed
     /// state, fetched from a player in agreement and checked by its hash.
     #[arg(long, env = "LOCKSTEP_LATE_JOIN")]
@@ -236,6 +252,115 @@ fn check_scene(game: &dyn RulesFactory, scene: &str, name: &str) -> Result<(), S
         .map_err(|e| format!("{name}: the rules of {} refuse it: {e}", game.rules_id()))
 }
 
+/// The server configuration `cli` describes for `app`'s game (without
+/// the demo's own settings).
+///
+/// # Errors
+/// What is wrong with the flags or the files they name, as a sentence.
+pub(crate) fn build_config(app: &App, cli: &ServerArgs) -> Result<ServerConfig, String> {
+    let listen = if cli.demo {
+        SocketAddr::from(([127, 0, 0, 1], 0))
+    } else {
+        cli.listen
+    };
+    let mut config = ServerConfig::for_game(
+        listen,
+        app.scene.clone(),
+        app.scene_name.clone(),
+        app.game.rules_id(),
+    );
+    config.tls = match (cli.cert.clone(), cli.key.clone()) {
+        (Some(cert), Some(key)) => TlsSource::Files { cert, key },
+        _ => TlsSource::dev(cli.cert_out.clone()),
+    };
+    if let Some(path) = &cli.scene {
+        match std::fs::read_to_string(path) {
+            Ok(text) => {
+                config.scene = text;
+                config.scene_name = path.display().to_string();
+            }
+            Err(e) => return Err(format!("{}: {e}", path.display())),
+        }
+    }
+    if let (Some(id), Some(version)) = (cli.rules_id.clone(), cli.rules_version) {
+        config.rules = lockstep_server::RulesId::new(id, version);
+    }
+    let ours = app.game.rules_id();
+    if config.rules == ours {
+        // The rules this program has: they must accept the scene, or the
+        // players' would refuse it at their first tick.
+        if let Err(e) = check_scene(&*app.game, &config.scene, &config.scene_name) {
+            return Err(format!(
+                "{e}\n  the match would be announced and recorded as {ours}: give \
+                 --rules-id and --rules-version of the game this scene is for, or run that game's \
+                 own server (docs/own-game.md)"
+            ));
+        }
+    } else if cli.verify || cli.view.is_some() {
+        return Err(format!(
+            "--verify and --view re-simulate with this program's rules ({ours}), \
+             and the match is played with {}: run the game's own server (a lockstep::App of its \
+             rules, docs/own-game.md), or drop --verify and --view to relay it",
+            config.rules
+        ));
+    }
+    config.replay_dir = (!cli.no_replay).then(|| cli.replay_dir.clone());
+    config.room.max_players = cli.max_players;
+    config.room.start_players = cli.start_players;
+    config.room.tick_rate = cli.tick_rate;
+    config.room.input_delay = cli.input_delay;
+    config.room.match_ticks = cli.match_ticks;
+    config.room.lobby_timeout =
+        (cli.lobby_timeout > 0.0).then(|| Duration::from_secs_f64(cli.lobby_timeout.min(86_400.0)));
+    config.max_rooms = cli.max_rooms.max(1);
+    config.max_connections = cli.max_connections.max(1);
+    config.room.max_messages_per_second = cli.max_messages_per_second.max(1);
+    if let Some(path) = &cli.token_secret_file {
+        config.token_secret = Some(read_secret(path)?);
+    }
+    config.require_tokens = cli.require_tokens;
+    config.room.late_join = cli.late_join;
+    config.room.seed = cli.match_seed;
+    config.metrics = cli.metrics;
+    config.view = cli.view.map(|listen| lockstep_server::ViewSettings {
+        listen,
+        sim: std::sync::Arc::new(lockstep_client::game::RulesVerifier {
+            game: app.game.clone(),
+        }),
+    });
+    config.exit_after_match = cli.exit_after_match;
+    config.realtime_clock = cli.realtime_clock;
+    if cli.agones {
+        let mut a = lockstep_server::agones::AgonesSettings::from_env();
+        a.health_period = Duration::from_secs_f64(cli.agones_health_period.clamp(0.1, 3600.0));
+        config.agones = Some(a);
+    }
+    config.room.rejoin_grace = Duration::from_secs_f64(cli.rejoin_grace.clamp(0.0, 86_400.0));
+    // Verifying is the default whenever this program has the match's
+    // rules: a relay of another game's rules cannot re-simulate.
+    if config.rules == ours && !cli.no_verify {
+        config.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
+            game: app.game.clone(),
+        }));
+    } else {
+        tracing::warn!(
+            "not verifying ({}): {}",
+            if cli.no_verify {
+                "--no-verify".to_owned()
+            } else {
+                format!("the match is played with {}", config.rules)
+            },
+            if cli.vote {
+                "the token holders' majority judges hashes"
+            } else {
+                "nobody is dropped for its hash; mismatches are only announced"
+            }
+        );
+    }
+    config.vote = cli.vote;
+    Ok(config)
+}
+
 /// Runs the server (or the demo match) as `cli` says, with `app`'s game.
 pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
     if let Some(ServerCommand::Token {
@@ -268,100 +393,13 @@ pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
             }
         };
     }
-    let listen = if cli.demo {
-        SocketAddr::from(([127, 0, 0, 1], 0))
-    } else {
-        cli.listen
-    };
-    let mut config = ServerConfig::for_game(
-        listen,
-        app.scene.clone(),
-        app.scene_name.clone(),
-        app.game.rules_id(),
-    );
-    config.tls = match (cli.cert, cli.key) {
-        (Some(cert), Some(key)) => TlsSource::Files { cert, key },
-        _ => TlsSource::dev(cli.cert_out),
-    };
-    if let Some(path) = cli.scene {
-        match std::fs::read_to_string(&path) {
-            Ok(text) => {
-                config.scene = text;
-                config.scene_name = path.display().to_string();
-            }
-            Err(e) => {
-                eprintln!("lockstep-server: {}: {e}", path.display());
-                return ExitCode::from(2);
-            }
-        }
-    }
-    if let (Some(id), Some(version)) = (cli.rules_id, cli.rules_version) {
-        config.rules = lockstep_server::RulesId::new(id, version);
-    }
-    let ours = app.game.rules_id();
-    if config.rules == ours {
-        // The rules this program has: they must accept the scene, or the
-        // players' would refuse it at their first tick.
-        if let Err(e) = check_scene(&*app.game, &config.scene, &config.scene_name) {
-            eprintln!(
-                "lockstep-server: {e}\n  the match would be announced and recorded as {ours}: give \
-                 --rules-id and --rules-version of the game this scene is for, or run that game's \
-                 own server (docs/own-game.md)"
-            );
+    let config = match build_config(app, &cli) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("lockstep-server: {e}");
             return ExitCode::from(2);
         }
-    } else if cli.verify || cli.view.is_some() {
-        eprintln!(
-            "lockstep-server: --verify and --view re-simulate with this program's rules ({ours}), \
-             and the match is played with {}: run the game's own server (a lockstep::App of its \
-             rules, docs/own-game.md), or drop --verify and --view to relay it",
-            config.rules
-        );
-        return ExitCode::from(2);
-    }
-    config.replay_dir = (!cli.no_replay).then_some(cli.replay_dir);
-    config.room.max_players = cli.max_players;
-    config.room.start_players = cli.start_players;
-    config.room.tick_rate = cli.tick_rate;
-    config.room.input_delay = cli.input_delay;
-    config.room.match_ticks = cli.match_ticks;
-    config.room.lobby_timeout =
-        (cli.lobby_timeout > 0.0).then(|| Duration::from_secs_f64(cli.lobby_timeout.min(86_400.0)));
-    config.max_rooms = cli.max_rooms.max(1);
-    config.max_connections = cli.max_connections.max(1);
-    config.room.max_messages_per_second = cli.max_messages_per_second.max(1);
-    if let Some(path) = &cli.token_secret_file {
-        match read_secret(path) {
-            Ok(s) => config.token_secret = Some(s),
-            Err(e) => {
-                eprintln!("lockstep-server: {e}");
-                return ExitCode::from(2);
-            }
-        }
-    }
-    config.require_tokens = cli.require_tokens;
-    config.room.late_join = cli.late_join;
-    config.room.seed = cli.match_seed;
-    config.metrics = cli.metrics;
-    config.view = cli.view.map(|listen| lockstep_server::ViewSettings {
-        listen,
-        sim: std::sync::Arc::new(lockstep_client::game::RulesVerifier {
-            game: app.game.clone(),
-        }),
-    });
-    config.exit_after_match = cli.exit_after_match;
-    config.realtime_clock = cli.realtime_clock;
-    if cli.agones {
-        let mut a = lockstep_server::agones::AgonesSettings::from_env();
-        a.health_period = Duration::from_secs_f64(cli.agones_health_period.clamp(0.1, 3600.0));
-        config.agones = Some(a);
-    }
-    config.room.rejoin_grace = Duration::from_secs_f64(cli.rejoin_grace.clamp(0.0, 86_400.0));
-    if cli.verify {
-        config.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
-            game: app.game.clone(),
-        }));
-    }
+    };
     if cli.demo {
         let mut options = DemoOptions::new();
         options.game = app.game.clone();

@@ -48,6 +48,6 @@ pub use replay::{
 };
 pub use room::{
     AlreadyStarted, ConfigError, JoinError, LeaveReason, PlayerId, PlayerStats, Rejection, Room,
-    RoomConfig, RoomEvent, RoomStats, Transmit,
+    RoomConfig, RoomEvent, RoomStats, Transmit, Voting,
 };
 pub use session::{Session, SessionError, SessionEvent, SessionStats};

@@ -545,6 +545,10 @@ impl PendingTick {
 /// agreed hash is the one held by a strict majority of the reporters — the
 /// same rule as the room's arbiter — so a desynced minority does not spoil the
 /// replay; a tick without a majority gets no hash record.
+///
+/// After [`ReplayRecorder::follow_room`] it decides nothing itself: a
+/// tick's hash is the one the room agreed on ([`RoomEvent::TickAgreed`]),
+/// so the replay holds exactly the hashes the room stands behind.
 #[derive(Debug)]
 pub struct ReplayRecorder {
     pending: VecDeque<PendingTick>,
@@ -554,6 +558,8 @@ pub struct ReplayRecorder {
     out: Vec<u8>,
     hashed: u64,
     ended: bool,
+    /// Hashes come from the room's [`RoomEvent::TickAgreed`] only.
+    follow: bool,
 }
 
 impl ReplayRecorder {
@@ -587,7 +593,18 @@ impl ReplayRecorder {
             out,
             hashed: 0,
             ended: false,
+            follow: false,
         })
+    }
+
+    /// Records as a tick's hash only the one the room agreed on
+    /// ([`RoomEvent::TickAgreed`]), never a majority of its own: a room
+    /// that does not verify agrees on a hash only under its voting rule
+    /// ([`Voting`](crate::Voting)), so strangers' made-up hashes never
+    /// reach the replay. Reports are still needed for the body hashes
+    /// written after the agreed hash.
+    pub fn follow_room(&mut self) {
+        self.follow = true;
     }
 
     fn push(&mut self, record: &ReplayRecord) {
@@ -638,6 +655,20 @@ impl ReplayRecorder {
                 self.decide(false);
             }
             RoomEvent::Desync(notice) => self.push(&ReplayRecord::Desync(notice.clone())),
+            &RoomEvent::TickAgreed { tick, hash } if self.follow => {
+                let bodies = self
+                    .pending
+                    .iter()
+                    .position(|p| p.tick == tick)
+                    .and_then(|i| self.pending.remove(i))
+                    .and_then(|p| p.bodies.into_iter().find(|(h, _)| *h == hash));
+                self.hashed += 1;
+                self.push(&ReplayRecord::Hash { tick, hash });
+                if let Some((_, hashes)) = bodies {
+                    self.push(&ReplayRecord::BodyHashes { tick, hashes });
+                }
+            }
+            RoomEvent::TickAgreed { .. } => {}
             RoomEvent::DesyncLocated(report) => {
                 self.push(&ReplayRecord::Located(report.clone()));
             }
@@ -690,6 +721,13 @@ impl ReplayRecorder {
     /// Decides every pending tick that is complete or too old (or all of
     /// them, with `all`), writing its hash record.
     fn decide(&mut self, all: bool) {
+        if self.follow {
+            // The room decides; what it has not agreed on long after the
+            // tick closed, it never will.
+            let horizon = self.next_tick.saturating_sub(2 * self.decide_after);
+            self.pending.retain(|p| !all && p.tick >= horizon);
+            return;
+        }
         let present = self.present;
         let horizon = self.next_tick.saturating_sub(self.decide_after);
         let mut records = Vec::new();
@@ -821,6 +859,27 @@ mod tests {
         assert_eq!(replay.players.len(), 3);
         assert_eq!(replay.end, Some((1, "done".into())));
         assert!(!replay.truncated);
+    }
+
+    /// Following the room, a majority of reporters records nothing: only
+    /// the room's agreed hashes are written, with the matching body hashes.
+    #[test]
+    fn following_the_room_records_only_its_agreed_hashes() {
+        let mut r = three_players();
+        r.follow_room();
+        r.on_event(&closed(0, &[0, 1, 2]));
+        r.on_event(&closed(1, &[0, 1, 2]));
+        for t in 0..2 {
+            r.on_hash_with_bodies(Slot(0), t, 0xbad, Some(&[1]));
+            r.on_hash_with_bodies(Slot(1), t, 0xbad, Some(&[1]));
+            r.on_hash_with_bodies(Slot(2), t, 7, Some(&[2]));
+        }
+        assert_eq!(r.hashed_ticks(), 0, "no majority of reporters is recorded");
+        r.on_event(&RoomEvent::TickAgreed { tick: 1, hash: 7 });
+        r.finish("done");
+        let replay = Replay::parse(&r.take_bytes()).unwrap();
+        assert_eq!(replay.hashes, vec![None, Some(7)]);
+        assert_eq!(r.hashed_ticks(), 1);
     }
 
     #[test]

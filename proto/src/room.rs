@@ -20,7 +20,7 @@ mod player;
 use std::collections::VecDeque;
 use std::time::Duration;
 
-pub use config::{ConfigError, RoomConfig};
+pub use config::{ConfigError, RoomConfig, Voting};
 pub use errors::{AlreadyStarted, JoinError, Rejection};
 pub use events::{LeaveReason, PlayerId, RoomEvent, RoomStats, Transmit};
 pub use player::PlayerStats;
@@ -125,6 +125,7 @@ impl Room {
         if config.verify {
             arbiter.set_verifying();
         }
+        arbiter.set_voting(config.voting);
         Ok(Self {
             locator: Locator::new(config.locate_timeout),
             last_agreed: None,
@@ -730,6 +731,7 @@ impl Room {
         self.events.push_back(RoomEvent::TickClosed(bundle));
         self.next_tick += 1;
         self.stats.ticks_closed += 1;
+        self.arbiter.voters = self.token_holders();
         if let Some((t, c)) = self.arbiter.open(tick, now, expected) {
             self.apply_comparison(now, t, c);
         }
@@ -777,7 +779,16 @@ impl Room {
         }
     }
 
+    /// The players seated with a join token (the voters under
+    /// [`Voting::TokenHolders`]).
+    fn token_holders(&self) -> SlotMask {
+        (0..self.players.len())
+            .filter(|&i| self.players[i].as_ref().is_some_and(|p| p.ticket.is_some()))
+            .fold(0, |m, i| m | bit(Slot(i as u8)))
+    }
+
     fn run_arbiter(&mut self, now: Duration) {
+        self.arbiter.voters = self.token_holders();
         let connected = self.present_mask();
         for (tick, c) in self.arbiter.finalize(now, connected) {
             self.apply_comparison(now, tick, c);
@@ -790,6 +801,9 @@ impl Room {
             self.stats.mismatched_ticks += 1;
         } else if let Some(h) = c.agreed {
             self.last_agreed = Some((tick, h));
+        }
+        if let Some(hash) = c.agreed {
+            self.events.push_back(RoomEvent::TickAgreed { tick, hash });
         }
         // Streaks: hashes missing on consecutive compared ticks, and ticks
         // judged wrong in a row among the ticks the player reported.
@@ -820,8 +834,13 @@ impl Room {
                 );
                 drop.push((id, CloseReason::NoHashReports, detail));
             } else if max_wrong > 0 && p.wrong_streak >= max_wrong {
+                let judge = if self.config.verify {
+                    "the server's own hash"
+                } else {
+                    "the voters' majority"
+                };
                 let detail = format!(
-                    "state hash outside the majority on {} reported ticks in a row (up to tick {tick})",
+                    "state hash differs from {judge} on {} reported ticks in a row (up to tick {tick})",
                     p.wrong_streak
                 );
                 drop.push((id, CloseReason::Diverged, detail));

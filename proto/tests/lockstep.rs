@@ -170,7 +170,10 @@ fn a_round_trip_far_beyond_the_redundancy_still_delivers_everything() {
 
 #[test]
 fn a_wrong_hash_at_tick_300_from_one_of_four_players_is_named_at_tick_300() {
-    let mut sim = Sim::new(config(), clean(4, 15), 3);
+    // Trusted players who all vote (the default drops nobody by vote).
+    let mut c = config();
+    c.voting = lockstep_proto::Voting::Everyone;
+    let mut sim = Sim::new(c, clean(4, 15), 3);
     sim.clients[2].corrupt_at = Some(300);
     // It reports a wrong hash on every tick from 300 on, so the room drops
     // it after `max_wrong_ticks` (180) of them, at tick 480.
@@ -240,7 +243,10 @@ fn a_wrong_hash_at_tick_300_from_one_of_four_players_is_named_at_tick_300() {
 /// comes after the checked snapshot.
 #[test]
 fn a_desync_is_located_to_the_body_and_field_and_the_last_agreed_snapshot_fetched() {
-    let mut sim = Sim::new(config(), clean(4, 15), 3);
+    // Voting players, so the reference is the majority's.
+    let mut c = config();
+    c.voting = lockstep_proto::Voting::Everyone;
+    let mut sim = Sim::new(c, clean(4, 15), 3);
     sim.clients[2].corrupt_at = Some(300);
     sim.run_until_delivered(340, Duration::from_secs(15));
     let notice_at = sim

@@ -565,7 +565,9 @@ fn closes_to(transmits: &[Transmit], to: PlayerId) -> Vec<CloseReason> {
 /// honest players play on.
 #[test]
 fn a_liar_alternating_with_silence_gets_one_notice_and_is_dropped() {
-    let (mut room, ids) = room(4);
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.voting = lockstep_proto::Voting::Everyone;
+    let (mut room, ids) = room_with(4, c);
     let (transmits, events) = play_reporting(&mut room, &ids, 500, |i, tick| match i {
         3 if tick % 2 == 1 => None,
         3 => Some(9),
@@ -581,6 +583,88 @@ fn a_liar_alternating_with_silence_gets_one_notice_and_is_dropped() {
     assert_eq!(closes_to(&transmits, ids[3]), vec![CloseReason::Diverged]);
     assert_eq!(room.player_count(), 3);
     assert_eq!(room.config().max_wrong_ticks, 180);
+}
+
+fn agreed(events: &[RoomEvent]) -> Vec<(u64, u64)> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            RoomEvent::TickAgreed { tick, hash } => Some((*tick, *hash)),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The default room (no verifying, no voting) against four sybils that
+/// report one made-up hash beside three honest players: nobody is dropped
+/// for its hash, every mismatch is undecided, and no tick they lie on has
+/// an agreed hash (so a replay records none of the made-up ones); once
+/// they report the honest hash (from tick 300), ticks are agreed again.
+#[test]
+fn without_verifying_or_voting_sybils_drop_nobody_and_agree_on_nothing() {
+    let (mut room, ids) = room(7);
+    assert_eq!(room.config().voting, lockstep_proto::Voting::Off);
+    let (_, events) = play_reporting(&mut room, &ids, 400, |i, tick| {
+        Some(if i < 4 && tick < 300 { 0xbad } else { 7 })
+    });
+    assert!(left(&events).is_empty(), "{:?}", left(&events));
+    let agreed = agreed(&events);
+    assert!(
+        agreed.iter().all(|&(t, h)| t >= 300 && h == 7),
+        "{agreed:?}"
+    );
+    assert!(agreed.len() >= 50, "{}", agreed.len());
+    let verdicts: Vec<_> = events
+        .iter()
+        .filter_map(|e| match e {
+            RoomEvent::Desync(n) => Some(n.verdict.clone()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(verdicts, vec![lockstep_proto::Verdict::Undecided]);
+}
+
+/// Voting among token holders: four sybils without tokens report one
+/// made-up hash beside three players seated with tokens. Only the token
+/// holders vote, so the sybils are the ones judged wrong and dropped as
+/// diverged, and every agreed hash is the honest one.
+#[test]
+fn only_token_holders_vote_and_tokenless_sybils_are_dropped() {
+    use lockstep_proto::token::{JoinClaims, Ticket};
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.voting = lockstep_proto::Voting::TokenHolders;
+    let mut room = Room::new(c).unwrap();
+    let mut ids = Vec::new();
+    for i in 0..7u64 {
+        let ticket = (i >= 4).then(|| Ticket {
+            claims: JoinClaims {
+                room: "arena".into(),
+                seat: None,
+                player: format!("p{i}"),
+                expires: u64::MAX,
+            },
+            key: i,
+        });
+        let join = join_msg(&format!("p{i}"));
+        ids.push(
+            room.join_with_ticket(Duration::ZERO, &join, ticket.as_ref())
+                .unwrap(),
+        );
+    }
+    room.start(Duration::ZERO).unwrap();
+    drain(&mut room);
+    let (transmits, events) = play_reporting(&mut room, &ids, 400, |i, _| {
+        Some(if i < 4 { 0xbad } else { 7 })
+    });
+    let gone = left(&events);
+    assert_eq!(gone.len(), 4, "{gone:?}");
+    for (n, g) in gone.iter().enumerate() {
+        assert_eq!((g.0, g.1), (ids[n], LeaveReason::Diverged));
+        assert_eq!(closes_to(&transmits, ids[n]), vec![CloseReason::Diverged]);
+    }
+    let agreed = agreed(&events);
+    assert!(agreed.len() >= 200, "{}", agreed.len());
+    assert!(agreed.iter().all(|&(_, h)| h == 7));
 }
 
 /// Hash reports are not optional: a player that sends inputs but never a

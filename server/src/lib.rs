@@ -158,8 +158,18 @@ pub struct ServerConfig {
     /// hash report against the server's own hash (`--verify`): a majority
     /// of liars cannot outvote honest players, and the replay records only
     /// verified hashes. `lockstep_client::game::RulesVerifier` makes one
-    /// for any game's rules.
+    /// for any game's rules. The `lockstep-server` program always sets it
+    /// (unless `--no-verify`); a library caller without the game's rules
+    /// leaves it `None`, and then `vote` decides.
     pub verifier: Option<Arc<dyn lockstep_proto::verify::VerifierFactory>>,
+    /// Without a verifier: let the players seated with a join token vote
+    /// (`--vote`, needs `token_secret`): a player whose hash stays outside
+    /// the token holders' strict majority is dropped as diverged. Default
+    /// false: an unverifying server drops nobody for its hash, announces
+    /// mismatches as undecided, and records in the replay only hashes every
+    /// reporter agreed on, so connections that do not simulate cannot take
+    /// a room over.
+    pub vote: bool,
     /// Address of the Prometheus `/metrics`, `/healthz` and `/readyz`
     /// listener (TCP), if any (`--metrics`).
     pub metrics: Option<SocketAddr>,
@@ -214,6 +224,7 @@ impl ServerConfig {
             token_secret: None,
             require_tokens: false,
             verifier: None,
+            vote: false,
             metrics: None,
             view: None,
             exit_after_match: false,
@@ -623,6 +634,11 @@ pub async fn run(
         None if config.require_tokens => {
             return Err(ServerError::Config(
                 "tokens are required but no token secret is set".into(),
+            ));
+        }
+        None if config.vote && config.verifier.is_none() => {
+            return Err(ServerError::Config(
+                "voting counts only token holders' hashes, and no token secret is set".into(),
             ));
         }
         _ => {}

@@ -23,6 +23,24 @@ use lockstep_server::ServerEvent;
 use lockstep_tests::harness::{TestServer, assert_same_hashes, bots_ok};
 use lockstep_tests::link::{LinkConditioner, LinkConfig};
 
+/// The configuration the `lockstep-server` program runs with given only
+/// `--scene` (and `extra` flags), on the harness's address, certificate,
+/// replay directory and events.
+fn program_config(c: &mut lockstep_server::ServerConfig, extra: &[&str]) {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/demo.toml");
+    let args = ["lockstep-server", "--scene", scene]
+        .into_iter()
+        .chain(extra.iter().copied());
+    let mut p = lockstep::App::demo()
+        .server_config(args)
+        .expect("the program's flags");
+    p.listen = c.listen;
+    p.tls = c.tls.clone();
+    p.replay_dir = c.replay_dir.clone();
+    p.events = c.events.take();
+    *c = p;
+}
+
 /// The directory of a test's server (certificate, replays).
 fn tmp(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("e2e-{name}"))
@@ -98,6 +116,7 @@ async fn four_bots_agree_on_every_tick_of_1200_and_the_replay_reverifies() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300() {
     let mut server = TestServer::start(tmp("diverge"), |c| {
+        program_config(c, &[]);
         c.room.start_players = 4;
         c.room.match_ticks = Some(420);
     })
@@ -141,14 +160,11 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
     let notice = &ended.desyncs[0];
     assert_eq!(notice.tick, 300);
     match &notice.verdict {
-        Verdict::Majority {
-            majority_hash,
-            wrong,
-        } => {
+        Verdict::Verified { hash, wrong } => {
             assert_eq!(wrong, &vec![Slot(2)]);
-            assert_eq!(*majority_hash, good[0].hashes[300]);
+            assert_eq!(*hash, good[0].hashes[300]);
         }
-        other => panic!("expected a majority verdict, got {other:?}"),
+        other => panic!("expected a verified verdict, got {other:?}"),
     }
     assert_eq!(ended.mismatched_ticks, 120, "ticks 300..420 all mismatch");
     // Every player was told, with their own hash alongside.
@@ -157,7 +173,7 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
         assert_eq!(n.len(), 1);
         assert_eq!(n[0].tick, 300);
     }
-    // The replay keeps the majority's hashes: it verifies.
+    // The replay keeps the server's own hashes: it verifies.
     let check =
         verify_replay_file(ended.replay.as_ref().expect("replay"), &Demo).expect("replay verifies");
     assert_eq!(
@@ -617,13 +633,14 @@ async fn raw_reporter(
 /// Two attacks on the hash vote, each by a raw client beside three honest
 /// bots: a liar that reports a fake hash on even ticks and nothing on odd
 /// ones (it used to raise a desync notice every 2 ticks), and a player that
-/// never reports (it used to be never judged). The liar gets one notice and
-/// is dropped as diverged; the silent reporter is dropped for its missing
-/// reports; the bots play on with 0 desyncs of their own and the replay
-/// re-verifies.
+/// never reports (it used to be never judged). Against the default
+/// (verifying) server, the liar gets one notice and is dropped as
+/// diverged; the silent reporter is dropped for its missing reports; the
+/// bots play on with 0 desyncs of their own and the replay re-verifies.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_liar_alternating_with_silence_and_a_player_that_never_reports_are_dropped() {
     let mut server = TestServer::start(tmp("vote"), |c| {
+        program_config(c, &[]);
         c.room.start_players = 5;
         c.room.match_ticks = Some(540);
     })
@@ -649,8 +666,8 @@ async fn a_liar_alternating_with_silence_and_a_player_that_never_reports_are_dro
     // One notice for the liar's whole divergence, then nothing.
     assert_eq!(ended.desyncs.len(), 1, "{:?}", ended.desyncs);
     match &ended.desyncs[0].verdict {
-        Verdict::Majority { wrong, .. } => assert_eq!(wrong.len(), 1),
-        other => panic!("expected a majority verdict, got {other:?}"),
+        Verdict::Verified { wrong, .. } => assert_eq!(wrong.len(), 1),
+        other => panic!("expected a verified verdict, got {other:?}"),
     }
     assert_same_hashes(&bots, 540);
     for b in &bots {
@@ -955,19 +972,20 @@ async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connecti
     assert!(refusals >= 5, "{:?}", report.refused);
 }
 
-/// Sybil voters against a verifying server: four raw connections report the
-/// same fake hash on every tick beside three honest bots. By majority they
-/// would win; with `verify` the server re-simulates every tick, so the four
-/// are the ones judged wrong and dropped as diverged, the bots are never
-/// judged wrong, and the replay holds only the server's verified hashes.
+/// Sybil voters against the default `lockstep-server` (no flag but
+/// `--scene`): four raw connections report the same fake hash on every tick
+/// beside three honest bots. By majority they would win; the program
+/// verifies by default (it re-simulates every tick), so the four are the
+/// ones judged wrong and dropped as diverged, the bots are never judged
+/// wrong, and the replay holds only the server's verified hashes.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn sybil_voters_cannot_outvote_a_verifying_server() {
+async fn sybil_voters_cannot_take_over_the_default_lockstep_server() {
     let mut server = TestServer::start(tmp("sybil"), |c| {
+        program_config(c, &[]);
+        assert!(c.verifier.is_some(), "the program verifies by default");
+        assert!(!c.vote);
         c.room.start_players = 7;
         c.room.match_ticks = Some(300);
-        c.verifier = Some(std::sync::Arc::new(lockstep_client::game::RulesVerifier {
-            game: std::sync::Arc::new(Demo),
-        }));
     })
     .await;
     let (addr, cert) = (server.addr, server.cert.clone());
@@ -1021,6 +1039,147 @@ async fn sybil_voters_cannot_outvote_a_verifying_server() {
         spent.as_secs_f64() * 1e6 / ticks as f64,
         spent.as_secs_f64() / ticks as f64 * 60.0 * 100.0
     );
+}
+
+/// The same four sybils against an open server that does not verify
+/// (`--no-verify`): it cannot tell who is right, so it drops nobody for its
+/// hash: the bots play the whole match in agreement, the one notice is
+/// undecided, and the replay records no made-up hash (only hashes every
+/// reporter held), so it re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sybils_against_an_unverifying_server_drop_nobody_and_reach_no_replay() {
+    let mut server = TestServer::start(tmp("sybil-open"), |c| {
+        program_config(c, &["--no-verify"]);
+        assert!(c.verifier.is_none() && !c.vote);
+        c.room.start_players = 7;
+        c.room.match_ticks = Some(240);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let mut sybils = Vec::new();
+    for name in ["sybil-0", "sybil-1", "sybil-2", "sybil-3"] {
+        sybils.push(tokio::spawn(raw_reporter(
+            addr,
+            cert.clone(),
+            "sybil-open",
+            name,
+            |_| Some(0xbad),
+        )));
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let options = BotOptions::new(addr, &cert, "sybil-open", 3);
+    let bots = bots_ok(run_bots(&options, std::future::pending()).await);
+    let ended = server
+        .wait_for(Duration::from_secs(15), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    assert_same_hashes(&bots, 240);
+    for b in &bots {
+        let close = b.close.as_ref().expect("closed by the server");
+        assert_eq!(close.reason, CloseReason::RoomClosed);
+    }
+    // Nobody left before the end: not the bots, not the sybils.
+    assert!(
+        ended.players.iter().all(|p| p.left.is_none()),
+        "{:?}",
+        ended.players
+    );
+    for s in sybils {
+        let (reason, _) = s.await.unwrap().expect("a sybil is closed at the end");
+        assert_eq!(reason, CloseReason::RoomClosed);
+    }
+    assert_eq!(ended.desyncs.len(), 1, "{:?}", ended.desyncs);
+    assert_eq!(ended.desyncs[0].verdict, Verdict::Undecided);
+    let path = ended.replay.as_ref().expect("replay");
+    let replay = Replay::parse(&std::fs::read(path).unwrap()).unwrap();
+    assert!(
+        replay.hashes.iter().all(|h| *h != Some(0xbad)),
+        "a made-up hash reached the replay"
+    );
+    let check = verify_replay_file(path, &Demo).expect("replay verifies");
+    assert_eq!(check.ticks, 240);
+}
+
+/// Voting made explicit (`--no-verify --vote` with a token secret): only
+/// players seated with a join token vote. Three bots hold tokens; four
+/// sybils without one report a made-up hash on every tick. The sybils are
+/// judged by the token holders' majority and dropped as diverged; the bots
+/// agree on every tick and the replay (the voters' hashes) re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_voting_only_token_holders_vote_and_tokenless_sybils_are_dropped() {
+    use lockstep_server::issue_token;
+    let dir = tmp("sybil-vote");
+    let _ = std::fs::create_dir_all(&dir);
+    let secret_file = dir.with_extension("secret");
+    let secret = b"vote test secret, 16+ bytes".to_vec();
+    std::fs::write(&secret_file, &secret).unwrap();
+    let file = secret_file.display().to_string();
+    let mut server = TestServer::start(dir, |c| {
+        program_config(c, &["--no-verify", "--vote", "--token-secret-file", &file]);
+        assert!(c.verifier.is_none() && c.vote);
+        c.room.start_players = 7;
+        c.room.match_ticks = Some(300);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let mut sybils = Vec::new();
+    for name in ["sybil-0", "sybil-1", "sybil-2", "sybil-3"] {
+        sybils.push(tokio::spawn(raw_reporter(
+            addr,
+            cert.clone(),
+            "sybil-vote",
+            name,
+            |_| Some(0xbad),
+        )));
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let now = std::time::SystemTime::now();
+    let mut options = BotOptions::new(addr, &cert, "sybil-vote", 3);
+    options.tokens = (0..3)
+        .map(|i| {
+            issue_token(
+                &secret,
+                "sybil-vote",
+                None,
+                &format!("bot-{i}"),
+                Duration::from_secs(600),
+                now,
+            )
+            .unwrap()
+        })
+        .collect();
+    let bots = bots_ok(run_bots(&options, std::future::pending()).await);
+    let ended = server
+        .wait_for(Duration::from_secs(15), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    for s in sybils {
+        let (reason, detail) = s.await.unwrap().expect("a sybil is closed");
+        assert_eq!(reason, CloseReason::Diverged, "{detail}");
+        assert!(detail.contains("the voters' majority"), "{detail}");
+    }
+    assert_same_hashes(&bots, 300);
+    match &ended.desyncs[0].verdict {
+        Verdict::Majority {
+            majority_hash,
+            wrong,
+        } => {
+            assert_eq!(
+                *majority_hash,
+                bots[0].hashes[ended.desyncs[0].tick as usize]
+            );
+            assert_eq!(wrong, &vec![Slot(0), Slot(1), Slot(2), Slot(3)]);
+        }
+        other => panic!("expected a majority verdict, got {other:?}"),
+    }
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked), (300, 300));
 }
 
 /// Late join: two bots play; 1.5 s in, a third joins the running match. It

@@ -3,8 +3,9 @@
 //! Each closed tick opens an entry listing the players expected to report a
 //! hash for it. The entry is compared as soon as every expected player that
 //! is still connected has reported, or when the hash timeout passes, or when
-//! the ring needs its slot back. A mismatch yields a [`DesyncNotice`] with a
-//! strict-majority verdict; a divergence that persists tick after tick is
+//! the ring needs its slot back. A mismatch yields a [`DesyncNotice`] whose
+//! verdict is the arbiter's own (verified) hash, the voters' strict majority
+//! ([`Voting`]), or undecided; a divergence that persists tick after tick is
 //! reported once, on the tick it started.
 
 use std::time::Duration;
@@ -12,6 +13,8 @@ use std::time::Duration;
 use crate::limits::MAX_PLAYERS;
 use crate::message::{DesyncNotice, PlayerHash, Slot, Verdict};
 use crate::ring::TickRing;
+
+use super::config::Voting;
 
 /// Bit set of slots; `MAX_PLAYERS` is at most 32.
 pub(crate) type SlotMask = u32;
@@ -42,14 +45,16 @@ pub(crate) struct Comparison {
     pub reported: SlotMask,
     /// Whether the reported hashes differed.
     pub mismatch: bool,
-    /// Reporters outside a strict majority of the reported hashes (empty
-    /// when they agree or no hash has a strict majority), on every
-    /// mismatched tick, announced or not.
+    /// Reporters of another hash than the right one (the verified hash, or
+    /// the voters' strict majority; empty when they agree, when no hash is
+    /// right, and always under [`Voting::Off`]), on every mismatched tick,
+    /// announced or not.
     pub wrong: SlotMask,
     /// The notice to raise; `None` when the hashes agree, or when this tick
     /// continues a divergence already reported.
     pub notice: Option<DesyncNotice>,
-    /// The hash a strict majority of the reporters hold, if any.
+    /// The right hash, if any: the verified one, the voters' strict
+    /// majority, or under [`Voting::Off`] the hash every reporter holds.
     pub agreed: Option<u64>,
 }
 
@@ -81,6 +86,11 @@ pub(crate) struct Arbiter {
     /// Whether every tick waits for a verified hash, which is then the
     /// verdict (see [`Arbiter::verify`]).
     verifying: bool,
+    /// Without a verified hash: who decides the right hash.
+    voting: Voting,
+    /// The players whose hashes count as votes under
+    /// [`Voting::TokenHolders`] (kept up to date by the room).
+    pub(crate) voters: SlotMask,
 }
 
 impl Arbiter {
@@ -92,7 +102,14 @@ impl Arbiter {
             timeout,
             last_groups: None,
             verifying: false,
+            voting: Voting::Off,
+            voters: 0,
         }
+    }
+
+    /// Who decides the right hash of a tick without a verified hash.
+    pub(crate) fn set_voting(&mut self, voting: Voting) {
+        self.voting = voting;
     }
 
     /// From now on every tick is judged against the hash given to
@@ -235,11 +252,30 @@ impl Arbiter {
                 None => groups.push((h, 1 << s)),
             }
         }
-        // A verifying arbiter judges against its own hash: everyone who
-        // reported another one is wrong, however many they are.
-        let verified_right = verified.map(|v| groups.iter().find(|g| g.0 == v).map_or(0, |g| g.1));
-        let all_agree = match verified_right {
-            Some(right) => reported & !right == 0,
+        // The right hash and its holders. A verifying arbiter judges
+        // against its own hash: everyone who reported another one is wrong,
+        // however many they are. Otherwise the voters' strict majority
+        // decides, or (no voting) only a unanimous hash is agreed and
+        // nobody is judged.
+        let holders = |h: u64| groups.iter().find(|g| g.0 == h).map_or(0, |g| g.1);
+        let right: Option<(u64, SlotMask)> = match (verified, self.voting) {
+            (Some(v), _) => Some((v, holders(v))),
+            (None, Voting::Off) => (groups.len() == 1).then(|| groups[0]),
+            (None, voting) => {
+                let voters = if voting == Voting::Everyone {
+                    reported
+                } else {
+                    reported & self.voters
+                };
+                let n = voters.count_ones();
+                groups
+                    .iter()
+                    .find(|(_, m)| (m & voters).count_ones() * 2 > n)
+                    .copied()
+            }
+        };
+        let all_agree = match verified {
+            Some(_) => reported & !right.map_or(0, |r| r.1) == 0,
             None => groups.len() <= 1,
         };
         if all_agree {
@@ -260,14 +296,12 @@ impl Arbiter {
                 mismatch: false,
                 wrong: 0,
                 notice: None,
-                agreed: verified.or(groups.first().map(|g| g.0)),
+                agreed: right.map(|r| r.0),
             };
         }
-        let reporters = reported.count_ones();
-        let majority = groups.iter().find(|(_, m)| m.count_ones() * 2 > reporters);
-        let wrong = match verified_right {
-            Some(right) => reported & !right,
-            None => majority.map_or(0, |&(_, m)| reported & !m),
+        let wrong = match (verified, self.voting) {
+            (None, Voting::Off) => 0,
+            _ => right.map_or(0, |(_, m)| reported & !m),
         };
         let masks: Vec<SlotMask> = groups.iter().map(|g| g.1).collect();
         let same_divergence = self
@@ -282,17 +316,17 @@ impl Arbiter {
                 mismatch: true,
                 wrong,
                 notice: None,
-                agreed: verified.or(majority.map(|g| g.0)),
+                agreed: right.map(|r| r.0),
             };
         }
-        let verdict = match (verified, majority) {
+        let verdict = match (verified, right) {
             (Some(hash), _) => Verdict::Verified {
                 hash,
                 wrong: slots(wrong),
             },
-            (None, Some(&(majority_hash, m))) => Verdict::Majority {
+            (None, Some((majority_hash, _))) => Verdict::Majority {
                 majority_hash,
-                wrong: slots(reported & !m),
+                wrong: slots(wrong),
             },
             (None, None) => Verdict::Undecided,
         };
@@ -313,7 +347,7 @@ impl Arbiter {
             mismatch: true,
             wrong,
             notice: Some(notice),
-            agreed: verified.or(majority.map(|g| g.0)),
+            agreed: right.map(|r| r.0),
         }
     }
 }
@@ -349,6 +383,7 @@ mod tests {
     #[test]
     fn divergence_is_announced_once_and_again_after_recovery() {
         let mut a = Arbiter::new(16, T);
+        a.set_voting(Voting::Everyone);
         let now = Duration::ZERO;
         let mut notices = Vec::new();
         for tick in 0..10u64 {
@@ -377,6 +412,7 @@ mod tests {
     #[test]
     fn a_liar_that_alternates_with_silence_is_announced_once() {
         let mut a = Arbiter::new(16, T);
+        a.set_voting(Voting::Everyone);
         let mut notices = 0;
         let mut judged_wrong = 0;
         for tick in 0..40u64 {

@@ -48,10 +48,13 @@ pub struct RoomConfig {
     /// player that talks but never reports goes after 7 s, and one that
     /// went silent altogether is dropped as timed out first.
     pub max_missing_reports: u32,
-    /// A player whose state hash is outside a strict majority on this many
-    /// of its reported ticks in a row is dropped with
+    /// A player whose state hash is judged wrong (against the caller's own
+    /// hash with [`RoomConfig::verify`], or outside the voters' strict
+    /// majority under [`Voting::TokenHolders`] or [`Voting::Everyone`]) on
+    /// this many of its reported ticks in a row is dropped with
     /// [`CloseReason::Diverged`](crate::CloseReason): it diverged for good,
     /// or it keeps lying (ticks it stays silent on do not break the run).
+    /// Under [`Voting::Off`] without `verify` nobody is judged wrong.
     /// 0: never. Default 180 (3 s at 60 Hz).
     pub max_wrong_ticks: u32,
     /// Interval between pings to each player (RTT and liveness). Default 1 s.
@@ -66,6 +69,9 @@ pub struct RoomConfig {
     /// judges every report against that hash, not by majority, so a
     /// majority of liars cannot outvote honest players. Default false.
     pub verify: bool,
+    /// Without `verify`: whose hashes decide which hash is right (see
+    /// [`Voting`]). Default [`Voting::Off`]: nobody is judged wrong.
+    pub voting: Voting,
     /// Whether players may join a running match (late join). They start
     /// from a snapshot of the last agreed tick, fetched from a player of
     /// the majority and checked by the caller. Default false.
@@ -85,6 +91,32 @@ pub struct RoomConfig {
     /// The match's seed, sent in the welcome: every peer's rules read the
     /// same value (a deterministic random source for the game). Default 0.
     pub seed: u64,
+}
+
+/// Who decides a tick's right hash in a room that does not verify
+/// ([`RoomConfig::verify`] false). A verifying room ignores it: its own
+/// hash decides.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Voting {
+    /// Nobody: the room cannot tell who is right, so it drops nobody for
+    /// its hash. Mismatches are announced with
+    /// [`Verdict::Undecided`](crate::Verdict), and a tick's hash is agreed
+    /// (for the replay and for joins to the running match) only when every
+    /// reporter holds it. The default: connections that do not simulate
+    /// cannot outvote, drop or impersonate honest players.
+    #[default]
+    Off,
+    /// The players seated with a join token
+    /// ([`Room::join_with_ticket`](crate::Room::join_with_ticket)) vote:
+    /// the hash a strict majority of the token holders who reported hold
+    /// is right, and every reporter (with a token or not) that reported
+    /// another one is judged wrong. A tick no token holder reported has no
+    /// agreed hash.
+    TokenHolders,
+    /// Every player votes, as [`Voting::TokenHolders`] with everyone
+    /// holding a token: only for clients the operator trusts (a stranger
+    /// can open as many connections as it likes).
+    Everyone,
 }
 
 impl RoomConfig {
@@ -108,6 +140,7 @@ impl RoomConfig {
             rules: None,
             seed: 0,
             verify: false,
+            voting: Voting::Off,
             late_join: false,
             rejoin_grace: Duration::from_secs(30),
             scene,

@@ -90,6 +90,17 @@ pub enum RoomEvent {
     },
     /// Players' hashes differ; the same notice was queued to every player.
     Desync(DesyncNotice),
+    /// A compared tick has a right hash the room stands behind: the
+    /// caller's own ([`RoomConfig::verify`](super::RoomConfig::verify)),
+    /// the voters' strict majority, or, without voting, the hash every
+    /// reporter held. A tick without one gets no event. What a replay
+    /// records as the tick's hash ([`ReplayRecorder::follow_room`](crate::ReplayRecorder::follow_room)).
+    TickAgreed {
+        /// The tick.
+        tick: u64,
+        /// Its right hash.
+        hash: u64,
+    },
     /// The agreed snapshot for a player joining the running match arrived:
     /// check it restores and hashes to `agreed_hash`, then call
     /// [`Room::admit`](super::Room::admit) (or

@@ -71,6 +71,11 @@ fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig
     c.max_players = s.max_players;
     c.silence_timeout = s.silence_timeout;
     c.verify = config.verifier.is_some();
+    c.voting = if config.vote {
+        lockstep_proto::Voting::TokenHolders
+    } else {
+        lockstep_proto::Voting::Off
+    };
     c.late_join = s.late_join;
     c.rejoin_grace = s.rejoin_grace;
     c.rules = Some(config.rules.clone());
@@ -313,6 +318,7 @@ impl RoomTask {
                 started: false,
             })
         });
+        let mut replay = replay;
         let verifier = shared.config.verifier.as_ref().and_then(|f| {
             let c = room.config();
             match f.new_verifier(&c.scene, c.scene_hash, c.seed) {
@@ -325,12 +331,22 @@ impl RoomTask {
                 }
             }
         });
+        // A verifying room records its own hashes (`on_verified`); any
+        // other records the hashes its room agreed on, never a majority of
+        // strangers.
+        if verifier.is_none()
+            && let Some(r) = replay.as_mut()
+        {
+            r.recorder.follow_room();
+        }
         crate::log!(
             "room {name}: opened{}",
             if verifier.is_some() {
                 " (verifying: the server re-simulates every tick)"
+            } else if shared.config.vote {
+                " (not verifying: the token holders' majority judges hashes)"
             } else {
-                ""
+                " (not verifying: nobody is judged by hash, mismatches are only announced)"
             }
         );
         let feed = shared.spectate.as_ref().map(|v| {
@@ -996,7 +1012,7 @@ impl RoomTask {
                     }
                 }
             }
-            RoomEvent::LateInput { .. } => {}
+            RoomEvent::LateInput { .. } | RoomEvent::TickAgreed { .. } => {}
             RoomEvent::Desync(notice) => {
                 let hashes: Vec<String> = notice
                     .hashes
