@@ -674,7 +674,8 @@ impl ReplayRecorder {
             }
             RoomEvent::LateInput { .. }
             | RoomEvent::DesyncSnapshot { .. }
-            | RoomEvent::JoinSnapshot { .. } => {}
+            | RoomEvent::JoinSnapshot { .. }
+            | RoomEvent::JoinFromOwnState { .. } => {}
         }
     }
 

@@ -98,6 +98,11 @@ pub struct Room {
     reserved: Vec<Option<(u64, Duration)>>,
     /// The player joining the running match, while its snapshot comes.
     joining: Option<JoinFetch>,
+    /// The caller gives joiners its own verified state
+    /// ([`Room::offer_own_snapshots`]).
+    own_snapshots: bool,
+    /// The newest tick the caller verified, with its hash.
+    last_verified: Option<(u64, u64)>,
 }
 
 /// The snapshot a player joining a running match waits for.
@@ -106,7 +111,11 @@ struct JoinFetch {
     id: PlayerId,
     tick: u64,
     hash: u64,
-    source: Slot,
+    /// Who gives the snapshot: a player, or (`None`) the caller's own
+    /// re-simulation ([`Room::offer_own_snapshots`]).
+    source: Option<Slot>,
+    /// The players asked so far.
+    tried: SlotMask,
     total: Option<u32>,
     bytes: Vec<u8>,
     deadline: Duration,
@@ -131,6 +140,8 @@ impl Room {
             last_agreed: None,
             reserved: vec![None; seats],
             joining: None,
+            own_snapshots: false,
+            last_verified: None,
             history: History::new(config.history_ticks as usize),
             arbiter,
             players: (0..seats).map(|_| None).collect(),
@@ -150,8 +161,20 @@ impl Room {
     /// soon as the tick closes ([`RoomEvent::TickClosed`]); a tick still
     /// without it when its hash timeout passes is judged by majority.
     pub fn verify_tick(&mut self, now: Duration, tick: u64, hash: u64) {
+        if self.last_verified.is_none_or(|(t, _)| t < tick) {
+            self.last_verified = Some((tick, hash));
+        }
         self.arbiter.verify(tick, hash);
         self.run_arbiter(now);
+    }
+
+    /// The caller re-simulates every tick ([`RoomConfig::verify`]) and can
+    /// give the state after the newest verified tick as a snapshot when it
+    /// handles [`RoomEvent::JoinFromOwnState`]: players joining the running
+    /// match then start from the caller's own state, so no player (silent,
+    /// sparse or lying) is asked for it or can hold a join back.
+    pub fn offer_own_snapshots(&mut self) {
+        self.own_snapshots = true;
     }
 
     /// Seats a player in the lowest free slot and queues their
@@ -205,16 +228,18 @@ impl Room {
             if self.joining.is_some() {
                 return Err(JoinError::JoinBusy);
             }
-            let (tick, hash) = self.last_agreed.ok_or(JoinError::NoAgreedState)?;
-            // A player in agreement lately: reported, and not wrong.
-            let source = (0..self.players.len())
-                .find(|&i| {
-                    self.players[i]
-                        .as_ref()
-                        .is_some_and(|p| p.admitted && p.missing_streak == 0 && p.wrong_streak == 0)
-                })
-                .ok_or(JoinError::NoAgreedState)?;
-            Some((tick, hash, Slot(source as u8)))
+            let own = self.last_verified.filter(|&(t, _)| {
+                self.own_snapshots && self.config.verify && t + 1 == self.next_tick
+            });
+            match own {
+                // The caller's own state of the newest tick.
+                Some((tick, hash)) => Some((tick, hash, None)),
+                None => {
+                    let (tick, hash) = self.last_agreed.ok_or(JoinError::NoAgreedState)?;
+                    let source = self.pick_giver(0).ok_or(JoinError::NoAgreedState)?;
+                    Some((tick, hash, Some(source)))
+                }
+            }
         } else {
             None
         };
@@ -266,11 +291,19 @@ impl Room {
                 tick,
                 hash,
                 source,
+                tried: source.map_or(0, bit),
                 total: None,
                 bytes: Vec::new(),
                 deadline,
             });
-            self.probe_join_snapshot(0);
+            match source {
+                Some(_) => self.probe_join_snapshot(0),
+                None => self.events.push_back(RoomEvent::JoinFromOwnState {
+                    id,
+                    tick,
+                    agreed_hash: hash,
+                }),
+            }
             return Ok(id);
         }
         self.players[index] = Some(player);
@@ -589,9 +622,8 @@ impl Room {
         if let Some(j) = &self.joining {
             if j.id == id {
                 self.joining = None;
-            } else if j.source == id.slot {
-                let joiner = j.id;
-                self.fail_join(now, joiner, "the player giving the snapshot left");
+            } else if j.source == Some(id.slot) {
+                self.retry_join(now, "the player giving the snapshot left", false);
             }
         }
         let mut out = Vec::new();
@@ -805,8 +837,8 @@ impl Room {
         if let Some(hash) = c.agreed {
             self.events.push_back(RoomEvent::TickAgreed { tick, hash });
         }
-        // Streaks: hashes missing on consecutive compared ticks, and ticks
-        // judged wrong in a row among the ticks the player reported.
+        // Hashes missing within the sliding report window, and ticks judged
+        // wrong in a row among the ticks the player reported.
         let mut drop: Vec<(PlayerId, CloseReason, String)> = Vec::new();
         for index in 0..self.players.len() {
             let id = self.id_of(index);
@@ -814,6 +846,7 @@ impl Room {
                 continue;
             };
             let b = bit(Slot(index as u8));
+            let expected = (c.missing | c.reported) & b != 0;
             if c.missing & b != 0 {
                 p.stats.missing_hash_reports += 1;
                 p.missing_streak += 1;
@@ -825,12 +858,20 @@ impl Room {
                     p.wrong_streak = 0;
                 }
             }
-            let (max_missing, max_wrong) =
-                (self.config.max_missing_reports, self.config.max_wrong_ticks);
-            if max_missing > 0 && p.missing_streak >= max_missing {
+            let (max_missing, max_wrong, window) = (
+                self.config.max_missing_reports,
+                self.config.max_wrong_ticks,
+                self.config.report_window,
+            );
+            let missed = if expected {
+                p.judge_report(c.missing & b != 0, window)
+            } else {
+                p.missing_in_window
+            };
+            if expected && max_missing > 0 && missed > max_missing {
                 let detail = format!(
-                    "no state hash for {} ticks in a row (up to tick {tick})",
-                    p.missing_streak
+                    "no state hash for {missed} of the last {} compared ticks (up to tick {tick}; at most {max_missing} may be missing)",
+                    p.recent_missing.len()
                 );
                 drop.push((id, CloseReason::NoHashReports, detail));
             } else if max_wrong > 0 && p.wrong_streak >= max_wrong {
@@ -882,7 +923,9 @@ impl Room {
     /// Asks the join's source for the snapshot from byte `offset`.
     fn probe_join_snapshot(&mut self, offset: u32) {
         let Some(j) = &self.joining else { return };
-        let (tick, source) = (j.tick, j.source);
+        let (tick, Some(source)) = (j.tick, j.source) else {
+            return;
+        };
         if self.players[source.index()].is_some() {
             let to = self.id_of(source.index());
             self.transmits.push_back(Transmit {
@@ -898,7 +941,7 @@ impl Room {
     fn is_join_reply(&self, from: Slot, r: &crate::forensics::ProbeReply) -> bool {
         use crate::forensics::ProbeAnswer;
         self.joining.as_ref().is_some_and(|j| {
-            j.source == from
+            j.source == Some(from)
                 && j.tick == r.tick
                 && matches!(
                     r.answer,
@@ -934,15 +977,60 @@ impl Room {
                         id,
                         tick: j.tick,
                         agreed_hash: j.hash,
+                        from: j.source,
                         bytes: std::mem::take(&mut j.bytes),
                     });
                 }
             }
             ProbeAnswer::Unavailable => {
-                self.fail_join(now, id, "the agreed tick left the players' history");
+                self.retry_join(now, "the agreed tick left the players' history", false);
             }
-            _ => self.fail_join(now, id, "the snapshot came in pieces that do not fit"),
+            _ => self.retry_join(now, "the snapshot came in pieces that do not fit", true),
         }
+    }
+
+    /// A player in good standing to give a joiner its snapshot, other than
+    /// those in `exclude`: admitted, its last compared report present and
+    /// right, and no bad snapshot given before; the lowest such slot.
+    fn pick_giver(&self, exclude: SlotMask) -> Option<Slot> {
+        (0..self.players.len())
+            .filter(|&i| exclude & bit(Slot(i as u8)) == 0)
+            .find(|&i| {
+                self.players[i].as_ref().is_some_and(|p| {
+                    p.admitted
+                        && p.missing_streak == 0
+                        && p.wrong_streak == 0
+                        && p.stats.bad_snapshots == 0
+                })
+            })
+            .map(|i| Slot(i as u8))
+    }
+
+    /// The join's snapshot did not come from its giver (`why`): a bad one
+    /// (`bad`) counts against the giver, which is never asked again; the
+    /// next player in good standing is asked for the same tick, and with
+    /// nobody left the join is refused.
+    fn retry_join(&mut self, now: Duration, why: &str, bad: bool) {
+        let Some(j) = &self.joining else { return };
+        let (id, source, tried) = (j.id, j.source, j.tried);
+        if bad
+            && let Some(s) = source
+            && let Some(Some(p)) = self.players.get_mut(s.index())
+        {
+            p.stats.bad_snapshots += 1;
+        }
+        let next = source.and_then(|_| self.pick_giver(tried));
+        let Some(next) = next else {
+            self.fail_join(now, id, why);
+            return;
+        };
+        if let Some(j) = &mut self.joining {
+            j.source = Some(next);
+            j.tried |= bit(next);
+            j.total = None;
+            j.bytes.clear();
+        }
+        self.probe_join_snapshot(0);
     }
 
     /// Ends a join to the running match that cannot complete.
@@ -1001,11 +1089,14 @@ impl Room {
         self.events.push_back(RoomEvent::PlayerJoined { id, name });
     }
 
-    /// Refuses the player joining the running match: its snapshot did not
-    /// check out (`why` says how).
+    /// The snapshot for the player joining the running match did not check
+    /// out (`why` says how): it counts against the player that gave it
+    /// ([`PlayerStats::bad_snapshots`]; that player is not asked again),
+    /// and the next player in good standing is asked; with nobody left (or
+    /// for the caller's own state) the join is refused with `why`.
     pub fn refuse_join(&mut self, now: Duration, id: PlayerId, why: &str) {
         if self.joining.as_ref().is_some_and(|j| j.id == id) {
-            self.fail_join(now, id, why);
+            self.retry_join(now, why, true);
         }
     }
 

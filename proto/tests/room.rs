@@ -668,8 +668,9 @@ fn only_token_holders_vote_and_tokenless_sybils_are_dropped() {
 }
 
 /// Hash reports are not optional: a player that sends inputs but never a
-/// hash is dropped after `max_missing_reports` compared ticks without one
-/// (each compared at its 2 s timeout), and nobody else is.
+/// hash is dropped once more than `max_missing_reports` (240) of its last
+/// `report_window` (600) compared ticks lack one (each compared at its 2 s
+/// timeout), and nobody else is.
 #[test]
 fn a_player_that_never_reports_its_hash_is_dropped() {
     let (mut room, ids) = room(3);
@@ -677,13 +678,169 @@ fn a_player_that_never_reports_its_hash_is_dropped() {
     let gone = left(&events);
     assert_eq!(gone.len(), 1, "{gone:?}");
     assert_eq!((gone[0].0, gone[0].1), (ids[1], LeaveReason::NoHashReports));
-    // Tick 299 is compared at its timeout, 2 s (120 ticks) after it closed.
-    assert_eq!(gone[0].2, 420);
+    // Its 241st missing tick, 240, is compared at its timeout, 2 s (120
+    // ticks) after it closed: it is in no bundle from tick 361.
+    assert_eq!(gone[0].2, 361);
     assert_eq!(
         closes_to(&transmits, ids[1]),
         vec![CloseReason::NoHashReports]
     );
     assert!(!events.iter().any(|e| matches!(e, RoomEvent::Desync(_))));
+}
+
+/// A sparse reporter (one hash every 250 ticks, which used to reset a run
+/// of misses and so was never dropped) is judged over the sliding window:
+/// it goes with `NoHashReports` and the reason, at the same tick as one
+/// that never reports; a player that misses a few reports now and then
+/// stays.
+#[test]
+fn a_sparse_reporter_is_dropped_over_the_sliding_window() {
+    let (mut room, ids) = room(3);
+    let (transmits, events) = play_reporting(&mut room, &ids, 500, |i, tick| match i {
+        1 => (tick % 250 == 100).then_some(7),
+        2 => (tick % 10 != 0).then_some(7),
+        _ => Some(7),
+    });
+    let gone = left(&events);
+    assert_eq!(gone.len(), 1, "{gone:?}");
+    assert_eq!((gone[0].0, gone[0].1), (ids[1], LeaveReason::NoHashReports));
+    assert_eq!(gone[0].2, 362, "its one report delays it one tick");
+    let detail = transmits
+        .iter()
+        .find_map(|t| match &t.message {
+            ServerMessage::Close(c) if t.to == ids[1] => Some(c.detail.clone()),
+            _ => None,
+        })
+        .expect("a close");
+    assert!(
+        detail.starts_with("no state hash for 241 of the last 242 compared ticks"),
+        "{detail}"
+    );
+}
+
+fn snapshot_probes(transmits: &[Transmit]) -> Vec<(PlayerId, u64)> {
+    transmits
+        .iter()
+        .filter_map(|t| match &t.message {
+            ServerMessage::Probe(p)
+                if matches!(p.ask, lockstep_proto::ProbeAsk::Snapshot { offset: 0 }) =>
+            {
+                Some((t.to, p.tick))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+fn snapshot_reply(tick: u64, bytes: &[u8]) -> ClientMessage {
+    ClientMessage::ProbeReply(lockstep_proto::ProbeReply {
+        tick,
+        answer: lockstep_proto::ProbeAnswer::Snapshot {
+            total: bytes.len() as u32,
+            offset: 0,
+            bytes: bytes.to_vec(),
+        },
+    })
+}
+
+/// A late join whose giver sends a snapshot that does not check out: the
+/// bad snapshot counts against that giver, the next player in good
+/// standing is asked for the same tick, and its snapshot admits the
+/// joiner. The giver of the bad one is not asked again by the next joiner.
+#[test]
+fn a_bad_join_snapshot_counts_against_its_giver_and_another_player_is_asked() {
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.late_join = true;
+    let (mut room, ids) = room_with(3, c);
+    play_reporting(&mut room, &ids, 130, |_, _| Some(7));
+    let now = after(&room, 130);
+    let late = room.join(now, &join_msg("late")).unwrap();
+    let (t, _) = drain(&mut room);
+    let probes = snapshot_probes(&t);
+    assert_eq!(probes.len(), 1);
+    let (giver, tick) = probes[0];
+    assert_eq!(giver, ids[0]);
+    room.handle_message(now, ids[0], snapshot_reply(tick, b"garbage"))
+        .unwrap();
+    let (_, e) = drain(&mut room);
+    assert!(e.iter().any(|e| matches!(
+        e,
+        RoomEvent::JoinSnapshot {
+            from: Some(Slot(0)),
+            ..
+        }
+    )));
+    // The caller finds it bad.
+    room.refuse_join(now, late, "not a lockstep snapshot");
+    assert_eq!(room.player_stats(ids[0]).unwrap().bad_snapshots, 1);
+    let (t, e) = drain(&mut room);
+    assert!(left(&e).is_empty(), "the joiner waits: {:?}", left(&e));
+    assert_eq!(snapshot_probes(&t), vec![(ids[1], tick)]);
+    room.handle_message(now, ids[1], snapshot_reply(tick, b"good"))
+        .unwrap();
+    let (_, e) = drain(&mut room);
+    assert!(e.iter().any(|e| matches!(
+        e,
+        RoomEvent::JoinSnapshot {
+            from: Some(Slot(1)),
+            ..
+        }
+    )));
+    room.admit(now, late, b"good".to_vec());
+    let (t, _) = drain(&mut room);
+    assert!(
+        t.iter().any(|t| t.to == late
+            && matches!(&t.message, ServerMessage::Welcome(w) if w.resume.is_some()))
+    );
+    // The next joiner's snapshot is not asked of slot 0.
+    room.join(now, &join_msg("later")).unwrap();
+    let (t, _) = drain(&mut room);
+    assert_eq!(snapshot_probes(&t), vec![(ids[1], tick)]);
+}
+
+/// A verifying room that offers its own state: a joiner starts from the
+/// caller's state of the newest tick, no player is asked, and a player that
+/// never reports cannot hold the join back.
+#[test]
+fn a_verifying_room_gives_joiners_its_own_state() {
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.late_join = true;
+    c.verify = true;
+    let (mut room, ids) = room_with(2, c);
+    room.offer_own_snapshots();
+    for tick in 0..100 {
+        let now = after(&room, tick);
+        for &id in &ids {
+            room.handle_message(now, id, input(id, tick, vec![vec![1]]))
+                .unwrap();
+        }
+        room.handle_timeout(now);
+        room.verify_tick(now, tick, 7);
+        // Slot 1 never reports.
+        let r = ClientMessage::HashReport(HashReport {
+            tick,
+            hash: 7,
+            body_hashes: None,
+        });
+        room.handle_message(now, ids[0], r).unwrap();
+        drain(&mut room);
+    }
+    let now = after(&room, 99);
+    let late = room.join(now, &join_msg("late")).unwrap();
+    let (t, e) = drain(&mut room);
+    assert!(snapshot_probes(&t).is_empty());
+    assert!(e.contains(&RoomEvent::JoinFromOwnState {
+        id: late,
+        tick: 99,
+        agreed_hash: 7
+    }));
+    room.admit(now, late, b"state".to_vec());
+    let (t, _) = drain(&mut room);
+    let resume = t.iter().find_map(|t| match &t.message {
+        ServerMessage::Welcome(w) if t.to == late => w.resume.clone(),
+        _ => None,
+    });
+    assert_eq!(resume.map(|r| (r.tick, r.hash)), Some((99, 7)));
 }
 
 /// The players a lobby would drop: seated without their first input.

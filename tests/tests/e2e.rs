@@ -1242,6 +1242,68 @@ async fn a_late_joiner_starts_from_the_agreed_snapshot_and_matches() {
     assert_eq!((check.ticks, check.checked, check.players), (480, 480, 3));
 }
 
+/// A sparse reporter (one made-up hash every 250 ticks) and a silent seat
+/// (inputs, never a hash) in the default program's room with `--late-join`:
+/// a bot joining 1.5 s in is not held back by them (it starts from the
+/// server's own verified state) and matches the others' hashes; both are
+/// dropped for their missing reports over the sliding window, with the
+/// reason; the bots agree on every tick and the replay re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sparse_and_silent_reporters_are_dropped_and_cannot_block_a_late_join() {
+    use lockstep_client::bot::run_bot;
+    let mut server = TestServer::start(tmp("sparse"), |c| {
+        program_config(c, &["--late-join"]);
+        c.room.start_players = 4;
+        c.room.match_ticks = Some(480);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let sparse = tokio::spawn(raw_reporter(addr, cert.clone(), "sparse", "sparse", |t| {
+        (t % 250 == 0).then_some(0xbad)
+    }));
+    let mute = tokio::spawn(raw_reporter(addr, cert.clone(), "sparse", "mute", |_| None));
+    let options = BotOptions::new(addr, &cert, "sparse", 2);
+    let early = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let late_options = BotOptions::new(addr, &cert, "sparse", 3).client_options(2);
+    let late = run_bot(
+        late_options,
+        std::sync::Arc::new(Demo),
+        1,
+        false,
+        std::future::pending(),
+    )
+    .await
+    .expect("the late joiner plays");
+    let early = bots_ok(early.await.unwrap());
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    server.shutdown().await;
+    for (who, task) in [("sparse", sparse), ("mute", mute)] {
+        let (reason, detail) = task.await.unwrap().expect("closed by the server");
+        assert_eq!(reason, CloseReason::NoHashReports, "{who}: {detail}");
+        assert!(detail.contains("of the last"), "{who}: {detail}");
+    }
+    assert_same_hashes(&early, 480);
+    assert!(late.start_tick < 200, "joined at tick {}", late.start_tick);
+    assert_eq!(late.hashes.len() as u64, 480 - late.first_applied);
+    for (i, h) in late.hashes.iter().enumerate() {
+        let t = late.first_applied as usize + i;
+        assert_eq!(*h, early[0].hashes[t], "tick {t}");
+    }
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked), (480, 480));
+}
+
 /// Rejoin: three bots hold seat tokens; one is killed mid-match (its
 /// connection drops without a leave) and started again with the same
 /// token. It takes back its seat from the agreed snapshot and matches the

@@ -40,14 +40,21 @@ pub struct RoomConfig {
     pub hash_timeout: Duration,
     /// A player heard from for this long is dropped. Default 5 s.
     pub silence_timeout: Duration,
-    /// A player whose state hash is missing on this many compared ticks in
-    /// a row (each compared at the latest `hash_timeout` after it closed)
-    /// is dropped with [`CloseReason::NoHashReports`](crate::CloseReason):
-    /// reports are not optional, or a client could avoid being judged.
-    /// 0: never. Default 300 (5 s at 60 Hz): with the hash timeout, a
-    /// player that talks but never reports goes after 7 s, and one that
-    /// went silent altogether is dropped as timed out first.
+    /// Reports are judged over a sliding window: among the last
+    /// `report_window` compared ticks a player was in the bundle of, its
+    /// state hash may be missing on at most `max_missing_reports`; one
+    /// more and it is dropped with
+    /// [`CloseReason::NoHashReports`](crate::CloseReason). Reports are not
+    /// optional, or a client could avoid being judged, and a report now
+    /// and then does not reset the count (as it would a run of misses in a
+    /// row). 0: never. Default 240 (4 s at 60 Hz).
     pub max_missing_reports: u32,
+    /// The length of that window, in compared ticks (at least 1, at most
+    /// 65,536). Default 600 (10 s at 60 Hz): a player must report at least
+    /// 360 of every 600 ticks it was sent; one that never reports goes
+    /// after 241 ticks plus the 2 s hash timeout, and one that went silent
+    /// altogether is dropped as timed out first (after 5 s).
+    pub report_window: u32,
     /// A player whose state hash is judged wrong (against the caller's own
     /// hash with [`RoomConfig::verify`], or outside the voters' strict
     /// majority under [`Voting::TokenHolders`] or [`Voting::Everyone`]) on
@@ -133,7 +140,8 @@ impl RoomConfig {
             hash_window_ticks: 256,
             hash_timeout: Duration::from_secs(2),
             silence_timeout: Duration::from_secs(5),
-            max_missing_reports: 300,
+            max_missing_reports: 240,
+            report_window: 600,
             max_wrong_ticks: 180,
             ping_interval: Duration::from_secs(1),
             locate_timeout: Duration::from_secs(10),
@@ -180,6 +188,9 @@ impl RoomConfig {
                 window: self.hash_window_ticks,
                 needed,
             });
+        }
+        if self.report_window == 0 || self.report_window > 65_536 {
+            return Err(ConfigError::ReportWindow(self.report_window));
         }
         if self.silence_timeout.is_zero() || self.ping_interval.is_zero() {
             return Err(ConfigError::ZeroInterval);
@@ -242,6 +253,9 @@ pub enum ConfigError {
         /// Ticks the timeout spans, plus margin.
         needed: u64,
     },
+    /// The report window is empty or longer than 65,536 ticks.
+    #[error("report window of {0} ticks is outside 1..=65536")]
+    ReportWindow(u32),
     /// A zero silence timeout or ping interval.
     #[error("silence timeout and ping interval must be positive")]
     ZeroInterval,

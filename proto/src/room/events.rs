@@ -112,8 +112,23 @@ pub enum RoomEvent {
         tick: u64,
         /// The agreed hash of that tick.
         agreed_hash: u64,
+        /// The player that gave it.
+        from: Option<Slot>,
         /// The snapshot.
         bytes: Vec<u8>,
+    },
+    /// A player joins the running match from the caller's own state
+    /// ([`Room::offer_own_snapshots`](super::Room::offer_own_snapshots)):
+    /// take the snapshot of the state after `tick` and check it hashes to
+    /// `agreed_hash`, then call [`Room::admit`](super::Room::admit) (or
+    /// [`Room::refuse_join`](super::Room::refuse_join)).
+    JoinFromOwnState {
+        /// The joiner.
+        id: PlayerId,
+        /// The newest verified tick.
+        tick: u64,
+        /// The caller's hash of it.
+        agreed_hash: u64,
     },
     /// The search started by a desync notice is over: the bodies and
     /// fields that differ (the same report was queued to every player).

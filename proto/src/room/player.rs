@@ -21,6 +21,9 @@ pub struct PlayerStats {
     pub hash_reports: u64,
     /// Ticks compared without this player's hash (timed out).
     pub missing_hash_reports: u64,
+    /// Snapshots it gave a player joining the running match that did not
+    /// check out (it is not asked again).
+    pub bad_snapshots: u64,
     /// Smoothed round-trip time from pings (7/8 old + 1/8 new sample).
     pub rtt: Option<Duration>,
 }
@@ -44,6 +47,11 @@ pub(crate) struct Player {
     pub(crate) stats: PlayerStats,
     /// Compared ticks in a row without this player's hash.
     pub(crate) missing_streak: u32,
+    /// Its last compared ticks (at most the report window), oldest first:
+    /// true where its hash was missing.
+    pub(crate) recent_missing: std::collections::VecDeque<bool>,
+    /// How many of `recent_missing` are true.
+    pub(crate) missing_in_window: u32,
     /// Ticks in a row, among those it reported, where its hash was outside
     /// the majority.
     pub(crate) wrong_streak: u32,
@@ -70,11 +78,26 @@ impl Player {
             ping: None,
             stats: PlayerStats::default(),
             missing_streak: 0,
+            recent_missing: std::collections::VecDeque::new(),
+            missing_in_window: 0,
             wrong_streak: 0,
             ticket: None,
             admitted: true,
             first_bundle: start_tick,
         }
+    }
+
+    /// Records whether its hash was missing on one more compared tick, in
+    /// a window of the last `window` ticks; returns the misses in it.
+    pub(crate) fn judge_report(&mut self, missing: bool, window: u32) -> u32 {
+        self.recent_missing.push_back(missing);
+        self.missing_in_window += u32::from(missing);
+        while self.recent_missing.len() > window as usize {
+            if self.recent_missing.pop_front() == Some(true) {
+                self.missing_in_window -= 1;
+            }
+        }
+        self.missing_in_window
     }
 
     /// Folds one RTT sample into the smoothed estimate.

@@ -331,6 +331,12 @@ impl RoomTask {
                 }
             }
         });
+        let mut room = room;
+        if verifier.as_ref().is_some_and(|v| v.snapshot().is_some()) {
+            // Joiners start from the server's own state: no player can
+            // hold a join back.
+            room.offer_own_snapshots();
+        }
         // A verifying room records its own hashes (`on_verified`); any
         // other records the hashes its room agreed on, never a majority of
         // strangers.
@@ -938,6 +944,47 @@ impl RoomTask {
         }
     }
 
+    /// Admits a player joining the running match if its snapshot restores
+    /// and hashes to the agreed hash of `tick`; otherwise tells the room,
+    /// which counts it against the giver (`from`) and asks another player.
+    fn check_join_snapshot(
+        &mut self,
+        id: PlayerId,
+        tick: u64,
+        agreed_hash: u64,
+        from: Option<lockstep_proto::Slot>,
+        bytes: Vec<u8>,
+    ) {
+        let now = self.now();
+        let giver = from.map_or_else(
+            || "the server's own state".to_owned(),
+            |s| format!("slot {}", s.0),
+        );
+        let why = match lockstep_core::World::restore(&bytes) {
+            Ok(w) if w.state_hash() == agreed_hash => {
+                crate::log!(
+                    "room {}: slot {} joins the running match from the agreed state of tick {tick} ({} B, from {giver})",
+                    self.name,
+                    id.slot.0,
+                    bytes.len()
+                );
+                self.room.admit(now, id, bytes);
+                return;
+            }
+            Ok(w) => format!(
+                "the snapshot of tick {tick} hashes to {:016x}, not the agreed {agreed_hash:016x}",
+                w.state_hash()
+            ),
+            Err(e) => e.to_string(),
+        };
+        crate::log!(
+            "room {}: the snapshot for slot {}'s join from {giver} is refused: {why}",
+            self.name,
+            id.slot.0
+        );
+        self.room.refuse_join(now, id, &why);
+    }
+
     fn on_event(&mut self, event: RoomEvent) {
         match event {
             RoomEvent::PlayerJoined { id, name } => {
@@ -1058,29 +1105,21 @@ impl RoomTask {
                 id,
                 tick,
                 agreed_hash,
+                from,
                 bytes,
-            } => {
-                let now = self.now();
-                match lockstep_core::World::restore(&bytes) {
-                    Ok(w) if w.state_hash() == agreed_hash => {
-                        crate::log!(
-                            "room {}: slot {} joins the running match from the agreed state of tick {tick} ({} B)",
-                            self.name,
-                            id.slot.0,
-                            bytes.len()
-                        );
-                        self.room.admit(now, id, bytes);
-                    }
-                    Ok(w) => {
-                        let why = format!(
-                            "the snapshot of tick {tick} hashes to {:016x}, not the agreed {agreed_hash:016x}",
-                            w.state_hash()
-                        );
-                        self.room.refuse_join(now, id, &why);
-                    }
-                    Err(e) => self.room.refuse_join(now, id, &e.to_string()),
+            } => self.check_join_snapshot(id, tick, agreed_hash, from, bytes),
+            RoomEvent::JoinFromOwnState {
+                id,
+                tick,
+                agreed_hash,
+            } => match self.verifier.as_ref().and_then(|v| v.snapshot()) {
+                Some(bytes) => self.check_join_snapshot(id, tick, agreed_hash, None, bytes),
+                None => {
+                    let now = self.now();
+                    self.room
+                        .refuse_join(now, id, "the server has no snapshot of its own state");
                 }
-            }
+            },
             RoomEvent::DesyncSnapshot {
                 tick,
                 agreed_hash,
