@@ -114,7 +114,7 @@ struct JoinFetch {
     /// Who gives the snapshot: a player, or (`None`) the caller's own
     /// re-simulation ([`Room::offer_own_snapshots`]).
     source: Option<Slot>,
-    /// The players asked so far.
+    /// The players asked so far, and those not holding the tick's hash.
     tried: SlotMask,
     total: Option<u32>,
     bytes: Vec<u8>,
@@ -233,11 +233,21 @@ impl Room {
             });
             match own {
                 // The caller's own state of the newest tick.
-                Some((tick, hash)) => Some((tick, hash, None)),
+                Some((tick, hash)) => Some((tick, hash, None::<(Slot, SlotMask)>)),
                 None => {
-                    let (tick, hash) = self.last_agreed.ok_or(JoinError::NoAgreedState)?;
-                    let source = self.pick_giver(0).ok_or(JoinError::NoAgreedState)?;
-                    Some((tick, hash, Some(source)))
+                    // The newest tick the players in good standing agree
+                    // on (they hold its snapshot: the last 32 ticks), not
+                    // only the last tick compared, which a silent player
+                    // holds 2 s back.
+                    self.arbiter.voters = self.token_holders();
+                    let good = self.good_standing();
+                    let (tick, hash, givers) = self
+                        .arbiter
+                        .fresh_agreed(good, 32)
+                        .or_else(|| self.last_agreed.map(|(t, h)| (t, h, good)))
+                        .ok_or(JoinError::NoAgreedState)?;
+                    let source = self.pick_giver(!givers).ok_or(JoinError::NoAgreedState)?;
+                    Some((tick, hash, Some((source, givers))))
                 }
             }
         } else {
@@ -286,12 +296,17 @@ impl Room {
             self.players[index] = Some(player);
             let deadline =
                 now.saturating_add(self.config.locate_timeout.max(Duration::from_secs(2)));
+            // Only the players holding the tick's hash may give it.
+            let (source, tried) = match source {
+                Some((s, givers)) => (Some(s), !givers | bit(s)),
+                None => (None, 0),
+            };
             self.joining = Some(JoinFetch {
                 id,
                 tick,
                 hash,
                 source,
-                tried: source.map_or(0, bit),
+                tried,
                 total: None,
                 bytes: Vec::new(),
                 deadline,
@@ -717,6 +732,7 @@ impl Room {
             Recorded::Stored => {
                 if let Ok(p) = self.player_mut(from) {
                     p.stats.hash_reports += 1;
+                    p.last_report = p.last_report.max(Some(h.tick));
                 }
                 self.run_arbiter(now);
                 Ok(())
@@ -989,21 +1005,28 @@ impl Room {
         }
     }
 
-    /// A player in good standing to give a joiner its snapshot, other than
-    /// those in `exclude`: admitted, its last compared report present and
-    /// right, and no bad snapshot given before; the lowest such slot.
-    fn pick_giver(&self, exclude: SlotMask) -> Option<Slot> {
+    /// The players in good standing: admitted, reporting (a hash for one
+    /// of the last 32 closed ticks), not judged wrong on their last
+    /// reported tick, and no bad snapshot given before.
+    fn good_standing(&self) -> SlotMask {
+        let recent = self.next_tick.saturating_sub(32);
         (0..self.players.len())
-            .filter(|&i| exclude & bit(Slot(i as u8)) == 0)
-            .find(|&i| {
+            .filter(|&i| {
                 self.players[i].as_ref().is_some_and(|p| {
                     p.admitted
-                        && p.missing_streak == 0
+                        && p.last_report.is_some_and(|t| t >= recent)
                         && p.wrong_streak == 0
                         && p.stats.bad_snapshots == 0
                 })
             })
-            .map(|i| Slot(i as u8))
+            .fold(0, |m, i| m | bit(Slot(i as u8)))
+    }
+
+    /// The lowest player in good standing to give a joiner its snapshot,
+    /// other than those in `exclude`.
+    fn pick_giver(&self, exclude: SlotMask) -> Option<Slot> {
+        let candidates = self.good_standing() & !exclude;
+        (candidates != 0).then(|| Slot(candidates.trailing_zeros() as u8))
     }
 
     /// The join's snapshot did not come from its giver (`why`): a bad one

@@ -798,6 +798,22 @@ fn a_bad_join_snapshot_counts_against_its_giver_and_another_player_is_asked() {
     assert_eq!(snapshot_probes(&t), vec![(ids[1], tick)]);
 }
 
+/// Without verifying, a silent reporter holds every comparison back 2 s
+/// (120 ticks, longer than the players keep snapshots); the joiner starts
+/// from the newest tick the players in good standing all reported alike,
+/// not from the last compared one, and the silent one is never asked.
+#[test]
+fn a_silent_reporter_does_not_age_the_tick_a_joiner_starts_from() {
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.late_join = true;
+    let (mut room, ids) = room_with(3, c);
+    play_reporting(&mut room, &ids, 200, |i, _| (i != 0).then_some(7));
+    let now = after(&room, 199);
+    room.join(now, &join_msg("late")).unwrap();
+    let (t, _) = drain(&mut room);
+    assert_eq!(snapshot_probes(&t), vec![(ids[1], 199)]);
+}
+
 /// A verifying room that offers its own state: a joiner starts from the
 /// caller's state of the newest tick, no player is asked, and a player that
 /// never reports cannot hold the join back.

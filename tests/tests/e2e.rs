@@ -1182,20 +1182,26 @@ async fn with_voting_only_token_holders_vote_and_tokenless_sybils_are_dropped() 
     assert_eq!((check.ticks, check.checked), (300, 300));
 }
 
-/// Late join: two bots play; 1.5 s in, a third joins the running match. It
-/// starts from the snapshot of the last agreed tick (fetched from a bot and
-/// checked against the agreed hash), catches up, and from its first
-/// reported tick its hashes match; no desync, and the replay re-verifies.
+/// Late join on a server that does not verify: two bots play beside a
+/// silent seat (a raw player that sends inputs but never a hash, in slot
+/// 0); 1.5 s in, a third bot joins the running match. It starts from the
+/// snapshot of the newest tick the players in good standing agree on
+/// (fetched from a bot, not the silent seat, and checked against the agreed
+/// hash), catches up, and from its first reported tick its hashes match;
+/// the silent seat is dropped for its missing reports, and the replay
+/// re-verifies.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_late_joiner_starts_from_the_agreed_snapshot_and_matches() {
     use lockstep_client::bot::run_bot;
     let mut server = TestServer::start(tmp("late"), |c| {
-        c.room.start_players = 2;
+        c.room.start_players = 3;
         c.room.match_ticks = Some(480);
         c.room.late_join = true;
     })
     .await;
     let (addr, cert) = (server.addr, server.cert.clone());
+    let mute = tokio::spawn(raw_reporter(addr, cert.clone(), "late", "mute", |_| None));
+    tokio::time::sleep(Duration::from_millis(50)).await;
     let options = BotOptions::new(addr, &cert, "late", 2);
     let early = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
     server
@@ -1238,8 +1244,10 @@ async fn a_late_joiner_starts_from_the_agreed_snapshot_and_matches() {
     assert_eq!(late.desyncs().count(), 0);
     assert!(ended.desyncs.is_empty(), "{:?}", ended.desyncs);
     assert_eq!(ended.mismatched_ticks, 0);
+    let (reason, detail) = mute.await.unwrap().expect("the silent seat is closed");
+    assert_eq!(reason, CloseReason::NoHashReports, "{detail}");
     let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
-    assert_eq!((check.ticks, check.checked, check.players), (480, 480, 3));
+    assert_eq!((check.ticks, check.checked, check.players), (480, 480, 4));
 }
 
 /// A sparse reporter (one made-up hash every 250 ticks) and a silent seat

@@ -216,6 +216,55 @@ impl Arbiter {
         out
     }
 
+    /// The newest of the last `depth` ticks a joiner can start from without
+    /// waiting for everyone's report: every player of `good` in its bundle
+    /// reported it, and it has a right hash by the room's rule as far as
+    /// the reports go (the verified hash; under voting, the one a strict
+    /// majority of the voters who reported hold; without either, the one
+    /// every reporter holds). Returns the tick, its hash and the players of
+    /// `good` that hold it.
+    pub(crate) fn fresh_agreed(&self, good: SlotMask, depth: u64) -> Option<(u64, u64, SlotMask)> {
+        let first = self
+            .end
+            .saturating_sub(depth)
+            .max(self.end.saturating_sub(self.ring.capacity() as u64));
+        (first..self.end).rev().find_map(|tick| {
+            let e = self.ring.get(tick)?;
+            let wanted = e.expected & good;
+            if wanted == 0 || wanted & !e.reported != 0 {
+                return None;
+            }
+            let holding = |mask: SlotMask, h: u64| {
+                (0..MAX_PLAYERS)
+                    .filter(|&i| mask & (1 << i) != 0 && e.hashes[i] == h)
+                    .fold(0, |m, i| m | (1 << i))
+            };
+            let first_of = |mask: SlotMask| e.hashes[mask.trailing_zeros() as usize];
+            let h = match (self.verifying, self.voting) {
+                (true, _) => e.verified?,
+                (false, Voting::Off) => {
+                    let h = first_of(e.reported);
+                    (holding(e.reported, h) == e.reported).then_some(h)?
+                }
+                (false, voting) => {
+                    let voters = if voting == Voting::Everyone {
+                        e.reported
+                    } else {
+                        e.reported & self.voters
+                    };
+                    (0..MAX_PLAYERS)
+                        .filter(|&i| voters & (1 << i) != 0)
+                        .map(|i| e.hashes[i])
+                        .find(|&h| {
+                            SlotMask::count_ones(holding(voters, h)) * 2 > voters.count_ones()
+                        })?
+                }
+            };
+            let givers = holding(wanted, h);
+            (givers != 0).then_some((tick, h, givers))
+        })
+    }
+
     /// Earliest time at which a pending entry times out.
     pub(crate) fn next_deadline(&self) -> Option<Duration> {
         let first = self

@@ -52,6 +52,8 @@ pub(crate) struct Player {
     pub(crate) recent_missing: std::collections::VecDeque<bool>,
     /// How many of `recent_missing` are true.
     pub(crate) missing_in_window: u32,
+    /// The newest tick it reported a hash for.
+    pub(crate) last_report: Option<u64>,
     /// Ticks in a row, among those it reported, where its hash was outside
     /// the majority.
     pub(crate) wrong_streak: u32,
@@ -80,6 +82,7 @@ impl Player {
             missing_streak: 0,
             recent_missing: std::collections::VecDeque::new(),
             missing_in_window: 0,
+            last_report: None,
             wrong_streak: 0,
             ticket: None,
             admitted: true,
