@@ -103,8 +103,9 @@ pub struct ServerArgs {
     /// dropped (counted and logged) and stream frames wait.
     #[arg(long, default_value_t = 1000, env = "LOCKSTEP_MAX_MESSAGES_PER_SECOND")]
     max_messages_per_second: u32,
-    /// File holding the secret join tokens are signed with (at least 16
-    /// bytes). With it, a join that carries a token is seated only if the
+    /// File holding the secret join tokens are signed with: its bytes
+    /// without trailing whitespace (a final newline is not part of it), at
+    /// least 16. With it, a join that carries a token is seated only if the
     /// token verifies, and in its seat.
     #[arg(long, value_name = "FILE", env = "LOCKSTEP_TOKEN_SECRET_FILE")]
     token_secret_file: Option<PathBuf>,
@@ -187,7 +188,8 @@ pub enum ServerCommand {
     /// Print a join token for a seat of a room (what a matchmaker hands a
     /// player), signed with the server's secret.
     Token {
-        /// File holding the server's secret.
+        /// File holding the server's secret (trailing whitespace is not
+        /// part of it).
         #[arg(long, value_name = "FILE")]
         secret_file: PathBuf,
         /// The room.
@@ -205,8 +207,14 @@ pub enum ServerCommand {
     },
 }
 
+/// The token secret in the file at `path`: its bytes without trailing
+/// whitespace (the newline an editor or `echo` adds is not part of it).
 pub(crate) fn read_secret(path: &std::path::Path) -> Result<Vec<u8>, String> {
-    std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))
+    let mut secret = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    while secret.last().is_some_and(u8::is_ascii_whitespace) {
+        secret.pop();
+    }
+    Ok(secret)
 }
 
 pub(crate) async fn terminate() {
@@ -436,5 +444,26 @@ pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
             eprintln!("lockstep-server: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_secret_file_s_trailing_newline_is_not_part_of_the_secret() {
+        let dir = std::env::temp_dir().join(format!("lockstep-secret-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("secret");
+        std::fs::write(&path, b"sixteen bytes at least\r\n").unwrap();
+        assert_eq!(
+            super::read_secret(&path).unwrap(),
+            b"sixteen bytes at least".to_vec()
+        );
+        std::fs::write(&path, b" keep leading, inner  spaces \n\n").unwrap();
+        assert_eq!(
+            super::read_secret(&path).unwrap(),
+            b" keep leading, inner  spaces".to_vec()
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -290,10 +290,18 @@ impl ProbeReply {
             }
             ProbeAnswer::Snapshot { total, bytes, .. } => {
                 check(*total as usize, MAX_PROBE_SNAPSHOT_BYTES, |len, max| {
-                    Violation::SceneTooLarge { len, max }
+                    Violation::SnapshotTooLarge {
+                        what: "total",
+                        len,
+                        max,
+                    }
                 })?;
                 check(bytes.len(), MAX_SNAPSHOT_CHUNK_BYTES, |len, max| {
-                    Violation::SceneTooLarge { len, max }
+                    Violation::SnapshotTooLarge {
+                        what: "piece",
+                        len,
+                        max,
+                    }
                 })
             }
         }

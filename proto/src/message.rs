@@ -150,7 +150,7 @@ impl ClientMessage {
                 check_len(
                     j.token.as_ref().map_or(0, String::len),
                     crate::token::MAX_TOKEN_BYTES,
-                    |len, max| Violation::NameTooLong { len, max },
+                    |len, max| Violation::TokenTooLong { len, max },
                 )
             }
             Self::Input(d) => {
@@ -530,6 +530,26 @@ pub enum Violation {
     /// A room or player name is longer than allowed.
     #[error("name of {len} bytes exceeds {max}")]
     NameTooLong {
+        /// Actual length in bytes.
+        len: usize,
+        /// Allowed length.
+        max: usize,
+    },
+    /// A join token is longer than
+    /// [`MAX_TOKEN_BYTES`](crate::token::MAX_TOKEN_BYTES).
+    #[error("join token of {len} bytes exceeds {max}")]
+    TokenTooLong {
+        /// Actual length in bytes.
+        len: usize,
+        /// Allowed length.
+        max: usize,
+    },
+    /// A snapshot (its announced total, or one piece) is larger than
+    /// allowed.
+    #[error("snapshot {what} of {len} bytes exceeds {max}")]
+    SnapshotTooLarge {
+        /// "total" or "piece".
+        what: &'static str,
         /// Actual length in bytes.
         len: usize,
         /// Allowed length.

@@ -116,6 +116,8 @@ struct JoinFetch {
     source: Option<Slot>,
     /// The players asked so far, and those not holding the tick's hash.
     tried: SlotMask,
+    /// The seat's rejoin reservation the join took, given back if it fails.
+    reservation: Option<(u64, Duration)>,
     total: Option<u32>,
     bytes: Vec<u8>,
     deadline: Duration,
@@ -279,7 +281,7 @@ impl Room {
                 index
             }
         };
-        self.reserved[index] = None;
+        let reservation = self.reserved[index].take();
         // The index is below max_players, a u8.
         let slot = Slot(index as u8);
         let id = PlayerId {
@@ -307,6 +309,7 @@ impl Room {
                 hash,
                 source,
                 tried,
+                reservation,
                 total: None,
                 bytes: Vec::new(),
                 deadline,
@@ -617,6 +620,7 @@ impl Room {
                     | LeaveReason::RoomClosed
                     | LeaveReason::Diverged
                     | LeaveReason::NoHashReports
+                    | LeaveReason::JoinRefused
             )
         {
             self.reserved[index] = Some((key, now.saturating_add(self.config.rejoin_grace)));
@@ -1058,10 +1062,16 @@ impl Room {
 
     /// Ends a join to the running match that cannot complete.
     fn fail_join(&mut self, now: Duration, id: PlayerId, why: &str) {
-        self.joining = None;
+        let reservation = self.joining.take().and_then(|j| j.reservation);
         let detail = format!("no agreed state to join the running match from: {why}; try again");
         let c = close(CloseReason::MatchInProgress, detail);
-        self.remove(now, id, LeaveReason::Kicked, Some(c));
+        self.remove(now, id, LeaveReason::JoinRefused, Some(c));
+        // A rejoiner may try again for its own seat.
+        if let Some(r) = reservation
+            && self.players[id.slot.index()].is_none()
+        {
+            self.reserved[id.slot.index()] = Some(r);
+        }
     }
 
     /// Admits the player joining the running match once the caller checked

@@ -814,6 +814,43 @@ fn a_silent_reporter_does_not_age_the_tick_a_joiner_starts_from() {
     assert_eq!(snapshot_probes(&t), vec![(ids[1], 199)]);
 }
 
+/// A join to the running match that gets no snapshot (its only giver no
+/// longer has the tick) is refused with `MatchInProgress` and the reason,
+/// and leaves as `JoinRefused`, not as kicked.
+#[test]
+fn a_join_without_an_agreed_state_is_refused_as_such() {
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.late_join = true;
+    let (mut room, ids) = room_with(1, c);
+    play_reporting(&mut room, &ids, 130, |_, _| Some(7));
+    let now = after(&room, 130);
+    let late = room.join(now, &join_msg("late")).unwrap();
+    let (t, _) = drain(&mut room);
+    let (_, tick) = snapshot_probes(&t)[0];
+    let reply = ClientMessage::ProbeReply(lockstep_proto::ProbeReply {
+        tick,
+        answer: lockstep_proto::ProbeAnswer::Unavailable,
+    });
+    room.handle_message(now, ids[0], reply).unwrap();
+    let (t, e) = drain(&mut room);
+    assert_eq!(left(&e), vec![(late, LeaveReason::JoinRefused, 130)]);
+    let detail = t
+        .iter()
+        .find_map(|t| match &t.message {
+            ServerMessage::Close(c) if t.to == late => Some((c.reason, c.detail.clone())),
+            _ => None,
+        })
+        .expect("a close");
+    assert_eq!(detail.0, CloseReason::MatchInProgress);
+    assert!(
+        detail.1.contains("left the players' history"),
+        "{}",
+        detail.1
+    );
+    // Not counted against the giver: it had no snapshot, it gave no bad one.
+    assert_eq!(room.player_stats(ids[0]).unwrap().bad_snapshots, 0);
+}
+
 /// A verifying room that offers its own state: a joiner starts from the
 /// caller's state of the newest tick, no player is asked, and a player that
 /// never reports cannot hold the join back.

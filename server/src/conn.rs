@@ -124,17 +124,28 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
         .await
         .map_err(|e| fail(format!("no stream opened: {e}")))?;
     let frame = match read_frame(&mut recv).await {
-        Ok(Some(f)) => f,
+        Ok(Some(f)) => Ok(f),
         Ok(None) => return Err(fail("stream ended before the join".into())),
-        Err(e) => return Err(fail(format!("before joining: {e}"))),
+        Err(e) => Err(format!("before joining: {e}")),
     };
-    let join = match ClientMessage::decode(&frame) {
-        Ok(ClientMessage::Join(j)) => j,
-        Ok(other) => return Err(fail(format!("{} before joining", other.kind()))),
-        Err(e) => return Err(fail(format!("undecodable join: {e}"))),
-    };
+    let join = frame.and_then(|f| match ClientMessage::decode(&f) {
+        Ok(ClientMessage::Join(j)) => Ok(j),
+        Ok(other) => Err(format!("{} before joining", other.kind())),
+        Err(e) => Err(format!("undecodable join: {e}")),
+    });
     let (writer_tx, writer_rx) = mpsc::channel(WRITER_QUEUE);
     let writer = tokio::spawn(write_loop(connection.clone(), send, writer_rx));
+    let join = match join {
+        Ok(j) => j,
+        Err(detail) => {
+            // A broken first frame is a protocol violation like any other:
+            // the client is told why, with its close code.
+            let close = close_of(CloseReason::ProtocolViolation, detail);
+            send_close(&writer_tx, &close);
+            let why = format!("protocol violation: {}", close.detail);
+            return Err((why, Some(connection), Some(writer)));
+        }
+    };
     let peer = Peer {
         connection: connection.clone(),
         writer: writer_tx.clone(),

@@ -111,7 +111,7 @@ impl Metrics {
         let counters: [(&str, &str, u64); 10] = [
             (
                 "lockstep_matches_total",
-                "Matches ended.",
+                "Matches ended (rooms whose match started; a lobby that closes is none).",
                 get(&self.matches_total),
             ),
             (

@@ -436,10 +436,22 @@ async fn garbage_oversized_frames_foreign_or_far_inputs_and_silence_are_refused_
     let (addr, cert) = (server.addr, server.cert.clone());
 
     // Not seated: garbage instead of a join.
-    let (_e1, c1, mut s1, _r1) = raw_connect(addr, &cert).await;
+    let (_e1, c1, mut s1, mut r1) = raw_connect(addr, &cert).await;
     s1.write_all(&[8, 0, 0, 0, 0xde, 0xad, 0xbe, 0xef, 1, 2, 3, 4])
         .await
         .unwrap();
+    // Told why, as a protocol violation (Close message and QUIC code 1).
+    let (reason1, detail1) = close_reason(&mut r1)
+        .await
+        .expect("a close for the garbage join");
+    assert_eq!(reason1, CloseReason::ProtocolViolation);
+    assert!(detail1.contains("undecodable join"), "{detail1}");
+    match c1.closed().await {
+        quinn::ConnectionError::ApplicationClosed(a) => {
+            assert_eq!(a.error_code, quinn::VarInt::from_u32(1));
+        }
+        other => panic!("expected an application close, got {other}"),
+    }
     // Seated, then a garbage datagram before its first input: removed
     // before the match can start with it.
     let (_e2, c2, _s2, mut r2, _) = raw_join(addr, &cert, "evil", "garbage-datagram").await;

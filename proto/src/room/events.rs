@@ -53,10 +53,16 @@ pub enum LeaveReason {
     /// [`RoomConfig::max_wrong_ticks`](super::RoomConfig::max_wrong_ticks)
     /// reported ticks in a row.
     Diverged,
-    /// Its state hash was missing on
+    /// Its state hash was missing on more than
     /// [`RoomConfig::max_missing_reports`](super::RoomConfig::max_missing_reports)
-    /// compared ticks in a row.
+    /// of its last [`RoomConfig::report_window`](super::RoomConfig::report_window)
+    /// compared ticks.
     NoHashReports,
+    /// It was joining the running match (or rejoining its seat) and no
+    /// agreed state could be had for it: refused with
+    /// [`CloseReason::MatchInProgress`](crate::CloseReason::MatchInProgress)
+    /// and the reason (a rejoiner keeps its seat's reservation).
+    JoinRefused,
 }
 
 /// Something the caller may want to log, record or act on.

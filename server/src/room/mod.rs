@@ -1003,7 +1003,19 @@ impl RoomTask {
                 reason,
                 from_tick,
             } => {
-                if reason == LeaveReason::RoomClosed {
+                if reason == LeaveReason::JoinRefused {
+                    // Logged and counted as the refusal it is, not as a
+                    // player leaving.
+                    if let Some(remote) = self.seat(id).map(|s| s.peer.remote) {
+                        self.shared.refused(
+                            remote,
+                            format!(
+                                "room {}: slot {}: join to the running match refused: no agreed state",
+                                self.name, id.slot.0
+                            ),
+                        );
+                    }
+                } else if reason == LeaveReason::RoomClosed {
                     tracing::info!(
                         slot = id.slot.0,
                         "room {}: slot {} played to the end (tick {from_tick})",

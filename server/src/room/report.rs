@@ -148,10 +148,13 @@ impl RoomTask {
         }
         self.flush_replay(true);
         self.update_metrics(true);
-        self.shared
-            .metrics
-            .matches_total
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        // A lobby that closed before its match started played no match.
+        if self.room.is_started() {
+            self.shared
+                .metrics
+                .matches_total
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
         let stats = *self.room.stats();
         let duration = match self.phase {
             Phase::Running { epoch, .. } => self.now().saturating_sub(epoch),
