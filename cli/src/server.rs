@@ -96,9 +96,19 @@ pub struct ServerArgs {
     /// Most rooms open at once; a join for a new room beyond it is refused.
     #[arg(long, default_value_t = 16, env = "LOCKSTEP_MAX_ROOMS")]
     max_rooms: usize,
-    /// Most connections at once; beyond it a connection is refused at once.
+    /// Most connections at once; beyond it a connection is refused with
+    /// QUIC code 5 (overloaded) and the reason.
     #[arg(long, default_value_t = 256, env = "LOCKSTEP_MAX_CONNECTIONS")]
     max_connections: usize,
+    /// Most connections at once from one IP address (handshaking, waiting
+    /// to join or playing); beyond it a connection is refused with QUIC
+    /// code 5 and the reason. Raise it for load tests from one host.
+    #[arg(
+        long,
+        default_value_t = 16,
+        env = "LOCKSTEP_MAX_CONNECTIONS_PER_ADDRESS"
+    )]
+    max_connections_per_address: usize,
     /// Messages a second each connection may send; past it datagrams are
     /// dropped (counted and logged) and stream frames wait.
     #[arg(long, default_value_t = 1000, env = "LOCKSTEP_MAX_MESSAGES_PER_SECOND")]
@@ -322,6 +332,9 @@ pub(crate) fn build_config(app: &App, cli: &ServerArgs) -> Result<ServerConfig, 
         (cli.lobby_timeout > 0.0).then(|| Duration::from_secs_f64(cli.lobby_timeout.min(86_400.0)));
     config.max_rooms = cli.max_rooms.max(1);
     config.max_connections = cli.max_connections.max(1);
+    // The demo's own bots all come from loopback.
+    config.max_connections_per_address =
+        (!cli.demo).then_some(cli.max_connections_per_address.max(1));
     config.room.max_messages_per_second = cli.max_messages_per_second.max(1);
     if let Some(path) = &cli.token_secret_file {
         config.token_secret = Some(read_secret(path)?);

@@ -116,6 +116,17 @@ type Refusal = (
     Option<tokio::task::JoinHandle<()>>,
 );
 
+/// Completes the handshake of a connection over a limit only to close it
+/// with the overloaded code and `reason` (within 2 s, or not at all).
+pub(crate) async fn refuse(incoming: quinn::Incoming, reason: &str) {
+    let Ok(connecting) = incoming.accept() else {
+        return;
+    };
+    if let Ok(Ok(c)) = tokio::time::timeout(Duration::from_secs(2), connecting).await {
+        c.close(close_code::OVERLOADED.into(), truncate(reason).as_bytes());
+    }
+}
+
 /// The first stream, the join frame, and a seat.
 async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joined, Refusal> {
     let fail = |reason: String| (reason, Some(connection.clone()), None);

@@ -146,8 +146,17 @@ pub struct ServerConfig {
     pub replay_dir: Option<PathBuf>,
     /// Most rooms open at once; a join for a new name beyond it is refused.
     pub max_rooms: usize,
-    /// Most connections at once; beyond it a connection is refused at once.
+    /// Most connections at once; beyond it a connection is refused with
+    /// QUIC code 5 (overloaded) and the reason.
     pub max_connections: usize,
+    /// Most connections at once from one IP address, handshaking, waiting
+    /// to join or seated: beyond it a connection is refused with QUIC code
+    /// 5 (overloaded) and the reason, so one address cannot squat every
+    /// free slot with idle connections. `None` (the library's default, for
+    /// load tests from one host): only `max_connections` applies. The
+    /// `lockstep-server` program's default is 16
+    /// (`--max-connections-per-address`).
+    pub max_connections_per_address: Option<usize>,
     /// The secret join tokens are signed with (at least 16 bytes). With it,
     /// a join that carries a token is seated only if the token verifies
     /// (and in the token's seat); see [`issue_token`].
@@ -221,6 +230,7 @@ impl ServerConfig {
             replay_dir: Some(PathBuf::from("out/replays")),
             max_rooms: 16,
             max_connections: 256,
+            max_connections_per_address: None,
             token_secret: None,
             require_tokens: false,
             verifier: None,
@@ -548,6 +558,30 @@ pub(crate) struct Shared {
     pub(crate) allocation: std::sync::RwLock<agones::AllocationState>,
     /// The live viewer's rooms (`--view`).
     pub(crate) spectate: Option<Arc<spectate::Spectate>>,
+    /// Open connections per IP address.
+    pub(crate) per_address: Mutex<HashMap<std::net::IpAddr, usize>>,
+}
+
+/// One connection counted against its address while it lives.
+pub(crate) struct AddressSlot {
+    shared: Arc<Shared>,
+    ip: std::net::IpAddr,
+}
+
+impl Drop for AddressSlot {
+    fn drop(&mut self) {
+        let mut map = self
+            .shared
+            .per_address
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        if let Some(n) = map.get_mut(&self.ip) {
+            *n -= 1;
+            if *n == 0 {
+                map.remove(&self.ip);
+            }
+        }
+    }
 }
 
 impl Shared {
@@ -555,6 +589,25 @@ impl Shared {
         if let Some(tx) = &self.config.events {
             let _ = tx.send(event);
         }
+    }
+
+    /// Counts one more connection from `ip`, unless it already has
+    /// `max_connections_per_address`.
+    pub(crate) fn address_slot(self: &Arc<Self>, ip: std::net::IpAddr) -> Option<AddressSlot> {
+        let mut map = self.per_address.lock().unwrap_or_else(|e| e.into_inner());
+        let n = map.entry(ip).or_insert(0);
+        if self
+            .config
+            .max_connections_per_address
+            .is_some_and(|max| *n >= max)
+        {
+            return None;
+        }
+        *n += 1;
+        Some(AddressSlot {
+            shared: self.clone(),
+            ip,
+        })
     }
 
     pub(crate) fn refused(&self, remote: SocketAddr, reason: String) {
@@ -661,6 +714,8 @@ pub async fn run(
     );
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
     let limit = Arc::new(Semaphore::new(config.max_connections));
+    // Handshakes spent on telling refused connections why, at once.
+    let refusals = Arc::new(Semaphore::new(32));
     let config_agones = config.agones.is_some();
     let priority = clock::Priority {
         realtime: config.realtime_clock,
@@ -707,6 +762,7 @@ pub async fn run(
             agones::AllocationState::Off
         }),
         spectate,
+        per_address: Mutex::new(HashMap::new()),
     });
     if let (Some((listener, local)), Some(spectate)) = (view_listener, &shared.spectate) {
         crate::log!("viewer on http://{local}/ (live rooms, read-only)");
@@ -752,8 +808,20 @@ pub async fn run(
             incoming = endpoint.accept() => {
                 let Some(incoming) = incoming else { break };
                 let remote = incoming.remote_address();
-                match limit.clone().try_acquire_owned() {
-                    Ok(permit) => {
+                let admitted = match (shared.address_slot(remote.ip()), limit.clone().try_acquire_owned()) {
+                    (Some(slot), Ok(permit)) => Ok((slot, permit)),
+                    (None, _) => Err(format!(
+                        "too many connections from {} (at most {} per address)",
+                        remote.ip(),
+                        shared.config.max_connections_per_address.unwrap_or_default()
+                    )),
+                    (Some(_), Err(_)) => Err(format!(
+                        "too many connections (at most {} on this server)",
+                        shared.config.max_connections
+                    )),
+                };
+                match admitted {
+                    Ok((slot, permit)) => {
                         let shared = shared.clone();
                         let span = tracing::info_span!(
                             "conn",
@@ -764,13 +832,25 @@ pub async fn run(
                             async move {
                                 conn::serve(shared, incoming).await;
                                 drop(permit);
+                                drop(slot);
                             },
                             span,
                         ));
                     }
-                    Err(_) => {
-                        shared.refused(remote, "too many connections".into());
-                        incoming.refuse();
+                    Err(reason) => {
+                        shared.refused(remote, reason.clone());
+                        // Told why (QUIC code 5 and the reason) when a
+                        // handshake can be spared; a flood past that gets
+                        // a bare refusal.
+                        match refusals.clone().try_acquire_owned() {
+                            Ok(permit) => {
+                                connections.spawn(async move {
+                                    conn::refuse(incoming, &reason).await;
+                                    drop(permit);
+                                });
+                            }
+                            Err(_) => incoming.refuse(),
+                        }
                     }
                 }
             }

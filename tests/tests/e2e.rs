@@ -1194,6 +1194,71 @@ async fn with_voting_only_token_holders_vote_and_tokenless_sybils_are_dropped() 
     assert_eq!((check.ticks, check.checked), (300, 300));
 }
 
+/// Connection squatting: with `--max-connections-per-address 4`, two bots
+/// play while one address opens idle connections. Two fit beside the bots
+/// (and are dropped for not joining); the next is refused with QUIC code 5
+/// (overloaded) and the reason, counted as a refusal; the bots agree on
+/// every tick and the replay re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn one_address_cannot_squat_the_connection_slots() {
+    let mut server = TestServer::start(tmp("addr-squat"), |c| {
+        program_config(c, &["--max-connections-per-address", "4"]);
+        assert_eq!(c.max_connections_per_address, Some(4));
+        c.room.start_players = 2;
+        c.room.match_ticks = Some(300);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let options = BotOptions::new(addr, &cert, "addr-squat", 2);
+    let bots = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    let _idle = [
+        raw_connect(addr, &cert).await,
+        raw_connect(addr, &cert).await,
+    ];
+    let config = client_config(&load_certs(&cert).expect("cert")).expect("tls");
+    let mut endpoint = quinn::Endpoint::client("127.0.0.1:0".parse().unwrap()).expect("socket");
+    endpoint.set_default_client_config(config);
+    let refused = match endpoint.connect(addr, "localhost").expect("connect").await {
+        Ok(c) => c.closed().await,
+        Err(e) => e,
+    };
+    match refused {
+        quinn::ConnectionError::ApplicationClosed(a) => {
+            assert_eq!(a.error_code, quinn::VarInt::from_u32(5));
+            let reason = String::from_utf8_lossy(&a.reason);
+            assert!(
+                reason.contains("too many connections from 127.0.0.1 (at most 4 per address)"),
+                "{reason}"
+            );
+        }
+        other => panic!("expected an application close, got {other}"),
+    }
+    let bots = bots_ok(bots.await.unwrap());
+    let ended = server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await;
+    let report = server.shutdown().await;
+    assert_same_hashes(&bots, 300);
+    assert!(
+        report
+            .refused
+            .iter()
+            .any(|(_, r)| r.contains("too many connections from 127.0.0.1")),
+        "{:?}",
+        report.refused
+    );
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked), (300, 300));
+}
+
 /// Late join on a server that does not verify: two bots play beside a
 /// silent seat (a raw player that sends inputs but never a hash, in slot
 /// 0); 1.5 s in, a third bot joins the running match. It starts from the
