@@ -137,8 +137,10 @@ impl Room {
             arbiter.set_verifying();
         }
         arbiter.set_voting(config.voting);
+        let mut locator = Locator::new(config.locate_timeout);
+        locator.max_bodies = config.max_probe_bodies;
         Ok(Self {
-            locator: Locator::new(config.locate_timeout),
+            locator,
             last_agreed: None,
             reserved: vec![None; seats],
             joining: None,
@@ -168,6 +170,13 @@ impl Room {
         }
         self.arbiter.verify(tick, hash);
         self.run_arbiter(now);
+    }
+
+    /// Sets [`RoomConfig::max_probe_bodies`] from now on (e.g. the body
+    /// count of the caller's own world, with some slack).
+    pub fn set_max_probe_bodies(&mut self, bodies: u32) {
+        self.config.max_probe_bodies = bodies;
+        self.locator.max_bodies = bodies;
     }
 
     /// The caller re-simulates every tick ([`RoomConfig::verify`]) and can

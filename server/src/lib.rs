@@ -541,6 +541,8 @@ impl ServerReport {
 pub(crate) struct Shared {
     pub(crate) config: ServerConfig,
     pub(crate) scene_hash: u64,
+    /// Bodies in the scene's world.
+    pub(crate) scene_bodies: u32,
     pub(crate) rooms: Mutex<HashMap<String, room::RoomHandle>>,
     pub(crate) shutdown: watch::Receiver<bool>,
     pub(crate) report: Mutex<ServerReport>,
@@ -675,6 +677,7 @@ pub async fn run(
             }
         })?;
     let scene_hash = world.state_hash();
+    let scene_bodies = u32::try_from(world.body_handles().count()).unwrap_or(u32::MAX);
     room::check_settings(&config, scene_hash)?;
     match &config.token_secret {
         Some(s) if s.len() < lockstep_proto::token::MIN_SECRET_BYTES => {
@@ -747,6 +750,7 @@ pub async fn run(
     let shared = Arc::new(Shared {
         config,
         scene_hash,
+        scene_bodies,
         rooms: Mutex::new(HashMap::new()),
         shutdown: shutdown_rx,
         report: Mutex::new(ServerReport::default()),

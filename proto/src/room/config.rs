@@ -71,6 +71,13 @@ pub struct RoomConfig {
     /// before reporting what it has. Zero: no search, notices only.
     /// Default 10 s.
     pub locate_timeout: Duration,
+    /// Most bodies whose hashes the search for a desync pulls from one
+    /// player (8 bytes each): an answer claiming more ends that player's
+    /// part of the search unread, so a liar cannot make the room pull
+    /// megabytes. [`Room::set_max_probe_bodies`](crate::Room::set_max_probe_bodies)
+    /// changes it while the room runs (a server that re-simulates knows
+    /// the world's body count). Default 8,192 (64 KiB a player).
+    pub max_probe_bodies: u32,
     /// The caller re-simulates every tick and gives the room its own hash
     /// ([`Room::verify_tick`](crate::Room::verify_tick)): the room then
     /// judges every report against that hash, not by majority, so a
@@ -145,6 +152,7 @@ impl RoomConfig {
             max_wrong_ticks: 180,
             ping_interval: Duration::from_secs(1),
             locate_timeout: Duration::from_secs(10),
+            max_probe_bodies: 8192,
             rules: None,
             seed: 0,
             verify: false,

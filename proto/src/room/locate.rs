@@ -116,6 +116,8 @@ struct Search {
 pub(crate) struct Locator {
     search: Option<Search>,
     timeout: Duration,
+    /// Most bodies whose hashes are pulled from one player.
+    pub(crate) max_bodies: u32,
 }
 
 impl Locator {
@@ -123,6 +125,7 @@ impl Locator {
         Self {
             search: None,
             timeout,
+            max_bodies: u32::MAX,
         }
     }
 
@@ -278,6 +281,7 @@ impl Locator {
                     hashes,
                 },
             ) if p.total.is_none_or(|t| t == total)
+                && total <= self.max_bodies
                 && from as usize == p.hashes.len()
                 && p.hashes.len() + hashes.len() <= total as usize
                 && (!hashes.is_empty() || total as usize == p.hashes.len()) =>
@@ -497,6 +501,46 @@ mod tests {
             kind: FieldKind::Int,
             words: vec![w],
         }
+    }
+
+    /// A suspect that claims more bodies than the bound is not asked for
+    /// the rest of its hashes: its part ends unread (no answer), and the
+    /// reference's part goes on.
+    #[test]
+    fn a_claim_of_more_bodies_than_the_bound_is_not_pulled() {
+        let mut l = Locator::new(Duration::from_secs(5));
+        l.max_bodies = 100;
+        let mut out = Vec::new();
+        let notice = DesyncNotice {
+            tick: 10,
+            hashes: (0..2u8)
+                .map(|s| PlayerHash {
+                    slot: Slot(s),
+                    hash: Some(u64::from(s)),
+                })
+                .collect(),
+            verdict: Verdict::Undecided,
+        };
+        assert!(l.start(Duration::ZERO, &notice, None, &mut out));
+        out.clear();
+        let liar = ProbeReply {
+            tick: 10,
+            answer: ProbeAnswer::BodyHashes {
+                total: 1 << 20,
+                from: 0,
+                contacts: 1,
+                game: 1,
+                hashes: vec![3; 4096],
+            },
+        };
+        l.on_reply(Slot(1), liar, &mut out);
+        assert!(
+            !out.iter().any(|o| matches!(o, Output::Probe(Slot(1), _))),
+            "the liar is not asked for more"
+        );
+        let s = l.search.as_ref().expect("the search goes on");
+        assert_eq!(s.peers[1].state, PeerState::NoAnswer);
+        assert!(s.peers[1].hashes.is_empty());
     }
 
     /// Two players whose bodies agree and whose game states differ in one

@@ -73,7 +73,21 @@ impl RoomTask {
             .take()
             .map(|t| format!(" ({} ms after the notice)", t.elapsed().as_millis()))
             .unwrap_or_default();
-        crate::log!("room {}: {report}{took}", self.name);
+        // At most 40 lines a desync, however many bodies a report lists
+        // (every player got the whole report, and the bundle keeps it).
+        let text = report.to_string();
+        let lines: Vec<&str> = text.lines().collect();
+        let shown = lines.len().min(40);
+        let more = if lines.len() > shown {
+            format!("\n  ... {} more lines in the report", lines.len() - shown)
+        } else {
+            String::new()
+        };
+        crate::log!(
+            "room {}: {}{more}{took}",
+            self.name,
+            lines[..shown].join("\n")
+        );
         let bundle = self.write_bundle(&report);
         if let Some(p) = &bundle {
             crate::log!("room {}: desync bundle {}", self.name, p.display());

@@ -63,7 +63,7 @@ pub(crate) struct RoomHandle {
 }
 
 /// Builds the room configuration the settings describe.
-fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig {
+fn room_config(config: &ServerConfig, name: &str, scene_hash: u64, bodies: u32) -> RoomConfig {
     let s = &config.room;
     let mut c = RoomConfig::new(name, config.scene.as_bytes().to_vec(), scene_hash);
     c.tick_rate = s.tick_rate;
@@ -71,6 +71,10 @@ fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig
     c.max_players = s.max_players;
     c.silence_timeout = s.silence_timeout;
     c.verify = config.verifier.is_some();
+    // What the server knows of the world: the desync search pulls the
+    // hashes of at most twice the scene's bodies (plus room for a game
+    // that adds a few) from each player.
+    c.max_probe_bodies = bodies.saturating_mul(2).saturating_add(64);
     c.voting = if config.vote {
         lockstep_proto::Voting::TokenHolders
     } else {
@@ -98,7 +102,7 @@ fn room_config(config: &ServerConfig, name: &str, scene_hash: u64) -> RoomConfig
 
 /// Checks the settings once at start-up, so a room can never fail to open.
 pub(crate) fn check_settings(config: &ServerConfig, scene_hash: u64) -> Result<(), ServerError> {
-    room_config(config, "check", scene_hash)
+    room_config(config, "check", scene_hash, 0)
         .validate()
         .map_err(|e| ServerError::Config(e.to_string()))?;
     let s = &config.room;
@@ -148,7 +152,7 @@ pub(crate) fn find_or_open(
     if name.len() > lockstep_proto::MAX_NAME_BYTES {
         return Err(close_of(CloseReason::WrongRoom, "room name too long"));
     }
-    let config = room_config(&shared.config, name, shared.scene_hash);
+    let config = room_config(&shared.config, name, shared.scene_hash, shared.scene_bodies);
     // check_settings validated this configuration at start-up.
     let room = Room::new(config).map_err(|e| close_of(CloseReason::RoomClosed, e.to_string()))?;
     let (tx, rx) = mpsc::channel(4096);
