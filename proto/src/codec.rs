@@ -67,6 +67,11 @@ pub enum DecodeError {
         /// Bytes left over.
         extra: usize,
     },
+    /// The bytes decode, but not in the one encoding of their message (a
+    /// varint in more bytes than it needs): what is accepted re-encodes to
+    /// itself.
+    #[error("not the canonical encoding of its message")]
+    NotCanonical,
     /// The message decoded but breaks a protocol bound (too many entries, an
     /// input over [`MAX_INPUT_BYTES`](crate::MAX_INPUT_BYTES), ...).
     #[error("protocol violation: {0}")]
@@ -132,7 +137,7 @@ fn encode_checked<T: Serialize>(
     Ok(out)
 }
 
-fn decode_checked<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, DecodeError> {
+fn decode_checked<T: DeserializeOwned + Serialize>(bytes: &[u8]) -> Result<T, DecodeError> {
     if bytes.len() > MAX_MESSAGE_BYTES {
         return Err(DecodeError::TooLarge {
             len: bytes.len(),
@@ -156,6 +161,15 @@ fn decode_checked<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, DecodeError> {
         return Err(DecodeError::TrailingBytes {
             extra: body.len() - used,
         });
+    }
+    // Varints have one shortest form; anything longer is refused, so two
+    // peers never disagree on what a message's bytes are.
+    if bincode::serde::encode_to_vec(&value, CONFIG)
+        .ok()
+        .as_deref()
+        != Some(body)
+    {
+        return Err(DecodeError::NotCanonical);
     }
     Ok(value)
 }
@@ -272,6 +286,7 @@ pub fn frame_length(header: [u8; FRAME_HEADER_BYTES]) -> Result<usize, DecodeErr
 
 #[cfg(test)]
 mod tests {
+
     //! Decoding of messages that are valid bincode but break protocol bounds;
     //! these need the raw encoder, which bypasses validation.
     use super::*;
@@ -448,6 +463,32 @@ mod tests {
         assert!(matches!(
             frame_length(1u32.to_le_bytes()),
             Err(DecodeError::Truncated { len: 1 })
+        ));
+    }
+
+    /// A varint in more bytes than it needs decodes to a valid message,
+    /// but is not that message's encoding: refused. So is a join without a
+    /// room name.
+    #[test]
+    fn non_canonical_encodings_and_empty_room_names_are_refused() {
+        let pong = ClientMessage::Pong(crate::message::Pong { nonce: 5 });
+        let bytes = pong.encode().unwrap();
+        assert_eq!(&bytes[2..], &[3, 5]);
+        assert_eq!(ClientMessage::decode(&bytes).unwrap(), pong);
+        let mut long = bytes[..3].to_vec();
+        long.extend_from_slice(&[251, 5, 0]);
+        assert!(matches!(
+            ClientMessage::decode(&long),
+            Err(DecodeError::NotCanonical)
+        ));
+        let crate::message::ClientMessage::Join(mut join) = crate::Session::join_message("r", "p")
+        else {
+            unreachable!()
+        };
+        join.room.clear();
+        assert!(matches!(
+            ClientMessage::Join(join).encode(),
+            Err(EncodeError::Invalid(Violation::EmptyRoomName))
         ));
     }
 }

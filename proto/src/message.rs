@@ -141,6 +141,9 @@ impl ClientMessage {
     pub fn validate(&self) -> Result<(), Violation> {
         match self {
             Self::Join(j) => {
+                if j.room.is_empty() {
+                    return Err(Violation::EmptyRoomName);
+                }
                 check_len(j.room.len(), MAX_NAME_BYTES, |len, max| {
                     Violation::NameTooLong { len, max }
                 })?;
@@ -535,6 +538,9 @@ pub enum Violation {
         /// Allowed length.
         max: usize,
     },
+    /// A join names no room.
+    #[error("the room name is empty")]
+    EmptyRoomName,
     /// A join token is longer than
     /// [`MAX_TOKEN_BYTES`](crate::token::MAX_TOKEN_BYTES).
     #[error("join token of {len} bytes exceeds {max}")]

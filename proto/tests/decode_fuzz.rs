@@ -122,6 +122,7 @@ struct Tally {
     wrong_version: u32,
     malformed: u32,
     trailing: u32,
+    non_canonical: u32,
     invalid: u32,
 }
 
@@ -134,6 +135,7 @@ impl Tally {
             Err(DecodeError::WrongVersion { .. }) => self.wrong_version += 1,
             Err(DecodeError::Malformed(_)) => self.malformed += 1,
             Err(DecodeError::TrailingBytes { .. }) => self.trailing += 1,
+            Err(DecodeError::NotCanonical) => self.non_canonical += 1,
             Err(DecodeError::Invalid(_)) => self.invalid += 1,
         }
     }
@@ -146,6 +148,7 @@ fn check(bytes: &[u8], client: &mut Tally, server: &mut Tally) {
     if let Ok(m) = &c {
         assert_eq!(m.validate(), Ok(()));
         let again = m.encode().expect("accepted message re-encodes");
+        assert_eq!(again, bytes, "accepted bytes are the message's encoding");
         assert_eq!(&ClientMessage::decode(&again).unwrap(), m);
     }
     client.add(&c);
@@ -153,6 +156,7 @@ fn check(bytes: &[u8], client: &mut Tally, server: &mut Tally) {
     if let Ok(m) = &s {
         assert_eq!(m.validate(), Ok(()));
         let again = m.encode().expect("accepted message re-encodes");
+        assert_eq!(again, bytes, "accepted bytes are the message's encoding");
         assert_eq!(&ServerMessage::decode(&again).unwrap(), m);
     }
     server.add(&s);
