@@ -83,6 +83,16 @@ impl TestServer {
         .expect("timed out waiting for a server event")
     }
 
+    /// Waits up to `timeout` for the next match's end and returns its
+    /// report.
+    pub async fn match_end(&mut self, timeout: Duration) -> lockstep_server::RoomReport {
+        self.wait_for(timeout, |e| match e {
+            ServerEvent::MatchEnded(r) => Some(r.clone()),
+            _ => None,
+        })
+        .await
+    }
+
     /// Stops the server and returns its report.
     pub async fn shutdown(mut self) -> ServerReport {
         if let Some(s) = self.stop.take() {

@@ -60,12 +60,7 @@ async fn four_bots_agree_on_every_tick_of_1200_and_the_replay_reverifies() {
     )
     .await;
     let bots = bots_ok(bots);
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(10)).await;
     let report = server.shutdown().await;
     assert_same_hashes(&bots, 1200);
     for b in &bots {
@@ -277,12 +272,7 @@ async fn a_lossy_jittery_link_keeps_1200_ticks_in_sync_and_none_over_150_ms_late
         })
         .await;
     let bots = bots_ok(bots_task.await.expect("bots"));
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(10)).await;
     let stats = link.stats();
     link.stop().await;
     server.shutdown().await;
@@ -503,12 +493,7 @@ async fn garbage_oversized_frames_foreign_or_far_inputs_and_silence_are_refused_
     let (reason6, _) = close_reason(&mut r6).await.expect("close for silence");
     assert_eq!(reason6, CloseReason::TimedOut);
     let bots = bots_ok(bots_task.await.expect("bots"));
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(10)).await;
     let report = server.shutdown().await;
     // The other players' match completed, in sync, to the last tick.
     assert_same_hashes(&bots, 300);
@@ -579,6 +564,61 @@ async fn graceful_shutdown_mid_match_finishes_the_tick_and_flushes_a_replay_that
     assert_eq!(replay.end.as_ref().map(|e| e.0), Some(m.ticks));
     let check = verify_replay_file(&path, &Demo).expect("replay verifies");
     assert_eq!((check.ticks, check.checked), (m.ticks, m.ticks));
+}
+
+/// Two bots start a match in `room`; 1.5 s into it a third joins late.
+/// Returns the two bots' reports, the late joiner's and the match's.
+async fn two_bots_and_a_late_joiner(
+    server: &mut TestServer,
+    room: &'static str,
+) -> (
+    Vec<lockstep_client::net::ClientReport>,
+    lockstep_client::net::ClientReport,
+    lockstep_server::RoomReport,
+) {
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let options = BotOptions::new(addr, &cert, room, 2);
+    let early = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let late_options = BotOptions::new(addr, &cert, room, 3).client_options(2);
+    let late = lockstep_client::bot::run_bot(
+        late_options,
+        std::sync::Arc::new(Demo),
+        1,
+        false,
+        std::future::pending(),
+    )
+    .await
+    .expect("the late joiner plays");
+    let early = bots_ok(early.await.unwrap());
+    let ended = server.match_end(Duration::from_secs(10)).await;
+    (early, late, ended)
+}
+
+/// Four connections that never simulate and report one made-up hash for
+/// every tick, joined in order (so they hold slots 0-3) to `room`.
+async fn sybils(
+    addr: SocketAddr,
+    cert: &std::path::Path,
+    room: &'static str,
+) -> Vec<tokio::task::JoinHandle<Option<(CloseReason, String)>>> {
+    let mut sybils = Vec::new();
+    for name in ["sybil-0", "sybil-1", "sybil-2", "sybil-3"] {
+        sybils.push(tokio::spawn(raw_reporter(
+            addr,
+            cert.to_path_buf(),
+            room,
+            name,
+            |_| Some(0xbad),
+        )));
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    sybils
 }
 
 /// A raw player that keeps up with the match without simulating: it sends
@@ -664,12 +704,7 @@ async fn a_liar_alternating_with_silence_and_a_player_that_never_reports_are_dro
     let mute = tokio::spawn(raw_reporter(addr, cert.clone(), "vote", "mute", |_| None));
     let options = BotOptions::new(addr, &cert, "vote", 3);
     let bots = bots_ok(run_bots(&options, std::future::pending()).await);
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(10)).await;
     server.shutdown().await;
     let (liar_reason, liar_detail) = liar.await.unwrap().expect("the liar is closed");
     assert_eq!(liar_reason, CloseReason::Diverged, "{liar_detail}");
@@ -835,12 +870,7 @@ async fn a_flood_of_valid_datagrams_is_throttled_and_counted() {
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
     let bots = bots_ok(bots.await.expect("bots"));
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(10)).await;
     server.shutdown().await;
     assert_same_hashes(&bots, 180);
     assert_eq!(ended.mismatched_ticks, 0);
@@ -1001,26 +1031,10 @@ async fn sybil_voters_cannot_take_over_the_default_lockstep_server() {
     })
     .await;
     let (addr, cert) = (server.addr, server.cert.clone());
-    let mut sybils = Vec::new();
-    for name in ["sybil-0", "sybil-1", "sybil-2", "sybil-3"] {
-        sybils.push(tokio::spawn(raw_reporter(
-            addr,
-            cert.clone(),
-            "sybil",
-            name,
-            |_| Some(0xbad),
-        )));
-        // Join in order, so the sybils hold slots 0-3.
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
+    let sybils = sybils(addr, &cert, "sybil").await;
     let options = BotOptions::new(addr, &cert, "sybil", 3);
     let bots = bots_ok(run_bots(&options, std::future::pending()).await);
-    let ended = server
-        .wait_for(Duration::from_secs(15), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(15)).await;
     server.shutdown().await;
     for s in sybils {
         let (reason, detail) = s.await.unwrap().expect("a sybil is closed");
@@ -1068,25 +1082,10 @@ async fn sybils_against_an_unverifying_server_drop_nobody_and_reach_no_replay() 
     })
     .await;
     let (addr, cert) = (server.addr, server.cert.clone());
-    let mut sybils = Vec::new();
-    for name in ["sybil-0", "sybil-1", "sybil-2", "sybil-3"] {
-        sybils.push(tokio::spawn(raw_reporter(
-            addr,
-            cert.clone(),
-            "sybil-open",
-            name,
-            |_| Some(0xbad),
-        )));
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
+    let sybils = sybils(addr, &cert, "sybil-open").await;
     let options = BotOptions::new(addr, &cert, "sybil-open", 3);
     let bots = bots_ok(run_bots(&options, std::future::pending()).await);
-    let ended = server
-        .wait_for(Duration::from_secs(15), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(15)).await;
     server.shutdown().await;
     assert_same_hashes(&bots, 240);
     for b in &bots {
@@ -1137,17 +1136,7 @@ async fn with_voting_only_token_holders_vote_and_tokenless_sybils_are_dropped() 
     })
     .await;
     let (addr, cert) = (server.addr, server.cert.clone());
-    let mut sybils = Vec::new();
-    for name in ["sybil-0", "sybil-1", "sybil-2", "sybil-3"] {
-        sybils.push(tokio::spawn(raw_reporter(
-            addr,
-            cert.clone(),
-            "sybil-vote",
-            name,
-            |_| Some(0xbad),
-        )));
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
+    let sybils = sybils(addr, &cert, "sybil-vote").await;
     let now = std::time::SystemTime::now();
     let mut options = BotOptions::new(addr, &cert, "sybil-vote", 3);
     options.tokens = (0..3)
@@ -1164,12 +1153,7 @@ async fn with_voting_only_token_holders_vote_and_tokenless_sybils_are_dropped() 
         })
         .collect();
     let bots = bots_ok(run_bots(&options, std::future::pending()).await);
-    let ended = server
-        .wait_for(Duration::from_secs(15), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(15)).await;
     server.shutdown().await;
     for s in sybils {
         let (reason, detail) = s.await.unwrap().expect("a sybil is closed");
@@ -1239,12 +1223,7 @@ async fn one_address_cannot_squat_the_connection_slots() {
         other => panic!("expected an application close, got {other}"),
     }
     let bots = bots_ok(bots.await.unwrap());
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(10)).await;
     let report = server.shutdown().await;
     assert_same_hashes(&bots, 300);
     assert!(
@@ -1269,7 +1248,6 @@ async fn one_address_cannot_squat_the_connection_slots() {
 /// re-verifies.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_late_joiner_starts_from_the_agreed_snapshot_and_matches() {
-    use lockstep_client::bot::run_bot;
     let mut server = TestServer::start(tmp("late"), |c| {
         c.room.start_players = 3;
         c.room.match_ticks = Some(480);
@@ -1279,31 +1257,7 @@ async fn a_late_joiner_starts_from_the_agreed_snapshot_and_matches() {
     let (addr, cert) = (server.addr, server.cert.clone());
     let mute = tokio::spawn(raw_reporter(addr, cert.clone(), "late", "mute", |_| None));
     tokio::time::sleep(Duration::from_millis(50)).await;
-    let options = BotOptions::new(addr, &cert, "late", 2);
-    let early = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
-    server
-        .wait_for(Duration::from_secs(10), |e| {
-            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
-        })
-        .await;
-    tokio::time::sleep(Duration::from_millis(1500)).await;
-    let late_options = BotOptions::new(addr, &cert, "late", 3).client_options(2);
-    let late = run_bot(
-        late_options,
-        std::sync::Arc::new(Demo),
-        1,
-        false,
-        std::future::pending(),
-    )
-    .await
-    .expect("the late joiner plays");
-    let early = bots_ok(early.await.unwrap());
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let (early, late, ended) = two_bots_and_a_late_joiner(&mut server, "late").await;
     server.shutdown().await;
     assert_same_hashes(&early, 480);
     println!(
@@ -1335,7 +1289,6 @@ async fn a_late_joiner_starts_from_the_agreed_snapshot_and_matches() {
 /// reason; the bots agree on every tick and the replay re-verifies.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sparse_and_silent_reporters_are_dropped_and_cannot_block_a_late_join() {
-    use lockstep_client::bot::run_bot;
     let mut server = TestServer::start(tmp("sparse"), |c| {
         program_config(c, &["--late-join"]);
         c.room.start_players = 4;
@@ -1347,31 +1300,7 @@ async fn sparse_and_silent_reporters_are_dropped_and_cannot_block_a_late_join() 
         (t % 250 == 0).then_some(0xbad)
     }));
     let mute = tokio::spawn(raw_reporter(addr, cert.clone(), "sparse", "mute", |_| None));
-    let options = BotOptions::new(addr, &cert, "sparse", 2);
-    let early = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
-    server
-        .wait_for(Duration::from_secs(10), |e| {
-            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
-        })
-        .await;
-    tokio::time::sleep(Duration::from_millis(1500)).await;
-    let late_options = BotOptions::new(addr, &cert, "sparse", 3).client_options(2);
-    let late = run_bot(
-        late_options,
-        std::sync::Arc::new(Demo),
-        1,
-        false,
-        std::future::pending(),
-    )
-    .await
-    .expect("the late joiner plays");
-    let early = bots_ok(early.await.unwrap());
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let (early, late, ended) = two_bots_and_a_late_joiner(&mut server, "sparse").await;
     server.shutdown().await;
     for (who, task) in [("sparse", sparse), ("mute", mute)] {
         let (reason, detail) = task.await.unwrap().expect("closed by the server");
@@ -1459,12 +1388,7 @@ async fn a_killed_bot_rejoins_its_seat_with_its_token_and_matches() {
             others.push(t.await.unwrap().expect("bot plays"));
         }
     }
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(10)).await;
     server.shutdown().await;
     assert_same_hashes(&others, 600);
     assert_eq!(again.slot, Slot(1));

@@ -15,7 +15,6 @@ use std::time::Duration;
 use lockstep_client::bot::{BotOptions, run_bots};
 use lockstep_client::game::{Demo, RulesFactory};
 use lockstep_client::offline::verify_replay_file;
-use lockstep_server::ServerEvent;
 use lockstep_tests::harness::{TestServer, assert_same_hashes, bots_ok};
 use lockstep_tests::link::{LinkConditioner, LinkConfig};
 
@@ -55,12 +54,7 @@ async fn predicting_match(
     options.predict = true;
     let bots_task = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
     let reports = bots_ok(bots_task.await.expect("bots"));
-    let ended = server
-        .wait_for(Duration::from_secs(10), |e| match e {
-            ServerEvent::MatchEnded(r) => Some(r.clone()),
-            _ => None,
-        })
-        .await;
+    let ended = server.match_end(Duration::from_secs(10)).await;
     link.stop().await;
     server.shutdown().await;
     assert_same_hashes(&reports, TICKS);
