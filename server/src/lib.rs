@@ -508,9 +508,10 @@ pub const RECENT_REFUSALS: usize = 256;
 /// matches and refusals.
 #[derive(Clone, Debug, Default)]
 pub struct ServerReport {
-    /// The last [`RECENT_MATCHES`] matches played, in the order they ended.
+    /// The last [`RECENT_MATCHES`] matches played, in the order they ended
+    /// (a lobby that closed before its match started is none).
     pub matches: Vec<RoomReport>,
-    /// Matches played in all.
+    /// Matches played in all (as `lockstep_matches_total`).
     pub matches_total: u64,
     /// The last [`RECENT_REFUSALS`] connections refused or players removed
     /// for cause: peer and reason.

@@ -207,7 +207,10 @@ impl RoomTask {
                 rooms.remove(&self.name);
             }
         }
-        if let Ok(mut r) = self.shared.report.lock() {
+        // A lobby that closed before its match started played no match.
+        if self.room.is_started()
+            && let Ok(mut r) = self.shared.report.lock()
+        {
             r.add_match(report.clone());
         }
         self.shared.emit(ServerEvent::MatchEnded(report));
