@@ -446,25 +446,22 @@ impl CharacterController {
 
         // The ground is read before the carry, against the poses the
         // ground body has now: the carry moves the character with it.
-        plan.ground = self.probe_ground(world, pos, &filter, cfg.skin);
-        if on_ground && plan.ground.is_some() {
+        let below = self.walkable_below(world, pos, &filter, cfg.skin);
+        plan.ground = below.as_ref().map(ground_of);
+        if on_ground && let Some(hit) = below {
             // Still on the ground: settle onto it, one skin from it. The
             // probe finds ground up to two skins below the capsule, and a
             // character on the ground gets no vertical speed, so a slide
             // over a stair nose or a step landing that left it higher
-            // would otherwise walk on that high for good.
-            let down = Vec3::new(Scalar::ZERO, -cfg.skin, Scalar::ZERO);
-            if let Some(hit) = self.sweep(world, pos, down, &filter)
-                && !hit.initially_overlapping
-                && self.walkable(world, &hit, &filter)
-            {
-                pos += down * hit.fraction;
+            // would otherwise walk on that high for good. (The probe's own
+            // sweep, down by a skin, says how far.)
+            if !hit.initially_overlapping {
+                pos += Vec3::new(Scalar::ZERO, -cfg.skin, Scalar::ZERO) * hit.fraction;
             }
-        } else if on_ground && cfg.snap_distance > Scalar::ZERO && plan.ground.is_none() {
+        } else if on_ground && cfg.snap_distance > Scalar::ZERO {
             let down = Vec3::new(Scalar::ZERO, -cfg.snap_distance, Scalar::ZERO);
-            if let Some(hit) = self.sweep(world, pos, down, &filter)
+            if let Some(hit) = self.walkable_below(world, pos, &filter, cfg.snap_distance)
                 && !hit.initially_overlapping
-                && self.walkable(world, &hit, &filter)
             {
                 pos += down * hit.fraction;
                 plan.snapped = true;
@@ -541,14 +538,23 @@ impl CharacterController {
         filter: &QueryFilter<'_>,
         distance: Scalar,
     ) -> Option<Ground> {
+        self.walkable_below(world, pos, filter, distance)
+            .as_ref()
+            .map(ground_of)
+    }
+
+    /// The sweep of the capsule straight down by `distance` from `pos`,
+    /// if it hits walkable ground.
+    fn walkable_below(
+        &self,
+        world: &World,
+        pos: Vec3,
+        filter: &QueryFilter<'_>,
+        distance: Scalar,
+    ) -> Option<ShapeHit> {
         let down = Vec3::new(Scalar::ZERO, -distance, Scalar::ZERO);
         let hit = self.sweep(world, pos, down, filter)?;
-        self.walkable(world, &hit, filter).then_some(Ground {
-            body: hit.body,
-            collider: hit.collider,
-            point: hit.point,
-            normal: hit.normal,
-        })
+        self.walkable(world, &hit, filter).then_some(hit)
     }
 
     /// Whether a hit is ground the character can stand on: the normal is
@@ -768,6 +774,16 @@ impl CharacterController {
             }
         }
         Ok(pushed)
+    }
+}
+
+/// The ground a walkable hit found.
+fn ground_of(hit: &ShapeHit) -> Ground {
+    Ground {
+        body: hit.body,
+        collider: hit.collider,
+        point: hit.point,
+        normal: hit.normal,
     }
 }
 
