@@ -287,14 +287,6 @@ fn v(x: f64, y: f64, z: f64) -> Vec3 {
     Vec3::new(s(x), s(y), s(z))
 }
 
-/// A uniform number in [0, 1) from a 64-bit LCG.
-fn lcg(state: &mut u64) -> f64 {
-    *state = state
-        .wrapping_mul(6_364_136_223_846_793_005)
-        .wrapping_add(1_442_695_040_888_963_407);
-    (*state >> 11) as f64 / (1u64 << 53) as f64
-}
-
 /// The f64 slab test (the parameter interval of the segment `o + t·d`
 /// inside `[lo, hi]`), for cross-checking the exact one away from ties.
 fn slab_f64(o: [f64; 3], d: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> Option<(f64, f64)> {
@@ -315,15 +307,15 @@ fn slab_f64(o: [f64; 3], d: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> Option<(f64
 
 #[test]
 fn tree_ray_traversal_visits_exactly_the_boxes_the_segment_touches() {
-    let mut st = 17u64;
+    let mut st = XorShift::new(17);
     let mut tree = DynamicTree::new(s(0.1));
     for i in 0..400u64 {
         let c = [
-            lcg(&mut st) * 100.0 - 50.0,
-            lcg(&mut st) * 20.0,
-            lcg(&mut st) * 100.0 - 50.0,
+            st.unit() * 100.0 - 50.0,
+            st.unit() * 20.0,
+            st.unit() * 100.0 - 50.0,
         ];
-        let h = [lcg(&mut st) * 3.0, lcg(&mut st) * 3.0, lcg(&mut st) * 3.0];
+        let h = [st.unit() * 3.0, st.unit() * 3.0, st.unit() * 3.0];
         tree.create_proxy(
             Aabb::new(
                 v(c[0] - h[0], c[1] - h[1], c[2] - h[2]),
@@ -336,9 +328,9 @@ fn tree_ray_traversal_visits_exactly_the_boxes_the_segment_touches() {
     for _ in 0..300 {
         let mut p = || {
             v(
-                lcg(&mut st) * 120.0 - 60.0,
-                lcg(&mut st) * 30.0 - 5.0,
-                lcg(&mut st) * 120.0 - 60.0,
+                st.unit() * 120.0 - 60.0,
+                st.unit() * 30.0 - 5.0,
+                st.unit() * 120.0 - 60.0,
             )
         };
         let (o, e) = (p(), p());
