@@ -110,6 +110,20 @@ impl RelativePose {
     }
 }
 
+/// A collider's world pose and its rotation as a matrix
+/// (`Mat3::from_quat` of the pose's rotation): a bare [`Transform`] works
+/// the matrix out, the narrow phase's pose table has it already.
+pub(crate) trait PoseAndMatrix {
+    /// The pose and `Mat3::from_quat(pose.rotation)`.
+    fn pose_and_matrix(&self) -> (Transform, Mat3);
+}
+
+impl PoseAndMatrix for Transform {
+    fn pose_and_matrix(&self) -> (Transform, Mat3) {
+        (*self, Mat3::from_quat(self.rotation))
+    }
+}
+
 impl ReuseCache {
     /// An empty cache: the next update runs the full test.
     pub const EMPTY: ReuseCache = ReuseCache {
@@ -146,8 +160,8 @@ impl ReuseCache {
     /// manifold leaves the cache invalid.
     pub(crate) fn record(
         &mut self,
-        a: &Transform,
-        b: &Transform,
+        a: &impl PoseAndMatrix,
+        b: &impl PoseAndMatrix,
         rel: &RelativePose,
         m: &Manifold,
     ) {
@@ -155,8 +169,8 @@ impl ReuseCache {
         if !self.valid {
             return;
         }
-        let ra = Mat3::from_quat(a.rotation);
-        let rb = Mat3::from_quat(b.rotation);
+        let (a, ra) = a.pose_and_matrix();
+        let (b, rb) = b.pose_and_matrix();
         self.rel_translation = rel.translation;
         self.rel_rotation = rel.rotation;
         self.normal = ra.transpose_mul_vec(m.normal);
@@ -177,9 +191,9 @@ impl ReuseCache {
     /// recorded normal turned with A, and per point its anchors moved with
     /// their bodies, the depth their distance along the normal, the point
     /// their midpoint. Ids stay.
-    pub(crate) fn rebuild(&self, a: &Transform, b: &Transform, m: &mut Manifold) {
-        let ra = Mat3::from_quat(a.rotation);
-        let rb = Mat3::from_quat(b.rotation);
+    pub(crate) fn rebuild(&self, a: &impl PoseAndMatrix, b: &impl PoseAndMatrix, m: &mut Manifold) {
+        let (a, ra) = a.pose_and_matrix();
+        let (b, rb) = b.pose_and_matrix();
         let ab = b.translation - a.translation;
         let n = ra.mul_vec(self.normal);
         m.normal = n;

@@ -157,12 +157,14 @@ impl World {
     pub(crate) fn stage_narrow_phase(&mut self) -> ContactStats {
         let margin = self.config.contact_margin;
         let dt = self.config.dt();
+        let grew = self.poses.fill(&self.bodies, &self.colliders);
         let World {
             bodies,
             colliders,
             contacts,
             candidates,
             workers,
+            poses,
             ..
         } = self;
         let cands = candidates.iter().map(|&(ka, kb)| {
@@ -179,16 +181,9 @@ impl World {
                 },
             }
         });
-        let pose_of = |ch: ColliderHandle| {
-            let c = colliders.get(ch.0)?;
-            let hot = bodies.hot(c.body)?;
-            let cold = bodies.cold(c.body)?;
-            Some((
-                c,
-                c.world_pose(&hot.origin_pose(cold.local_center)),
-                hot.linear_velocity,
-            ))
-        };
+        let poses = &*poses;
+        let bodies_ref = &*bodies;
+        let colliders_ref = &*colliders;
         // Speculative distance: the fixed margin plus how far the two bodies
         // close in one tick, so a fast body gets its contact point before it
         // passes the surface, and the solver stops it exactly there (no
@@ -202,7 +197,10 @@ impl World {
                             b: ColliderHandle,
                             reuse: Option<(&mut Manifold, &mut ReuseCache)>,
                             out: &mut Manifold| {
-            let (Some((ca, pa, va)), Some((cb, pb, vb))) = (pose_of(a), pose_of(b)) else {
+            let (Some((ca, pa)), Some((cb, pb))) = (
+                poses.pose(bodies_ref, colliders_ref, a),
+                poses.pose(bodies_ref, colliders_ref, b),
+            ) else {
                 return false;
             };
             let reuse = match reuse {
@@ -212,18 +210,17 @@ impl World {
                 }
                 r => r,
             };
+            let reach = || margin + (pb.velocity - pa.velocity).length() * dt;
             let Some((prev, cache)) = reuse else {
-                let reach = margin + (vb - va).length() * dt;
-                narrow::contact(&ca.shape, &pa, &cb.shape, &pb, reach, out);
+                narrow::contact(&ca.shape, &pa.pose, &cb.shape, &pb.pose, reach(), out);
                 return false;
             };
-            let rel = RelativePose::between(&pa, &pb);
+            let rel = RelativePose::between(&pa.pose, &pb.pose);
             if !prev.is_empty() && cache.holds_for(&rel) {
                 cache.rebuild(&pa, &pb, prev);
                 return true;
             }
-            let reach = margin + (vb - va).length() * dt;
-            narrow::contact(&ca.shape, &pa, &cb.shape, &pb, reach, out);
+            narrow::contact(&ca.shape, &pa.pose, &cb.shape, &pb.pose, reach(), out);
             cache.record(&pa, &pb, &rel, out);
             false
         };
@@ -238,7 +235,8 @@ impl World {
                 ) | (Some(ProxyKind::Static), Some(ProxyKind::Sleeping))
             )
         };
-        let stats = contacts.update(cands, narrow_phase, resting, workers);
+        let mut stats = contacts.update(cands, narrow_phase, resting, workers);
+        stats.growths += grew;
         debug_assert!(
             self.active_pairs_cover_moving(),
             "active pair list misses a pair"

@@ -8,6 +8,7 @@ mod collide;
 mod config;
 mod joints;
 mod observe;
+mod poses;
 mod query;
 mod state_hash;
 mod step;
@@ -107,6 +108,10 @@ pub struct World {
     /// (reused every step).
     #[serde(skip)]
     ccd: ccd::CcdScratch,
+    /// Scratch: the colliders' world poses for the narrow phase (filled
+    /// every step).
+    #[serde(skip)]
+    poses: poses::ColliderPoses,
 }
 
 impl PartialEq for World {
@@ -143,6 +148,7 @@ impl World {
             workers: Workers::default(),
             islands: IslandScratch::default(),
             ccd: ccd::CcdScratch::default(),
+            poses: poses::ColliderPoses::default(),
         };
         // An index that describes the (empty) set from the start, so counts
         // are exact before the first step.
