@@ -153,8 +153,8 @@ pub struct ServerArgs {
     /// in the replay either way).
     #[arg(long, value_name = "SEED", env = "LOCKSTEP_MATCH_SEED")]
     match_seed: Option<u64>,
-    /// Seconds a dropped player's seat stays reserved for a rejoin with
-    /// its seat token.
+    /// Seconds a dropped token holder's seat stays reserved for its rejoin
+    /// (with the rejoin credential its welcome gave).
     #[arg(long, default_value_t = 30.0, env = "LOCKSTEP_REJOIN_GRACE")]
     rejoin_grace: f64,
     /// Serve Prometheus metrics, /healthz and /readyz over HTTP on this TCP
@@ -211,8 +211,10 @@ pub enum ServerCommand {
         /// Who it is for (in the server's logs).
         #[arg(long)]
         player: String,
-        /// Seconds it stays valid.
-        #[arg(long, default_value_t = 3600)]
+        /// Seconds it stays valid for joining (a player seated with it
+        /// comes back with the rejoin credential of its welcome, which
+        /// lasts the match, so the token need not outlive the first join).
+        #[arg(long, default_value_t = 600)]
         ttl_seconds: u64,
     },
 }

@@ -427,6 +427,7 @@ mod tests {
             resume: None,
             rules: None,
             seed: 0,
+            rejoin: None,
         });
         assert!(matches!(
             ServerMessage::decode(&raw(&w)),

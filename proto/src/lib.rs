@@ -40,8 +40,8 @@ pub use forensics::{
 pub use limits::*;
 pub use message::{
     BundleDatagram, Channel, ClientMessage, Close, CloseReason, DesyncNotice, HashReport,
-    InputDatagram, Join, Ping, PlayerHash, PlayerInput, Pong, ServerMessage, Slot, TickBundle,
-    Verdict, Violation, Welcome,
+    InputDatagram, Join, Ping, PlayerHash, PlayerInput, Pong, RejoinCredential, ServerMessage,
+    Slot, TickBundle, Verdict, Violation, Welcome,
 };
 pub use replay::{
     ENGINE_VERSION, Replay, ReplayError, ReplayHeader, ReplayRecord, ReplayRecorder, RulesId,

@@ -11,7 +11,8 @@
 /// Version 2 added the join token and the desync probes and report.
 /// Version 3 added the rules in the welcome and the game state in the
 /// desync probes and report.
-pub const PROTOCOL_VERSION: u16 = 3;
+/// Version 4 added the rejoin credential to the join and the welcome.
+pub const PROTOCOL_VERSION: u16 = 4;
 
 /// Bytes taken by the version header in front of every encoded message.
 pub const VERSION_HEADER_BYTES: usize = 2;

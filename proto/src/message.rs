@@ -55,8 +55,29 @@ pub struct Join {
     /// Display name of the player.
     pub player_name: String,
     /// A signed join token (see [`token`](crate::token)), when the server
-    /// requires one or the player holds one.
+    /// requires one or the player holds one. A token seats one player once
+    /// per match; the seat's owner comes back with `rejoin`.
     pub token: Option<String>,
+    /// The rejoin credential the room gave this player in an earlier
+    /// [`Welcome`] of the same match: it takes the player back to its own
+    /// seat (the token is then not needed). A credential the room does not
+    /// know is ignored, and the join is judged by its token.
+    pub rejoin: Option<RejoinCredential>,
+}
+
+/// A secret the room gives a token holder at its first join
+/// ([`Welcome::rejoin`]), bound to the room, the seat and the token, valid
+/// for the rest of the match: only its holder can take the seat back. 32
+/// random-looking bytes (an HMAC-SHA256 tag under a key only the room
+/// knows).
+#[derive(Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RejoinCredential(pub [u8; 32]);
+
+impl std::fmt::Debug for RejoinCredential {
+    /// Never prints the secret itself.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("RejoinCredential(..)")
+    }
 }
 
 /// One input datagram: the player's inputs for the consecutive ticks
@@ -219,6 +240,10 @@ pub struct Welcome {
     /// The match's seed: the game state of a world built from the scene
     /// starts with it (ignored with `resume`: the snapshot holds it).
     pub seed: u64,
+    /// For a player seated with a join token: the credential that takes it
+    /// back to this seat for the rest of the match ([`Join::rejoin`]). Its
+    /// token is used up and seats nobody else. `None` for other players.
+    pub rejoin: Option<RejoinCredential>,
 }
 
 /// Where a player joining a running match starts: the world after `tick`
@@ -397,11 +422,12 @@ pub enum CloseReason {
     Diverged,
     /// The player stopped reporting its state hash.
     NoHashReports,
-    /// The join's token names a seat another player holds, or the token
-    /// already seats another connection.
+    /// The join's token names a seat another player holds.
     SeatTaken,
     /// The server requires a valid join token and the join had none, or a
-    /// bad one (the detail says what was wrong).
+    /// bad one: altered, expired, for another room or seat, or already used
+    /// in this match; or a rejoin credential whose seat is no longer
+    /// reserved (the detail says what was wrong).
     BadToken,
 }
 

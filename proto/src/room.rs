@@ -103,6 +103,15 @@ pub struct Room {
     own_snapshots: bool,
     /// The newest tick the caller verified, with its hash.
     last_verified: Option<(u64, u64)>,
+    /// The key rejoin credentials are signed with
+    /// ([`Room::set_rejoin_key`]); without it none are given.
+    rejoin_key: Option<[u8; 32]>,
+    /// The keys of the join tokens that seated a player in this match:
+    /// each seats once.
+    used_tokens: std::collections::BTreeSet<u64>,
+    /// Per seat: the key of the token that first took it in this match
+    /// (its owner, who may come back with its rejoin credential).
+    owners: Vec<Option<u64>>,
 }
 
 /// The snapshot a player joining a running match waits for.
@@ -146,6 +155,9 @@ impl Room {
             joining: None,
             own_snapshots: false,
             last_verified: None,
+            rejoin_key: None,
+            used_tokens: std::collections::BTreeSet::new(),
+            owners: vec![None; seats],
             history: History::new(config.history_ticks as usize),
             arbiter,
             players: (0..seats).map(|_| None).collect(),
@@ -188,6 +200,69 @@ impl Room {
         self.own_snapshots = true;
     }
 
+    /// Sets the secret key the room's rejoin credentials are made with
+    /// (32 random bytes, e.g. from the operating system, never shown to
+    /// anyone). From then on a player seated with a join token gets a
+    /// credential in its welcome ([`Welcome::rejoin`]) that takes it back
+    /// to its seat ([`Join::rejoin`]); its token seats nobody again in this
+    /// match. Without a key no credential is given, and a used token still
+    /// seats nobody again.
+    pub fn set_rejoin_key(&mut self, key: [u8; 32]) {
+        self.rejoin_key = Some(key);
+    }
+
+    /// The credential of seat `index` owned by the token of key `key`:
+    /// HMAC-SHA256 under the room's rejoin key of the room's name, the
+    /// seat and the token's key.
+    fn credential(&self, index: usize, key: u64) -> Option<crate::message::RejoinCredential> {
+        let mac = self.credential_mac(index, key)?;
+        let mut out = [0u8; 32];
+        out.copy_from_slice(&hmac::Mac::finalize(mac).into_bytes());
+        Some(crate::message::RejoinCredential(out))
+    }
+
+    fn credential_mac(&self, index: usize, key: u64) -> Option<hmac::Hmac<sha2::Sha256>> {
+        use hmac::Mac;
+        let mut mac = hmac::Hmac::<sha2::Sha256>::new_from_slice(self.rejoin_key.as_ref()?).ok()?;
+        mac.update(b"lockstep rejoin credential\0");
+        mac.update(&[self.config.name.len() as u8]);
+        mac.update(self.config.name.as_bytes());
+        mac.update(&[index as u8]);
+        mac.update(&key.to_le_bytes());
+        Some(mac)
+    }
+
+    /// The seat a join's rejoin credential belongs to, and its owner's
+    /// token key (checked in constant time against every owned seat).
+    fn credential_seat(&self, join: &Join) -> Option<(usize, u64)> {
+        let c = join.rejoin.as_ref()?;
+        (0..self.owners.len()).find_map(|i| {
+            let key = self.owners[i]?;
+            let mac = self.credential_mac(i, key)?;
+            hmac::Mac::verify_slice(mac, &c.0).ok().map(|()| (i, key))
+        })
+    }
+
+    /// Whether `join` carries a rejoin credential this room gave: the
+    /// caller then lets the room judge it even if its token no longer
+    /// verifies (e.g. expired since the first join).
+    pub fn knows_rejoin(&self, join: &Join) -> bool {
+        self.credential_seat(join).is_some()
+    }
+
+    /// The player still seated in the seat `join`'s rejoin credential
+    /// belongs to, by the same token (its owner's old connection, not yet
+    /// known to be gone). The caller disconnects it
+    /// ([`Room::disconnect`]) before the join, so the owner's new
+    /// connection takes the seat back at once.
+    pub fn rejoin_replaces(&self, join: &Join) -> Option<PlayerId> {
+        let (index, key) = self.credential_seat(join)?;
+        self.players[index]
+            .as_ref()
+            .filter(|p| p.ticket == Some(key))
+            .map(|_| self.id_of(index))
+    }
+
     /// Seats a player in the lowest free slot and queues their
     /// [`Welcome`]. Once the match runs, a join is refused unless the room
     /// allows late joins ([`RoomConfig::late_join`]) or it is a rejoin (see
@@ -202,12 +277,18 @@ impl Room {
 
     /// [`Room::join`] for a join whose token the caller verified
     /// ([`token::verify`](crate::token::verify)): a seat token seats the
-    /// player in exactly that seat, and one token seats one player at a
-    /// time, so votes are counted per granted seat.
+    /// player in exactly that seat, and a token seats one player once per
+    /// match, so votes are counted per granted seat and a copy of a token
+    /// cannot take its owner's seat. A join carrying the rejoin credential
+    /// of its seat ([`Join::rejoin`], see [`Room::set_rejoin_key`]) takes
+    /// the seat back, with or without its token: in the lobby if the seat
+    /// is free, in the running match while the seat is reserved for it
+    /// ([`RoomConfig::rejoin_grace`]).
     ///
     /// # Errors
     /// As [`Room::join`], and [`JoinError::SeatTaken`],
-    /// [`JoinError::NoSuchSeat`], [`JoinError::TokenInUse`].
+    /// [`JoinError::NoSuchSeat`], [`JoinError::TokenUsed`],
+    /// [`JoinError::NotReserved`].
     pub fn join_with_ticket(
         &mut self,
         now: Duration,
@@ -223,18 +304,48 @@ impl Room {
         if join.room != self.config.name {
             return Err(JoinError::WrongRoom(join.room.clone()));
         }
-        let seat_wanted = ticket.and_then(|t| t.claims.seat);
+        // Who the join is: the owner of a seat coming back with its
+        // credential, or the holder of a token (used once per match).
+        let by_credential = self.credential_seat(join);
+        let (key, seat_wanted) = match by_credential {
+            Some((index, key)) => (Some(key), Some(Slot(index as u8))),
+            None => match ticket {
+                Some(t) if self.used_tokens.contains(&t.key) => {
+                    return Err(JoinError::TokenUsed);
+                }
+                Some(t) => (Some(t.key), t.claims.seat),
+                None => (None, None),
+            },
+        };
         let running = self.epoch.is_some();
+        // A seat still reserved for its owner's rejoin.
+        let reserved_for = |i: usize| {
+            self.reserved
+                .get(i)
+                .copied()
+                .flatten()
+                .filter(|&(_, until)| now <= until)
+                .map(|(k, _)| k)
+        };
+        if let Some(seat) = seat_wanted {
+            match self.players.get(seat.index()) {
+                None => return Err(JoinError::NoSuchSeat(seat.0)),
+                Some(Some(_)) => return Err(JoinError::SeatTaken(seat.0)),
+                Some(None) => {}
+            }
+            if running && reserved_for(seat.index()).is_some_and(|k| Some(k) != key) {
+                return Err(JoinError::SeatTaken(seat.0));
+            }
+        }
         let source = if running {
             let rejoin = seat_wanted.is_some_and(|s| {
-                self.reserved
-                    .get(s.index())
-                    .copied()
-                    .flatten()
-                    .is_some_and(|(_, until)| now <= until)
+                by_credential.is_some() && reserved_for(s.index()).is_some_and(|k| Some(k) == key)
             });
             if !(self.config.late_join || rejoin) {
-                return Err(JoinError::MatchInProgress);
+                return match (by_credential, seat_wanted) {
+                    (Some(_), Some(s)) => Err(JoinError::NotReserved(s.0)),
+                    _ => Err(JoinError::MatchInProgress),
+                };
             }
             if self.joining.is_some() {
                 return Err(JoinError::JoinBusy);
@@ -264,32 +375,21 @@ impl Room {
         } else {
             None
         };
-        if let Some(t) = ticket
-            && let Some(i) = self
-                .players
-                .iter()
-                .position(|p| p.as_ref().is_some_and(|p| p.ticket == Some(t.key)))
-        {
-            return Err(JoinError::TokenInUse(i as u8));
-        }
-        let index = match ticket.and_then(|t| t.claims.seat) {
-            Some(seat) => match self.players.get(seat.index()) {
-                None => return Err(JoinError::NoSuchSeat(seat.0)),
-                Some(Some(_)) => return Err(JoinError::SeatTaken(seat.0)),
-                Some(None) => seat.index(),
-            },
+        let index = match seat_wanted {
+            Some(seat) => seat.index(),
             None => {
                 // Seats reserved for a rejoin are not given to others.
-                let free = |i: usize| {
-                    self.players[i].is_none()
-                        && self.reserved[i].is_none_or(|(_, until)| now > until)
-                };
+                let free = |i: usize| self.players[i].is_none() && reserved_for(i).is_none();
                 let Some(index) = (0..self.players.len()).find(|&i| free(i)) else {
                     return Err(JoinError::RoomFull(self.config.max_players));
                 };
                 index
             }
         };
+        if let Some(k) = key {
+            self.used_tokens.insert(k);
+            self.owners[index] = Some(k);
+        }
         let reservation = self.reserved[index].take();
         // The index is below max_players, a u8.
         let slot = Slot(index as u8);
@@ -299,7 +399,7 @@ impl Room {
         };
         let window = usize::from(self.config.input_window);
         let mut player = Player::new(join.player_name.clone(), self.next_tick, window, now);
-        player.ticket = ticket.map(|t| t.key);
+        player.ticket = key;
         if let Some((tick, hash, source)) = source {
             // Joining the running match: seated, but in no bundle until the
             // agreed snapshot came and was checked (`admit`).
@@ -349,6 +449,7 @@ impl Room {
                 resume: None,
                 rules: self.config.rules.clone(),
                 seed: self.config.seed,
+                rejoin: key.and_then(|k| self.credential(index, k)),
             }),
         });
         self.events.push_back(RoomEvent::PlayerJoined {
@@ -1108,6 +1209,7 @@ impl Room {
         p.first_bundle = j.tick + 1;
         p.last_heard = now;
         let name = p.name.clone();
+        let rejoin = p.ticket.and_then(|k| self.credential(id.slot.index(), k));
         self.transmits.push_back(Transmit {
             to: id,
             message: ServerMessage::Welcome(Welcome {
@@ -1126,6 +1228,7 @@ impl Room {
                 }),
                 rules: self.config.rules.clone(),
                 seed: self.config.seed,
+                rejoin,
             }),
         });
         self.events.push_back(RoomEvent::PlayerJoined { id, name });

@@ -171,11 +171,24 @@ impl Session {
         player_name: &str,
         token: Option<String>,
     ) -> ClientMessage {
+        Self::rejoin_message(room, player_name, token, None)
+    }
+
+    /// The join message carrying a join token and the rejoin credential of
+    /// an earlier welcome of the same match ([`Welcome::rejoin`]), which
+    /// takes the player back to its seat.
+    pub fn rejoin_message(
+        room: &str,
+        player_name: &str,
+        token: Option<String>,
+        rejoin: Option<crate::message::RejoinCredential>,
+    ) -> ClientMessage {
         ClientMessage::Join(Join {
             protocol_version: PROTOCOL_VERSION,
             room: room.to_owned(),
             player_name: player_name.to_owned(),
             token,
+            rejoin,
         })
     }
 
@@ -617,6 +630,7 @@ mod tests {
             resume: None,
             rules: None,
             seed: 0,
+            rejoin: None,
         }
     }
 

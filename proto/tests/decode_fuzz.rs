@@ -32,6 +32,7 @@ fn client_samples() -> Vec<ClientMessage> {
             room: "arena".into(),
             player_name: "Zoë".into(),
             token: None,
+            rejoin: None,
         }),
         ClientMessage::Input(InputDatagram {
             slot: Slot(3),
@@ -74,6 +75,7 @@ fn server_samples() -> Vec<ServerMessage> {
             resume: None,
             rules: None,
             seed: 0,
+            rejoin: Some(lockstep_proto::RejoinCredential([0xa5; 32])),
         }),
         ServerMessage::Bundles(BundleDatagram {
             ack_input: Some(36_004),

@@ -17,6 +17,7 @@ fn join_msg(name: &str) -> Join {
         room: "arena".into(),
         player_name: name.into(),
         token: None,
+        rejoin: None,
     }
 }
 
@@ -913,4 +914,173 @@ fn unready_players_are_those_without_their_first_input() {
     room.kick(MS, ids[1], CloseReason::TimedOut, "no first input");
     assert!(room.unready_players().is_empty());
     assert!(room.all_ready());
+}
+
+fn seat_ticket(seat: u8, key: u64) -> lockstep_proto::token::Ticket {
+    lockstep_proto::token::Ticket {
+        claims: lockstep_proto::token::JoinClaims {
+            room: "arena".into(),
+            seat: Some(Slot(seat)),
+            player: format!("owner-{seat}"),
+            expires: u64::MAX,
+        },
+        key,
+    }
+}
+
+fn welcome_to(transmits: &[Transmit], to: PlayerId) -> Option<lockstep_proto::Welcome> {
+    transmits.iter().find_map(|t| match &t.message {
+        ServerMessage::Welcome(w) if t.to == to => Some(w.clone()),
+        _ => None,
+    })
+}
+
+/// A join token seats one player once per match: its owner gets a rejoin
+/// credential in its welcome; a copy of the token is refused (in the lobby
+/// and in the match, seat free or not); the owner takes its seat back with
+/// the credential alone (no token), its stale connection is named for the
+/// caller to drop, and a credential of another room or a made-up one is
+/// ignored (the join is judged by its token).
+#[test]
+fn a_used_token_seats_nobody_again_and_its_owner_rejoins_with_its_credential() {
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.rejoin_grace = Duration::from_secs(30);
+    let mut room = Room::new(c).unwrap();
+    room.set_rejoin_key([9; 32]);
+    let t0 = Duration::ZERO;
+    let tickets = [seat_ticket(0, 100), seat_ticket(1, 101)];
+    let ids: Vec<PlayerId> = (0..2)
+        .map(|i| {
+            room.join_with_ticket(t0, &join_msg("owner"), Some(&tickets[i]))
+                .unwrap()
+        })
+        .collect();
+    let (t, _) = drain(&mut room);
+    let credential = welcome_to(&t, ids[1])
+        .unwrap()
+        .rejoin
+        .expect("a credential");
+    assert_ne!(welcome_to(&t, ids[0]).unwrap().rejoin, Some(credential));
+    // A tokenless player gets none.
+    let plain = room.join(t0, &join_msg("plain")).unwrap();
+    let (t, _) = drain(&mut room);
+    assert_eq!(welcome_to(&t, plain).unwrap().rejoin, None);
+    // The copy of a used token, while its owner is seated ...
+    let copy = room.join_with_ticket(t0, &join_msg("mallory"), Some(&tickets[1]));
+    assert_eq!(copy, Err(JoinError::TokenUsed));
+    let close = JoinError::TokenUsed.to_close();
+    assert_eq!(close.reason, CloseReason::BadToken);
+    assert!(close.detail.contains("already used"), "{}", close.detail);
+    room.start(t0).unwrap();
+    drain(&mut room);
+    let all = [ids[0], ids[1], plain];
+    play_reporting(&mut room, &all, 130, |_, _| Some(7));
+    // ... and once the owner's connection is gone (its seat reserved).
+    let now = after(&room, 130);
+    room.disconnect(now, ids[1]);
+    drain(&mut room);
+    let copy = room.join_with_ticket(now, &join_msg("mallory"), Some(&tickets[1]));
+    assert_eq!(copy, Err(JoinError::TokenUsed));
+    // A made-up credential is ignored: judged by its (used) token.
+    let mut forged = join_msg("mallory");
+    forged.rejoin = Some(lockstep_proto::RejoinCredential([1; 32]));
+    assert!(!room.knows_rejoin(&forged));
+    assert_eq!(
+        room.join_with_ticket(now, &forged, Some(&tickets[1])),
+        Err(JoinError::TokenUsed)
+    );
+    assert_eq!(room.join(now, &forged), Err(JoinError::MatchInProgress));
+    // The owner, with its credential and no token, takes its seat back.
+    let mut back = join_msg("owner");
+    back.rejoin = Some(credential);
+    assert!(room.knows_rejoin(&back));
+    assert_eq!(room.rejoin_replaces(&back), None);
+    let again = room.join(now, &back).unwrap();
+    assert_eq!(again.slot, Slot(1));
+    let (t, _) = drain(&mut room);
+    let (giver, tick) = snapshot_probes(&t)[0];
+    room.handle_message(now, giver, snapshot_reply(tick, b"state"))
+        .unwrap();
+    drain(&mut room);
+    room.admit(now, again, b"state".to_vec());
+    let (t, _) = drain(&mut room);
+    let w = welcome_to(&t, again).unwrap();
+    assert!(w.resume.is_some());
+    assert_eq!(w.rejoin, Some(credential), "the same credential again");
+    // While seated, the credential names the seated connection, which the
+    // caller drops before the owner's new join takes the seat back.
+    assert_eq!(room.rejoin_replaces(&back), Some(again));
+    assert_eq!(room.join(now, &back), Err(JoinError::SeatTaken(1)));
+    // Another room's credential for the same seat and token is unknown here.
+    let mut other = Room::new(RoomConfig::new("arena", vec![], 1)).unwrap();
+    other.set_rejoin_key([8; 32]);
+    other
+        .join_with_ticket(t0, &join_msg("owner"), Some(&tickets[0]))
+        .unwrap();
+    other
+        .join_with_ticket(t0, &join_msg("owner"), Some(&tickets[1]))
+        .unwrap();
+    let (t, _) = drain(&mut other);
+    let theirs = t
+        .iter()
+        .find_map(|t| match &t.message {
+            ServerMessage::Welcome(w) if w.slot == Slot(1) => w.rejoin,
+            _ => None,
+        })
+        .unwrap();
+    assert_ne!(theirs, credential);
+    let mut foreign = join_msg("owner");
+    foreign.rejoin = Some(theirs);
+    assert!(!room.knows_rejoin(&foreign));
+}
+
+/// A rejoin credential whose seat is no longer reserved (its owner was
+/// dropped as diverged, or stayed away past the grace) is refused as such,
+/// and a failed rejoin gives the seat's reservation back.
+#[test]
+fn a_credential_past_its_reservation_is_refused_and_a_failed_rejoin_keeps_the_seat_reserved() {
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.rejoin_grace = Duration::from_secs(30);
+    let mut room = Room::new(c).unwrap();
+    room.set_rejoin_key([9; 32]);
+    let t0 = Duration::ZERO;
+    let owner = room
+        .join_with_ticket(t0, &join_msg("owner"), Some(&seat_ticket(1, 5)))
+        .unwrap();
+    let other = room.join(t0, &join_msg("other")).unwrap();
+    let (t, _) = drain(&mut room);
+    let credential = welcome_to(&t, owner).unwrap().rejoin.unwrap();
+    room.start(t0).unwrap();
+    drain(&mut room);
+    play_reporting(&mut room, &[other, owner], 130, |_, _| Some(7));
+    let now = after(&room, 130);
+    room.disconnect(now, owner);
+    drain(&mut room);
+    let mut back = join_msg("owner");
+    back.rejoin = Some(credential);
+    // The rejoin's snapshot cannot be had: refused, the seat stays reserved.
+    let first = room.join(now, &back).unwrap();
+    let (t, _) = drain(&mut room);
+    let (giver, tick) = snapshot_probes(&t)[0];
+    let unavailable = ClientMessage::ProbeReply(lockstep_proto::ProbeReply {
+        tick,
+        answer: lockstep_proto::ProbeAnswer::Unavailable,
+    });
+    room.handle_message(now, giver, unavailable).unwrap();
+    let (_, e) = drain(&mut room);
+    assert_eq!(left(&e), vec![(first, LeaveReason::JoinRefused, 130)]);
+    // Nobody else takes the reserved seat; the owner gets it on its retry.
+    let stranger = room.join(now, &join_msg("stranger"));
+    assert_eq!(stranger, Err(JoinError::MatchInProgress));
+    let second = room.join(now, &back).unwrap();
+    assert_eq!(second.slot, Slot(1));
+    drain(&mut room);
+    room.kick(now, second, CloseReason::Kicked, "test");
+    drain(&mut room);
+    // Kicked: no reservation, so the credential no longer seats it.
+    assert_eq!(room.join(now, &back), Err(JoinError::NotReserved(1)));
+    assert_eq!(
+        JoinError::NotReserved(1).to_close().reason,
+        CloseReason::BadToken
+    );
 }

@@ -64,9 +64,10 @@ fn message_sizes_for_a_4_player_room_with_8_byte_inputs() {
         room: "arena".into(),
         player_name: "player-1".into(),
         token: None,
+        rejoin: None,
     });
-    // 3 + version 1 + (1 + 5) + (1 + 8) + no token 1
-    assert_eq!(len_c(&join), 20);
+    // 3 + version 1 + (1 + 5) + (1 + 8) + no token 1 + no rejoin 1
+    assert_eq!(len_c(&join), 21);
     // 3 + slot 1 + ack Some 1+3 + first tick 3 + count 1 + k × (len 1 + 8)
     assert_eq!(len_c(&input(1)), 21);
     assert_eq!(len_c(&input(5)), 57);
@@ -100,10 +101,11 @@ fn message_sizes_for_a_4_player_room_with_8_byte_inputs() {
         resume: None,
         rules: None,
         seed: 0,
+        rejoin: None,
     });
     // 3 + six 1-byte fields + scene hash 9 + scene length 3 + 2048 + no
-    // resume 1 + no rules 1 + seed 1
-    assert_eq!(len_s(&welcome), 24 + 2048);
+    // resume 1 + no rules 1 + seed 1 + no rejoin credential 1
+    assert_eq!(len_s(&welcome), 25 + 2048);
     // One bundle: tick 3 + count 1 + 4 × (slot 1 + len 1 + 8 + flag 1) = 48.
     // Datagram: 3 + ack Some 1+3 + count 1 + n × 48.
     assert_eq!(len_s(&bundles(1)), 56);

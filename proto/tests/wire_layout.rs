@@ -7,8 +7,8 @@ use lockstep_proto::{
     PlayerInput, ServerMessage, Slot, TickBundle, Verdict,
 };
 
-/// The version header: protocol version 2, little-endian.
-const V: [u8; 2] = [3, 0];
+/// The version header: protocol version 4, little-endian.
+const V: [u8; 2] = [4, 0];
 
 fn with_header(body: &[u8]) -> Vec<u8> {
     [&V[..], body].concat()
@@ -17,28 +17,30 @@ fn with_header(body: &[u8]) -> Vec<u8> {
 #[test]
 fn client_messages_have_the_documented_bytes() {
     let join = ClientMessage::Join(Join {
-        protocol_version: 3,
+        protocol_version: 4,
         room: "ab".into(),
         player_name: "p".into(),
         token: None,
+        rejoin: None,
     });
-    // variant 0; u16 varint 3; string = varint length + UTF-8; string;
-    // no token: Option tag 0.
+    // variant 0; u16 varint 4; string = varint length + UTF-8; string;
+    // no token: Option tag 0; no rejoin credential: Option tag 0.
     assert_eq!(
         join.encode().unwrap(),
-        with_header(&[0, 3, 2, b'a', b'b', 1, b'p', 0])
+        with_header(&[0, 4, 2, b'a', b'b', 1, b'p', 0, 0])
     );
     let join = ClientMessage::Join(Join {
-        protocol_version: 3,
+        protocol_version: 4,
         room: "ab".into(),
         player_name: "p".into(),
         token: Some("0f".into()),
+        rejoin: Some(lockstep_proto::RejoinCredential([7; 32])),
     });
-    // A token: Option tag 1, then the string.
-    assert_eq!(
-        join.encode().unwrap(),
-        with_header(&[0, 3, 2, b'a', b'b', 1, b'p', 1, 2, b'0', b'f'])
-    );
+    // A token: Option tag 1, then the string; a rejoin credential: Option
+    // tag 1, then its 32 bytes raw (no length).
+    let mut bytes = vec![0, 4, 2, b'a', b'b', 1, b'p', 1, 2, b'0', b'f', 1];
+    bytes.extend_from_slice(&[7; 32]);
+    assert_eq!(join.encode().unwrap(), with_header(&bytes));
     let probe = ServerMessage::Probe(lockstep_proto::Probe {
         tick: 300,
         ask: lockstep_proto::ProbeAsk::Fields { bodies: vec![5] },
@@ -99,13 +101,15 @@ fn server_messages_have_the_documented_bytes() {
         resume: None,
         rules: None,
         seed: 0,
+        rejoin: None,
     });
     // variant 0; slot u8; tick rate, delay, window varints; max input
     // bytes u8 raw; start tick; scene hash; scene = length + bytes; no
-    // resume: Option tag 0; no rules: Option tag 0; seed varint 0.
+    // resume: Option tag 0; no rules: Option tag 0; seed varint 0; no
+    // rejoin credential: Option tag 0.
     assert_eq!(
         welcome.encode().unwrap(),
-        with_header(&[0, 1, 60, 4, 64, 64, 0, 17, 1, b's', 0, 0, 0])
+        with_header(&[0, 1, 60, 4, 64, 64, 0, 17, 1, b's', 0, 0, 0, 0])
     );
     let bundles = ServerMessage::Bundles(BundleDatagram {
         ack_input: None,

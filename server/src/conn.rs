@@ -162,10 +162,19 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
         writer: writer_tx.clone(),
         remote: connection.remote_address(),
     };
-    let checked = check_allocation(shared, &join.room).and_then(|()| {
-        check_token(shared, &join).map_err(|e| close_of(CloseReason::BadToken, e.to_string()))
-    });
-    let ticket = match checked {
+    let allocated = check_allocation(shared, &join.room);
+    let token =
+        check_token(shared, &join).map_err(|e| close_of(CloseReason::BadToken, e.to_string()));
+    // A join carrying a rejoin credential goes to its room even if its
+    // token no longer verifies (expired since the first join): the room
+    // knows the credential, or refuses with the token's reason.
+    let (ticket, token_refusal) = match (allocated, token) {
+        (Err(close), _) => (Err(close), None),
+        (Ok(()), Ok(t)) => (Ok(t), None),
+        (Ok(()), Err(close)) if join.rejoin.is_some() => (Ok(None), Some(close)),
+        (Ok(()), Err(close)) => (Err(close), None),
+    };
+    let ticket = match ticket {
         Ok(t) => t,
         Err(close) => {
             send_close(&writer_tx, &close);
@@ -186,6 +195,7 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
     let (reply_tx, reply_rx) = oneshot::channel();
     let request = RoomCmd::Join {
         ticket,
+        token_refusal,
         join: join.clone(),
         peer,
         reply: reply_tx,

@@ -86,8 +86,8 @@ pub struct RoomSettings {
     /// the snapshot of the last agreed tick, fetched from a player in
     /// agreement and checked against the agreed hash. Default false.
     pub late_join: bool,
-    /// How long a dropped player's seat stays reserved for a rejoin with
-    /// its seat token. Default 30 s.
+    /// How long a dropped token holder's seat stays reserved for its
+    /// rejoin (with the rejoin credential its welcome gave). Default 30 s.
     pub rejoin_grace: Duration,
     /// Every match's seed (announced in the welcome, recorded in the
     /// replay; the game's rules read it as their random source). `None`

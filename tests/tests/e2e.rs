@@ -894,7 +894,7 @@ async fn a_flood_of_valid_datagrams_is_throttled_and_counted() {
 /// With `--require-tokens`: a join without a token, with an expired one, one
 /// for another room or one signed with another secret is refused with its
 /// reason; a seat token seats its holder in its seat, and nobody else gets
-/// that seat or a second seat with the same token while it is held; bots
+/// that seat or a second seat with the same token (a token seats once); bots
 /// holding seat tokens play a match in sync.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connection() {
@@ -971,15 +971,13 @@ async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connecti
     let seat3 = token("tokens", Some(3), "alice");
     let holder = join(Some(seat3.clone())).await.expect("seated");
     assert_eq!(holder.slot(), Slot(3));
-    // ... the same token seats nobody else, nor does another token for the
-    // held seat, nor a seat the room does not have.
+    // ... the same token seats nobody else (it is used up), nor does
+    // another token for the held seat, nor a seat the room does not have.
     let (reason, detail) = refused(join(Some(seat3)).await);
-    assert_eq!(
-        (reason, detail.as_str()),
-        (
-            CloseReason::SeatTaken,
-            "this join token already seats slot 3"
-        )
+    assert_eq!(reason, CloseReason::BadToken);
+    assert!(
+        detail.starts_with("this join token was already used in this match"),
+        "{detail}"
     );
     let (reason, detail) = refused(join(Some(token("tokens", Some(3), "mallory"))).await);
     assert_eq!(
@@ -993,7 +991,7 @@ async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connecti
     let second = join(Some(any.clone())).await.expect("seated");
     assert_eq!(second.slot(), Slot(0));
     let (reason, _) = refused(join(Some(any)).await);
-    assert_eq!(reason, CloseReason::SeatTaken);
+    assert_eq!(reason, CloseReason::BadToken);
     drop((holder, second));
     // Bots with seat tokens play a match in sync.
     let mut options = BotOptions::new(addr, &cert, "tokens-play", 2);
@@ -1320,14 +1318,19 @@ async fn sparse_and_silent_reporters_are_dropped_and_cannot_block_a_late_join() 
     assert_eq!((check.ticks, check.checked), (480, 480));
 }
 
-/// Rejoin: three bots hold seat tokens; one is killed mid-match (its
-/// connection drops without a leave) and started again with the same
-/// token. It takes back its seat from the agreed snapshot and matches the
+/// Tokens whose copy cannot take a seat from its owner (issue 42, item
+/// 6), with `--require-tokens`: three bots hold seat tokens. An attacker
+/// replaying bot 1's token while bot 1 plays, and again once bot 1 is
+/// killed mid-match (its connection drops without a leave), is refused
+/// with `BadToken` and the reason. Bot 1 comes back with the rejoin
+/// credential its welcome gave (kept by the client library, no token this
+/// time), takes back its seat from the agreed snapshot and matches the
 /// others from its first reported tick; late joins are off, and the match
 /// has no desync.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_killed_bot_rejoins_its_seat_with_its_token_and_matches() {
+async fn a_replayed_token_is_refused_and_its_owner_rejoins_with_its_credential() {
     use lockstep_client::bot::run_bot;
+    use lockstep_client::net::{Client, ClientError, ClientOptions};
     use lockstep_server::issue_token;
     let secret = b"rejoin test secret, 16+ bytes".to_vec();
     let key = secret.clone();
@@ -1335,6 +1338,7 @@ async fn a_killed_bot_rejoins_its_seat_with_its_token_and_matches() {
         c.room.start_players = 3;
         c.room.match_ticks = Some(600);
         c.token_secret = Some(key);
+        c.require_tokens = true;
     })
     .await;
     let (addr, cert) = (server.addr, server.cert.clone());
@@ -1353,9 +1357,26 @@ async fn a_killed_bot_rejoins_its_seat_with_its_token_and_matches() {
             .unwrap()
         })
         .collect();
+    let owner = options.client_options(1);
+    let replay_token = || {
+        let mut o = ClientOptions::new(addr, &cert, "rejoin", "mallory");
+        o.token = owner.token.clone();
+        async move {
+            match Client::connect(o, &Demo).await {
+                Err(ClientError::Refused { reason, detail }) => (reason, detail),
+                Err(e) => panic!("expected a refusal, got {e}"),
+                Ok(c) => panic!("the copy took a seat: {c:?}"),
+            }
+        }
+    };
     let mut tasks = Vec::new();
     for i in 0..3 {
-        let o = options.client_options(i);
+        // Bot 1 keeps its credential in `owner`'s store (clones share it).
+        let o = if i == 1 {
+            owner.clone()
+        } else {
+            options.client_options(i)
+        };
         tasks.push(tokio::spawn(run_bot(
             o,
             std::sync::Arc::new(Demo),
@@ -1370,13 +1391,26 @@ async fn a_killed_bot_rejoins_its_seat_with_its_token_and_matches() {
             matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
         })
         .await;
+    assert!(
+        owner.rejoin.get().is_some(),
+        "the welcome gave a credential"
+    );
+    let (reason, detail) = replay_token().await;
+    assert_eq!(reason, CloseReason::BadToken, "{detail}");
+    assert!(detail.contains("already used in this match"), "{detail}");
     tokio::time::sleep(Duration::from_millis(2000)).await;
     // Kill bot 1: its task is dropped mid-match, its connection closes.
     tasks[1].abort();
     let _ = (&mut tasks[1]).await;
     tokio::time::sleep(Duration::from_millis(500)).await;
+    let (reason, detail) = replay_token().await;
+    assert_eq!(reason, CloseReason::BadToken, "{detail}");
+    assert!(detail.contains("already used in this match"), "{detail}");
+    // The owner comes back with its credential alone.
+    let mut back = owner.clone();
+    back.token = None;
     let again = run_bot(
-        options.client_options(1),
+        back,
         std::sync::Arc::new(Demo),
         1,
         false,

@@ -4,13 +4,14 @@ use std::collections::VecDeque;
 use std::future::Future;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 use lockstep_core::{Faults, World};
 use lockstep_proto::{
-    Channel, ClientMessage, Close, CloseReason, DecodeError, DesyncNotice, ServerMessage, Session,
-    SessionError, SessionEvent, Slot, Welcome,
+    Channel, ClientMessage, Close, CloseReason, DecodeError, DesyncNotice, RejoinCredential,
+    ServerMessage, Session, SessionError, SessionEvent, Slot, Welcome,
 };
 use thiserror::Error;
 use tokio::sync::mpsc;
@@ -96,8 +97,16 @@ pub struct ClientOptions {
     /// longer than a report's round trip).
     pub forensics_ticks: usize,
     /// The join token to present (`lockstep-server token`, or a
-    /// matchmaker's), for servers that require one.
+    /// matchmaker's), for servers that require one. It seats a player once
+    /// per match; to come back, the client presents the rejoin credential
+    /// its welcome gave ([`ClientOptions::rejoin`]).
     pub token: Option<String>,
+    /// Where this client keeps the rejoin credential of its seat: the
+    /// welcome's credential is stored here, and the next connect with
+    /// these options (or a clone of them: clones share the store)
+    /// presents it, taking the seat back (a token alone is refused once
+    /// used). Empty at first.
+    pub rejoin: RejoinStore,
     /// Predict (see [`super::predict`]): run a second world ahead of the
     /// confirmed ticks, to the tick of the last input this client chose,
     /// with the other players' inputs guessed; draw
@@ -128,9 +137,27 @@ impl ClientOptions {
             connect_timeout: Duration::from_secs(10),
             forensics_ticks: 64,
             token: None,
+            rejoin: RejoinStore::default(),
             predict: false,
             max_prediction: 8,
         }
+    }
+}
+
+/// The rejoin credential a client keeps for its seat
+/// ([`ClientOptions::rejoin`]); clones share it.
+#[derive(Clone, Debug, Default)]
+pub struct RejoinStore(Arc<Mutex<Option<RejoinCredential>>>);
+
+impl RejoinStore {
+    /// The credential held, if any.
+    pub fn get(&self) -> Option<RejoinCredential> {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Holds `credential` (or forgets the one held).
+    pub fn set(&self, credential: Option<RejoinCredential>) {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner()) = credential;
     }
 }
 
@@ -406,10 +433,11 @@ impl Client {
                 .open_bi()
                 .await
                 .map_err(|e| ClientError::ConnectionLost(e.to_string()))?;
-            let join = Session::join_message_with_token(
+            let join = Session::rejoin_message(
                 &options.room,
                 &options.player_name,
                 options.token.clone(),
+                options.rejoin.get(),
             );
             let bytes = join
                 .encode()
@@ -430,6 +458,9 @@ impl Client {
                 return Err(ClientError::Timeout("joining"));
             }
         };
+        if welcome.rejoin.is_some() {
+            options.rejoin.set(welcome.rejoin);
+        }
         if let Some(server) = &welcome.rules
             && *server != game.rules_id()
         {

@@ -24,7 +24,7 @@ mod tls;
 
 pub use client::{
     AppliedTick, Client, ClientError, ClientEvent, ClientOptions, ClientReport, InputLatency,
-    Latency, LiveClient, Polled, Traffic, TrustedCert,
+    Latency, LiveClient, Polled, RejoinStore, Traffic, TrustedCert,
 };
 pub use forensics::{dump_bodies, dump_game};
 pub use lockstep_net::{

@@ -90,9 +90,10 @@ pub struct RoomConfig {
     /// from a snapshot of the last agreed tick, fetched from a player of
     /// the majority and checked by the caller. Default false.
     pub late_join: bool,
-    /// How long the seat of a player who joined with a seat token and then
-    /// dropped stays reserved for a rejoin with a token for that seat
-    /// (rejoins are allowed even without `late_join`). Default 30 s.
+    /// How long the seat of a player who joined with a join token and then
+    /// dropped stays reserved for its rejoin with the rejoin credential its
+    /// welcome gave (rejoins are allowed even without `late_join`).
+    /// Default 30 s.
     pub rejoin_grace: Duration,
     /// Scene sent to each player in the welcome, opaque to the room.
     pub scene: Vec<u8>,

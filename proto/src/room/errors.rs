@@ -33,9 +33,18 @@ pub enum JoinError {
     /// The token's seat does not exist in this room.
     #[error("the join token's seat {0} is not in this room")]
     NoSuchSeat(u8),
-    /// The same token already seats another connection.
-    #[error("this join token already seats slot {0}")]
-    TokenInUse(u8),
+    /// The token already seated a player in this match (a token is used
+    /// once per match; its holder comes back with the rejoin credential of
+    /// its welcome).
+    #[error(
+        "this join token was already used in this match; its holder rejoins with the rejoin credential of its welcome"
+    )]
+    TokenUsed,
+    /// The join's rejoin credential names a seat that is no longer
+    /// reserved for it (the player was dropped, or stayed away longer than
+    /// the rejoin grace).
+    #[error("seat {0} is no longer reserved for a rejoin")]
+    NotReserved(u8),
     /// Another player is joining the running match; one at a time.
     #[error("another player is joining the running match; try again")]
     JoinBusy,
@@ -54,8 +63,8 @@ impl JoinError {
             Self::MatchInProgress | Self::JoinBusy | Self::NoAgreedState => {
                 CloseReason::MatchInProgress
             }
-            Self::SeatTaken(_) | Self::TokenInUse(_) => CloseReason::SeatTaken,
-            Self::NoSuchSeat(_) => CloseReason::BadToken,
+            Self::SeatTaken(_) => CloseReason::SeatTaken,
+            Self::NoSuchSeat(_) | Self::TokenUsed | Self::NotReserved(_) => CloseReason::BadToken,
         };
         close(reason, self.to_string())
     }

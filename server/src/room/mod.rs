@@ -37,6 +37,9 @@ pub(crate) enum RoomCmd {
         join: Join,
         /// The join's verified token, if any.
         ticket: Option<lockstep_proto::token::Ticket>,
+        /// The refusal of the join's token, held back because the join
+        /// carries a rejoin credential: sent unless the room knows it.
+        token_refusal: Option<Close>,
         peer: Peer,
         reply: oneshot::Sender<Result<PlayerId, Close>>,
     },
@@ -154,7 +157,9 @@ pub(crate) fn find_or_open(
     }
     let config = room_config(&shared.config, name, shared.scene_hash, shared.scene_bodies);
     // check_settings validated this configuration at start-up.
-    let room = Room::new(config).map_err(|e| close_of(CloseReason::RoomClosed, e.to_string()))?;
+    let mut room =
+        Room::new(config).map_err(|e| close_of(CloseReason::RoomClosed, e.to_string()))?;
+    room.set_rejoin_key(rejoin_key()?);
     let (tx, rx) = mpsc::channel(4096);
     let seq = shared.room_seq.fetch_add(1, Ordering::Relaxed);
     let task = RoomTask::new(shared.clone(), name.to_owned(), room, seq);
@@ -176,6 +181,17 @@ pub(crate) fn find_or_open(
         },
     );
     Ok(tx)
+}
+
+/// A fresh secret key for a room's rejoin credentials: 32 bytes from the
+/// operating system's random source (through the TLS library's provider).
+fn rejoin_key() -> Result<[u8; 32], Close> {
+    let mut key = [0u8; 32];
+    rustls::crypto::ring::default_provider()
+        .secure_random
+        .fill(&mut key)
+        .map_err(|_| close_of(CloseReason::RoomClosed, "no random source for the room"))?;
+    Ok(key)
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -723,9 +739,23 @@ impl RoomTask {
             RoomCmd::Join {
                 join,
                 ticket,
+                token_refusal,
                 peer,
                 reply,
             } => {
+                let known = self.room.knows_rejoin(&join);
+                if known && let Some(old) = self.room.rejoin_replaces(&join) {
+                    // The owner is back on a new connection: its old one
+                    // is dropped (its seat stays reserved for it).
+                    tracing::info!(
+                        slot = old.slot.0,
+                        "room {}: slot {}'s owner rejoins from a new connection; the old one is dropped",
+                        self.name,
+                        old.slot.0
+                    );
+                    self.room.disconnect(now, old);
+                    self.pump();
+                }
                 let result = if self.shutting_down {
                     Err(close_of(
                         CloseReason::RoomClosed,
@@ -733,6 +763,8 @@ impl RoomTask {
                     ))
                 } else if matches!(self.phase, Phase::Finishing { .. } | Phase::Done) {
                     Err(close_of(CloseReason::RoomClosed, "the match is over"))
+                } else if let Some(close) = token_refusal.filter(|_| !known) {
+                    Err(close)
                 } else {
                     self.room
                         .join_with_ticket(now, &join, ticket.as_ref())
