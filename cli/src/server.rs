@@ -136,13 +136,10 @@ pub struct ServerArgs {
     no_verify: bool,
     /// Without verifying: the players seated with a join token vote, and a
     /// player whose hash stays outside their strict majority is dropped as
-    /// diverged (needs --no-verify and --token-secret-file).
-    #[arg(
-        long,
-        env = "LOCKSTEP_VOTE",
-        requires = "no_verify",
-        requires = "token_secret_file"
-    )]
+    /// diverged (needs --token-secret-file, and --no-verify when the
+    /// program has the match's rules: a relay of another game's rules
+    /// never verifies).
+    #[arg(long, env = "LOCKSTEP_VOTE", requires = "token_secret_file")]
     vote: bool,
     /// Let players join a running match: they start from the last agreed
     /// state, fetched from a player in agreement and checked by its hash.
@@ -380,6 +377,12 @@ pub(crate) fn build_config(app: &App, cli: &ServerArgs) -> Result<ServerConfig, 
             }
         );
     }
+    if cli.vote && config.verifier.is_some() {
+        return Err(format!(
+            "--vote lets token holders judge hashes, and this server verifies them itself \
+             (it has the match's rules, {ours}): add --no-verify to vote instead"
+        ));
+    }
     config.vote = cli.vote;
     Ok(config)
 }
@@ -479,6 +482,41 @@ mod tests {
             super::read_secret(&path).unwrap(),
             b" keep leading, inner  spaces".to_vec()
         );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// `--vote` needs `--no-verify` only where the server would verify: a
+    /// server relaying another game's rules never verifies, so it votes
+    /// with `--vote` alone.
+    #[test]
+    fn vote_needs_no_verify_only_where_the_server_verifies() {
+        let dir = std::env::temp_dir().join(format!("lockstep-vote-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let secret = dir.join("secret");
+        std::fs::write(&secret, b"a vote test secret of 16+ bytes\n").unwrap();
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/demo.toml");
+        let app = crate::App::demo();
+        let config = |extra: &[&str]| {
+            let args = ["lockstep-server", "--scene", scene, "--token-secret-file"]
+                .into_iter()
+                .chain([secret.to_str().unwrap()])
+                .chain(extra.iter().copied());
+            app.server_config(args)
+        };
+        let e = config(&["--vote"]).expect_err("a verifying server does not vote");
+        assert!(e.contains("add --no-verify to vote instead"), "{e}");
+        let c = config(&["--vote", "--no-verify"]).expect("votes");
+        assert!(c.vote && c.verifier.is_none());
+        let c = config(&[
+            "--vote",
+            "--rules-id",
+            "another-game",
+            "--rules-version",
+            "2",
+        ])
+        .expect("a relay of another game's rules votes with --vote alone");
+        assert!(c.vote && c.verifier.is_none());
+        assert!(config(&["--no-verify"]).is_ok_and(|c| !c.vote));
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -1467,10 +1467,12 @@ async fn http_get(addr: SocketAddr, path: &str) -> (String, String) {
     )
 }
 
-/// The metrics listener during a match: the tick-lateness histogram and
-/// the player count on `/metrics`, `/healthz` and `/readyz` answer; with
-/// `exit_after_match` the server stops by itself after the match, with its
-/// replay flushed. The clock asks for real-time priority, so the match also
+/// The metrics listener during a match: the tick-lateness histogram, the
+/// player count, a refused join in `lockstep_refusals_total` and no match
+/// yet in `lockstep_matches_total` (a lobby closed before, which is none)
+/// on `/metrics`, `/healthz` and `/readyz` answer; with `exit_after_match`
+/// the server stops by itself after the match (not after the lobby that
+/// closed), with its replay flushed. The clock asks for real-time priority, so the match also
 /// shows that a granted (root) or refused (no CAP_SYS_NICE) request plays
 /// the same.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -1484,6 +1486,21 @@ async fn metrics_and_health_are_served_and_the_server_exits_after_its_match() {
     })
     .await;
     let metrics = server.metrics.expect("the metrics listener");
+    // A lobby whose only player leaves closes before any match: the server
+    // must not take it for the match it exits after.
+    let (endpoint, connection, mut send, _recv, _slot) =
+        raw_join(server.addr, &server.cert, "lobby", "visitor").await;
+    write_frame(&mut send, &ClientMessage::Leave.encode().unwrap())
+        .await
+        .unwrap();
+    server
+        .wait_for(Duration::from_secs(10), |e| match e {
+            ServerEvent::MatchEnded(r) if r.room == "lobby" => Some(()),
+            _ => None,
+        })
+        .await;
+    connection.close(0u32.into(), b"bye");
+    endpoint.wait_idle().await;
     let options = BotOptions::new(server.addr, &server.cert, "metrics", 2);
     let bots = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
     server
@@ -1492,8 +1509,22 @@ async fn metrics_and_health_are_served_and_the_server_exits_after_its_match() {
         })
         .await;
     tokio::time::sleep(Duration::from_millis(1500)).await;
+    // A join to the running match (no late join) is refused and counted.
+    let late = lockstep_client::net::ClientOptions::new(server.addr, &server.cert, "metrics", "p");
+    match lockstep_client::net::Client::connect(late, &Demo).await {
+        Err(lockstep_client::net::ClientError::Refused { reason, .. }) => {
+            assert_eq!(reason, CloseReason::MatchInProgress);
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
     let (status, body) = http_get(metrics, "/metrics").await;
     assert_eq!(status, "HTTP/1.1 200 OK");
+    assert!(
+        body.contains("lockstep_refusals_total{reason=\"join\"} 1"),
+        "{body}"
+    );
+    // The closed lobby is no match, and the running one has not ended.
+    assert!(body.contains("lockstep_matches_total 0"), "{body}");
     assert!(body.contains("lockstep_players 2"), "{body}");
     assert!(body.contains("lockstep_rooms 1"), "{body}");
     assert!(body.contains("lockstep_matches_running 1"), "{body}");

@@ -213,8 +213,12 @@ impl RoomTask {
         {
             r.add_match(report.clone());
         }
+        let started = self.room.is_started();
         self.shared.emit(ServerEvent::MatchEnded(report));
-        self.shared.match_ended.notify_one();
+        // A lobby that closed is not the match `exit_after_match` waits for.
+        if started {
+            self.shared.match_ended.notify_one();
+        }
     }
 }
 
