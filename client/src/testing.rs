@@ -87,3 +87,21 @@ fn nudge_one_body(world: &mut World) {
         let _ = world.set_linear_velocity(h, nudged);
     }
 }
+
+/// `reply` as the client's test hooks make it: with
+/// [`ClientOptions::corrupt_snapshots`](crate::net::ClientOptions::corrupt_snapshots),
+/// every byte of a snapshot piece inverted (a giver that answers a
+/// joiner's snapshot probe with garbage).
+pub(crate) fn hook_reply(
+    mut reply: lockstep_proto::ProbeReply,
+    options: &crate::net::ClientOptions,
+) -> lockstep_proto::ProbeReply {
+    if options.corrupt_snapshots
+        && let lockstep_proto::ProbeAnswer::Snapshot { bytes, .. } = &mut reply.answer
+    {
+        for b in bytes.iter_mut() {
+            *b = !*b;
+        }
+    }
+    reply
+}

@@ -1155,6 +1155,7 @@ impl Room {
             && let Some(Some(p)) = self.players.get_mut(s.index())
         {
             p.stats.bad_snapshots += 1;
+            self.stats.bad_snapshots += 1;
         }
         let next = source.and_then(|_| self.pick_giver(tried));
         let Some(next) = next else {

@@ -449,6 +449,9 @@ pub struct PlayerReport {
     pub inputs_substituted: u64,
     /// Hash reports accepted.
     pub hash_reports: u64,
+    /// Snapshots it gave a player joining the running match that did not
+    /// check out (it is not asked again).
+    pub bad_snapshots: u64,
     /// Datagrams dropped for coming faster than
     /// [`RoomSettings::max_messages_per_second`].
     pub datagrams_dropped: u64,
@@ -467,6 +470,9 @@ pub struct RoomReport {
     pub ticks_compared: u64,
     /// Compared ticks whose hashes differed.
     pub mismatched_ticks: u64,
+    /// Snapshots players gave joiners that did not check out (each player's
+    /// count is in its [`PlayerReport::bad_snapshots`]).
+    pub bad_snapshots: u64,
     /// Every desync notice, in order.
     pub desyncs: Vec<DesyncNotice>,
     /// Where the room located them (one search at a time: a notice raised

@@ -43,6 +43,7 @@ pub(crate) struct Metrics {
     pub(crate) inputs_substituted: AtomicU64,
     pub(crate) hash_mismatches: AtomicU64,
     pub(crate) desyncs: AtomicU64,
+    pub(crate) bad_snapshots: AtomicU64,
     pub(crate) refusals: [AtomicU64; REFUSAL_KINDS.len()],
     lateness_buckets: [AtomicU64; LATENESS_BUCKETS.len()],
     lateness_count: AtomicU64,
@@ -108,7 +109,7 @@ impl Metrics {
             "Rooms whose tick clock runs.",
             self.matches_running.load(Ordering::Relaxed),
         );
-        let counters: [(&str, &str, u64); 10] = [
+        let counters: [(&str, &str, u64); 11] = [
             (
                 "lockstep_matches_total",
                 "Matches ended (rooms whose match started; a lobby that closes is none).",
@@ -153,6 +154,11 @@ impl Metrics {
                 "lockstep_desyncs_total",
                 "Desync notices (one per divergence).",
                 get(&self.desyncs),
+            ),
+            (
+                "lockstep_bad_snapshots_total",
+                "Snapshots players gave a joiner that did not check out.",
+                get(&self.bad_snapshots),
             ),
             (
                 "lockstep_refusals_total",

@@ -1318,6 +1318,85 @@ async fn sparse_and_silent_reporters_are_dropped_and_cannot_block_a_late_join() 
     assert_eq!((check.ticks, check.checked), (480, 480));
 }
 
+/// A bad snapshot giver (issue 42, item 4) on an unverifying server with
+/// late joins (a verifying server gives joiners its own state and asks no
+/// player): three bots play, and bot 0 (slot 0, the first giver asked)
+/// answers every snapshot probe with its bytes inverted. A fourth bot
+/// joining 1.5 s in is not refused: the garbage is refused, counted
+/// against slot 0 (in the match's report, the player's report and
+/// `lockstep_bad_snapshots_total`), and slot 1 gives the snapshot. Every
+/// bot, the joiner included, agrees on every tick, and the replay
+/// re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bad_snapshot_giver_is_counted_and_the_joiner_joins_from_another() {
+    use lockstep_client::bot::run_bot;
+    let mut server = TestServer::start(tmp("bad-giver"), |c| {
+        program_config(c, &["--no-verify", "--late-join"]);
+        c.room.start_players = 3;
+        c.room.match_ticks = Some(420);
+        c.metrics = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let options = BotOptions::new(addr, &cert, "bad-giver", 4);
+    let mut tasks = Vec::new();
+    for i in 0..3 {
+        let mut o = options.client_options(i);
+        o.corrupt_snapshots = i == 0;
+        tasks.push(tokio::spawn(run_bot(
+            o,
+            std::sync::Arc::new(Demo),
+            1,
+            false,
+            std::future::pending(),
+        )));
+        tokio::time::sleep(Duration::from_millis(30)).await;
+    }
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let late = run_bot(
+        options.client_options(3),
+        std::sync::Arc::new(Demo),
+        1,
+        false,
+        std::future::pending(),
+    )
+    .await
+    .expect("the late joiner is not refused");
+    let mut early = Vec::new();
+    for t in tasks {
+        early.push(t.await.unwrap().expect("bot plays"));
+    }
+    let ended = server.match_end(Duration::from_secs(10)).await;
+    let (_, body) = http_get(server.metrics.unwrap(), "/metrics").await;
+    server.shutdown().await;
+    assert_same_hashes(&early, 420);
+    assert_eq!(late.slot, Slot(3));
+    assert_eq!(late.hashes.len() as u64, 420 - late.first_applied);
+    for (i, h) in late.hashes.iter().enumerate() {
+        let t = late.first_applied as usize + i;
+        assert_eq!(*h, early[0].hashes[t], "tick {t}");
+    }
+    assert!(ended.desyncs.is_empty(), "{:?}", ended.desyncs);
+    assert_eq!(ended.bad_snapshots, 1);
+    let bad: Vec<_> = ended
+        .players
+        .iter()
+        .map(|p| (p.slot, p.bad_snapshots))
+        .collect();
+    assert_eq!(
+        bad,
+        vec![(Slot(0), 1), (Slot(1), 0), (Slot(2), 0), (Slot(3), 0)]
+    );
+    assert!(body.contains("lockstep_bad_snapshots_total 1"), "{body}");
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked, check.players), (420, 420, 4));
+}
+
 /// Tokens whose copy cannot take a seat from its owner (issue 42, item
 /// 6), with `--require-tokens`: three bots hold seat tokens. An attacker
 /// replaying bot 1's token while bot 1 plays, and again once bot 1 is

@@ -115,6 +115,11 @@ pub struct ClientOptions {
     /// How many ticks the predicted world may run ahead of the last
     /// confirmed one. Default 8.
     pub max_prediction: u64,
+    /// Test hook (feature `test-hooks`): every snapshot this client gives
+    /// a player joining the running match has its bytes inverted, so it
+    /// does not restore. Default off.
+    #[cfg(feature = "test-hooks")]
+    pub corrupt_snapshots: bool,
 }
 
 impl ClientOptions {
@@ -140,6 +145,8 @@ impl ClientOptions {
             rejoin: RejoinStore::default(),
             predict: false,
             max_prediction: 8,
+            #[cfg(feature = "test-hooks")]
+            corrupt_snapshots: false,
         }
     }
 }
@@ -991,6 +998,8 @@ impl LiveClient {
                 SessionEvent::DesyncLocated(r) => ClientEvent::DesyncLocated(r),
                 SessionEvent::Probe(p) => {
                     let reply = self.history.answer(&p);
+                    #[cfg(feature = "test-hooks")]
+                    let reply = crate::testing::hook_reply(reply, &self.options);
                     answered |= self.session.reply_probe(reply).is_ok();
                     continue;
                 }

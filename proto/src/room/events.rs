@@ -170,4 +170,8 @@ pub struct RoomStats {
     pub desync_searches: u64,
     /// Searches that ended with a report.
     pub desyncs_located: u64,
+    /// Snapshots players gave a player joining the running match that did
+    /// not check out or came in pieces that do not fit (each counts against
+    /// its giver, [`PlayerStats::bad_snapshots`](super::PlayerStats::bad_snapshots)).
+    pub bad_snapshots: u64,
 }

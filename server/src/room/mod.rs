@@ -282,7 +282,7 @@ struct RoomTask {
     verified: (u64, Duration),
     /// What this room last added to the server's metrics: players seated,
     /// mismatched ticks, and whether its match counts as running.
-    counted: (i64, u64, bool),
+    counted: (i64, u64, bool, u64),
     /// Tick lateness samples in microseconds (the first 131,072 ticks).
     lateness_us: Vec<u32>,
     replay: Option<Replay>,
@@ -399,7 +399,7 @@ impl RoomTask {
             forensics_bytes: (0, 0),
             verifier,
             verified: (0, Duration::ZERO),
-            counted: (0, 0, false),
+            counted: (0, 0, false, 0),
             lateness_us: Vec::new(),
             replay,
             feed,
@@ -787,6 +787,7 @@ impl RoomTask {
                             max_datagram_up: 0,
                             inputs_substituted: 0,
                             hash_reports: 0,
+                            bad_snapshots: 0,
                             datagrams_dropped: 0,
                             connected_for: Duration::ZERO,
                         });

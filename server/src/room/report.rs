@@ -27,6 +27,7 @@ impl RoomTask {
             p.rtt = stats.rtt;
             p.inputs_substituted = stats.inputs_substituted;
             p.hash_reports = stats.hash_reports;
+            p.bad_snapshots = stats.bad_snapshots;
         }
     }
 
@@ -45,6 +46,10 @@ impl RoomTask {
         m.hash_mismatches
             .fetch_add(mismatched.saturating_sub(self.counted.1), Relaxed);
         self.counted.1 = mismatched;
+        let bad = self.room.stats().bad_snapshots;
+        m.bad_snapshots
+            .fetch_add(bad.saturating_sub(self.counted.3), Relaxed);
+        self.counted.3 = bad;
         if ended && self.counted.2 {
             self.counted.2 = false;
             m.matches_running.fetch_sub(1, Relaxed);
@@ -168,6 +173,7 @@ impl RoomTask {
             ticks: self.room.next_tick(),
             ticks_compared: stats.ticks_compared,
             mismatched_ticks: stats.mismatched_ticks,
+            bad_snapshots: stats.bad_snapshots,
             desyncs: self.desyncs.clone(),
             located: self.located.clone(),
             forensics_bytes_down: self.forensics_bytes.0,
