@@ -20,7 +20,7 @@ mod player;
 use std::collections::VecDeque;
 use std::time::Duration;
 
-pub use config::{ConfigError, RoomConfig, Voting};
+pub use config::{ConfigError, MIN_PROBE_REPLY_BYTES, RoomConfig, Voting};
 pub use errors::{AlreadyStarted, JoinError, Rejection};
 pub use events::{LeaveReason, PlayerId, RoomEvent, RoomStats, Transmit};
 pub use player::PlayerStats;
@@ -526,14 +526,25 @@ impl Room {
                 self.remove(now, from, LeaveReason::Left, None);
                 Ok(())
             }
-            ClientMessage::ProbeReply(r) if self.is_join_reply(from.slot, &r) => {
-                self.on_join_reply(now, r);
-                Ok(())
-            }
             ClientMessage::ProbeReply(r) => {
-                let mut out = Vec::new();
-                self.locator.on_reply(from.slot, r, &mut out);
-                self.apply_search(out);
+                // One reply over the byte budget ends the sender's part
+                // unread.
+                let over = body_len(&r) > self.config.max_probe_reply_bytes as usize;
+                if self.is_join_reply(from.slot, &r) {
+                    if over {
+                        self.retry_join(now, "a snapshot piece over the probe reply budget", true);
+                    } else {
+                        self.on_join_reply(now, r);
+                    }
+                } else {
+                    let mut out = Vec::new();
+                    if over {
+                        self.locator.reply_too_large(from.slot, r.tick, &mut out);
+                    } else {
+                        self.locator.on_reply(from.slot, r, &mut out);
+                    }
+                    self.apply_search(out);
+                }
                 Ok(())
             }
         }

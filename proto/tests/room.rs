@@ -1084,3 +1084,33 @@ fn a_credential_past_its_reservation_is_refused_and_a_failed_rejoin_keeps_the_se
         CloseReason::BadToken
     );
 }
+
+/// A snapshot piece over the probe reply budget is not read: it counts as
+/// a bad snapshot against its giver, and the next player is asked.
+#[test]
+fn a_snapshot_piece_over_the_reply_budget_counts_as_a_bad_snapshot() {
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.late_join = true;
+    c.max_probe_reply_bytes = lockstep_proto::MIN_PROBE_REPLY_BYTES;
+    let (mut room, ids) = room_with(3, c);
+    play_reporting(&mut room, &ids, 130, |_, _| Some(7));
+    let now = after(&room, 130);
+    room.join(now, &join_msg("late")).unwrap();
+    let (t, _) = drain(&mut room);
+    let (giver, tick) = snapshot_probes(&t)[0];
+    assert_eq!(giver, ids[0]);
+    let big = vec![0u8; lockstep_proto::MIN_PROBE_REPLY_BYTES as usize + 1];
+    room.handle_message(now, giver, snapshot_reply(tick, &big))
+        .unwrap();
+    let (t, e) = drain(&mut room);
+    assert!(
+        !e.iter()
+            .any(|e| matches!(e, RoomEvent::JoinSnapshot { .. }))
+    );
+    assert_eq!(room.player_stats(ids[0]).unwrap().bad_snapshots, 1);
+    assert_eq!(room.stats().bad_snapshots, 1);
+    assert_eq!(snapshot_probes(&t), vec![(ids[1], tick)]);
+    let mut c = RoomConfig::new("arena", vec![], 1);
+    c.max_probe_reply_bytes = lockstep_proto::MIN_PROBE_REPLY_BYTES - 1;
+    assert!(Room::new(c).is_err());
+}

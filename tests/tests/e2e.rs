@@ -682,6 +682,206 @@ async fn raw_reporter(
     }
 }
 
+/// A raw player like [`raw_reporter`] that reports a made-up hash for
+/// every tick and answers the room's probes with `answer` (a liar about
+/// its world). Returns the reason of the server's `Close`.
+async fn raw_liar(
+    server: SocketAddr,
+    cert: PathBuf,
+    room: &'static str,
+    name: &'static str,
+    answer: fn(&lockstep_proto::Probe) -> lockstep_proto::ProbeAnswer,
+) -> Option<(CloseReason, String)> {
+    let (_endpoint, connection, mut send, mut recv, slot) =
+        raw_join(server, &cert, room, name).await;
+    connection.send_datagram(inputs(slot, 0, 5)).unwrap();
+    let (probes_tx, mut probes) = tokio::sync::mpsc::unbounded_channel();
+    let reader = tokio::spawn(async move {
+        while let Ok(Some(frame)) = read_frame(&mut recv).await {
+            match ServerMessage::decode(&frame) {
+                Ok(ServerMessage::Probe(p)) => {
+                    let _ = probes_tx.send(Ok(p));
+                }
+                Ok(ServerMessage::Close(c)) => {
+                    let _ = probes_tx.send(Err((c.reason, c.detail)));
+                    return;
+                }
+                _ => {}
+            }
+        }
+    });
+    let mut next = 0u64;
+    let closed = tokio::time::timeout(Duration::from_secs(30), async {
+        loop {
+            tokio::select! {
+                p = probes.recv() => match p {
+                    Some(Ok(probe)) => {
+                        let reply = ClientMessage::ProbeReply(lockstep_proto::ProbeReply {
+                            tick: probe.tick,
+                            answer: answer(&probe),
+                        });
+                        if write_frame(&mut send, &reply.encode().unwrap()).await.is_err() {
+                            return None;
+                        }
+                    }
+                    Some(Err(close)) => return Some(close),
+                    None => return None,
+                },
+                d = connection.read_datagram() => {
+                    let Ok(d) = d else { return None };
+                    let Ok(ServerMessage::Bundles(b)) = ServerMessage::decode(&d) else {
+                        continue;
+                    };
+                    for bundle in &b.bundles {
+                        if bundle.tick != next {
+                            continue;
+                        }
+                        next += 1;
+                        let m = ClientMessage::HashReport(lockstep_proto::HashReport {
+                            tick: bundle.tick,
+                            hash: 0xbad,
+                            body_hashes: None,
+                        });
+                        if write_frame(&mut send, &m.encode().unwrap()).await.is_err() {
+                            return None;
+                        }
+                    }
+                    let m = ClientMessage::Input(InputDatagram {
+                        slot,
+                        ack_bundle: next.checked_sub(1),
+                        first_tick: next,
+                        inputs: vec![vec![0, 0, 0]; 5],
+                    });
+                    let _ = connection.send_datagram(Bytes::from(m.encode().unwrap()));
+                }
+            }
+        }
+    })
+    .await
+    .ok()
+    .flatten();
+    reader.abort();
+    closed
+}
+
+/// Forensics bounded by what the server knows (issue 42, item 7), against
+/// the default (verifying) program: two liars report a made-up hash beside
+/// two bots and lie to the desync search. One claims a world of 2^20
+/// bodies (it used to make the server pull 10.5 MB); its claim is over the
+/// scene's bound (twice its bodies plus 64), so its part ends after one
+/// piece, unread. The other claims the scene's body count, then answers
+/// the field probe with a dump over the probe reply budget (128 KiB); its
+/// part ends unread too. The search reports both as unanswered, the
+/// server pulls and sends bounded bytes, raises one notice (one log line)
+/// and one report of bounded lines; both liars are dropped as diverged,
+/// the bots agree on every tick, and the replay re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn liars_about_their_world_make_the_server_pull_bounded_bytes() {
+    use lockstep_proto::{BodyDump, FieldDump, FieldKind, ProbeAnswer, ProbeAsk, ProbeStatus};
+    let mut server = TestServer::start(tmp("forensic-liars"), |c| {
+        program_config(c, &[]);
+        c.room.start_players = 4;
+        c.room.match_ticks = Some(360);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let options = BotOptions::new(addr, &cert, "forensic-liars", 2);
+    let bots = tokio::spawn(async move { run_bots(&options, std::future::pending()).await });
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let huge = tokio::spawn(raw_liar(
+        addr,
+        cert.clone(),
+        "forensic-liars",
+        "huge",
+        |p| match p.ask {
+            ProbeAsk::BodyHashes { from } => ProbeAnswer::BodyHashes {
+                total: 1 << 20,
+                from,
+                contacts: 1,
+                game: 1,
+                hashes: vec![3; 4096],
+            },
+            _ => ProbeAnswer::Unavailable,
+        },
+    ));
+    let fat = tokio::spawn(raw_liar(addr, cert.clone(), "forensic-liars", "fat", |p| {
+        match &p.ask {
+            ProbeAsk::BodyHashes { .. } => ProbeAnswer::BodyHashes {
+                total: 66,
+                from: 0,
+                contacts: 1,
+                game: 1,
+                hashes: vec![3; 66],
+            },
+            // 8 bodies of 64 fields of 32 words: about 150 kB.
+            ProbeAsk::Fields { bodies } => ProbeAnswer::Fields {
+                bodies: bodies
+                    .iter()
+                    .map(|&index| BodyDump {
+                        index,
+                        handle: index,
+                        generation: 0,
+                        name: String::new(),
+                        fields: (0..64)
+                            .map(|f| FieldDump {
+                                name: format!("field-{f}"),
+                                kind: FieldKind::Word,
+                                words: vec![u64::MAX; 32],
+                            })
+                            .collect(),
+                    })
+                    .collect(),
+                game: Vec::new(),
+            },
+            ProbeAsk::Snapshot { .. } => ProbeAnswer::Unavailable,
+        }
+    }));
+    let bots = bots_ok(bots.await.unwrap());
+    let ended = server.match_end(Duration::from_secs(10)).await;
+    server.shutdown().await;
+    for (who, task) in [("huge", huge), ("fat", fat)] {
+        let (reason, detail) = task.await.unwrap().expect("closed by the server");
+        assert_eq!(reason, CloseReason::Diverged, "{who}: {detail}");
+    }
+    assert_same_hashes(&bots, 360);
+    for b in &bots {
+        assert!(b.desyncs().all(|n| !matches!(
+            &n.verdict,
+            Verdict::Verified { wrong, .. } if wrong.contains(&b.slot)
+        )));
+    }
+    // One divergence: one notice and one report.
+    assert_eq!(ended.desyncs.len(), 1, "{:?}", ended.desyncs);
+    assert_eq!(ended.located.len(), 1);
+    let report = &ended.located[0];
+    assert_eq!(report.reference_status, ProbeStatus::Complete);
+    assert_eq!(report.suspects.len(), 2, "{report}");
+    for s in &report.suspects {
+        assert_eq!(s.status, ProbeStatus::NoAnswer, "{report}");
+        assert!(s.bodies.is_empty(), "{report}");
+    }
+    assert!(report.to_string().lines().count() <= 40, "{report}");
+    println!(
+        "forensic liars: {} B of probes sent, {} B of replies received",
+        ended.forensics_bytes_down, ended.forensics_bytes_up
+    );
+    // The liars' replies were one body-hash piece and one field dump each
+    // at most (the server asked nothing more of them), the reference's a
+    // hash list, a snapshot and a few dumps.
+    assert!(
+        ended.forensics_bytes_up < 512 << 10,
+        "{}",
+        ended.forensics_bytes_up
+    );
+    assert!(
+        ended.forensics_bytes_down < 16 << 10,
+        "{}",
+        ended.forensics_bytes_down
+    );
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked), (360, 360));
+}
+
 /// Two attacks on the hash vote, each by a raw client beside three honest
 /// bots: a liar that reports a fake hash on even ticks and nothing on odd
 /// ones (it used to raise a desync notice every 2 ticks), and a player that

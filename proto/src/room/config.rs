@@ -8,6 +8,11 @@ use crate::limits::{
     MAX_INPUT_BYTES, MAX_INPUT_WINDOW, MAX_NAME_BYTES, MAX_PLAYERS, MAX_SCENE_BYTES,
 };
 
+/// The smallest [`RoomConfig::max_probe_reply_bytes`]: a body-hash piece
+/// of [`MAX_BODY_HASHES`](crate::MAX_BODY_HASHES) hashes of 9 bytes, and
+/// room for the reply's other fields.
+pub const MIN_PROBE_REPLY_BYTES: u32 = 40 << 10;
+
 /// Everything a room needs to know up front. Capacities are fixed here (as in
 /// Jolt) so a room's memory does not grow with the length of a match.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -78,6 +83,15 @@ pub struct RoomConfig {
     /// changes it while the room runs (a server that re-simulates knows
     /// the world's body count). Default 8,192 (64 KiB a player).
     pub max_probe_bodies: u32,
+    /// Most bytes of one probe reply (encoded, without the version
+    /// header): a reply over it ends that player's part of the desync
+    /// search unread (and, for a joiner's snapshot, counts as a bad
+    /// snapshot), so no single answer makes the room hold or process more.
+    /// At least [`MIN_PROBE_REPLY_BYTES`] (the largest body-hash and
+    /// snapshot pieces fit it). Default 128 KiB: a body-hash piece of 4,096
+    /// bodies is 37 KB, a snapshot piece 32 KiB, and the fields of 8 bodies
+    /// a few KB to a few tens of KB.
+    pub max_probe_reply_bytes: u32,
     /// The caller re-simulates every tick and gives the room its own hash
     /// ([`Room::verify_tick`](crate::Room::verify_tick)): the room then
     /// judges every report against that hash, not by majority, so a
@@ -154,6 +168,7 @@ impl RoomConfig {
             ping_interval: Duration::from_secs(1),
             locate_timeout: Duration::from_secs(10),
             max_probe_bodies: 8192,
+            max_probe_reply_bytes: 128 << 10,
             rules: None,
             seed: 0,
             verify: false,
@@ -206,6 +221,9 @@ impl RoomConfig {
         }
         if self.scene.len() > MAX_SCENE_BYTES {
             return Err(ConfigError::SceneTooLarge(self.scene.len()));
+        }
+        if self.max_probe_reply_bytes < MIN_PROBE_REPLY_BYTES {
+            return Err(ConfigError::ProbeReplyBudget(self.max_probe_reply_bytes));
         }
         Ok(())
     }
@@ -268,6 +286,11 @@ pub enum ConfigError {
     /// A zero silence timeout or ping interval.
     #[error("silence timeout and ping interval must be positive")]
     ZeroInterval,
+    /// `max_probe_reply_bytes` is below [`MIN_PROBE_REPLY_BYTES`].
+    #[error(
+        "max_probe_reply_bytes {0} is below {MIN_PROBE_REPLY_BYTES}, the largest body-hash piece"
+    )]
+    ProbeReplyBudget(u32),
     /// The scene is larger than [`MAX_SCENE_BYTES`].
     #[error("scene of {0} bytes is too large")]
     SceneTooLarge(usize),

@@ -322,6 +322,28 @@ impl Locator {
         self.advance(out);
     }
 
+    /// A reply of `slot` for `tick` came over the byte budget: if it
+    /// answers a running probe, that player's part of the search (or the
+    /// snapshot fetch) ends, unread; otherwise it is ignored.
+    pub(crate) fn reply_too_large(&mut self, slot: Slot, tick: u64, out: &mut Vec<Output>) {
+        let Some(s) = &mut self.search else {
+            return;
+        };
+        if s.snapshot
+            .as_ref()
+            .is_some_and(|f| f.slot == slot && f.tick == tick)
+        {
+            s.snapshot = None;
+        } else if tick == s.tick {
+            for p in s.peers.iter_mut().filter(|p| p.slot == slot) {
+                if matches!(p.state, PeerState::Hashes | PeerState::Fields) {
+                    p.state = PeerState::NoAnswer;
+                }
+            }
+        }
+        self.advance(out);
+    }
+
     /// A player left: its part of the search ends.
     pub(crate) fn player_left(&mut self, slot: Slot, out: &mut Vec<Output>) {
         let Some(s) = &mut self.search else {
@@ -541,6 +563,43 @@ mod tests {
         let s = l.search.as_ref().expect("the search goes on");
         assert_eq!(s.peers[1].state, PeerState::NoAnswer);
         assert!(s.peers[1].hashes.is_empty());
+    }
+
+    /// A reply over the byte budget to a running probe ends its sender's
+    /// part unread; the snapshot fetch from the reference likewise; a
+    /// reply for another tick changes nothing.
+    #[test]
+    fn a_reply_over_the_byte_budget_ends_its_sender_s_part() {
+        let mut l = Locator::new(Duration::from_secs(5));
+        let mut out = Vec::new();
+        let notice = DesyncNotice {
+            tick: 10,
+            hashes: (0..3u8)
+                .map(|s| PlayerHash {
+                    slot: Slot(s),
+                    hash: Some(if s == 0 { 7 } else { u64::from(s) }),
+                })
+                .collect(),
+            verdict: Verdict::Verified {
+                hash: 7,
+                wrong: vec![Slot(1), Slot(2)],
+            },
+        };
+        assert!(l.start(Duration::ZERO, &notice, Some(5), &mut out));
+        out.clear();
+        l.reply_too_large(Slot(1), 99, &mut out);
+        assert_eq!(l.search.as_ref().unwrap().peers[1].state, PeerState::Hashes);
+        l.reply_too_large(Slot(1), 10, &mut out);
+        let s = l.search.as_ref().unwrap();
+        assert_eq!(s.peers[1].state, PeerState::NoAnswer);
+        assert_eq!(s.peers[2].state, PeerState::Hashes);
+        assert!(s.snapshot.is_some());
+        // The reference's snapshot of tick 9, over the budget.
+        l.reply_too_large(Slot(0), 9, &mut out);
+        let s = l.search.as_ref().unwrap();
+        assert!(s.snapshot.is_none());
+        assert_eq!(s.peers[0].state, PeerState::Hashes);
+        assert!(out.is_empty(), "{out:?}");
     }
 
     /// Two players whose bodies agree and whose game states differ in one

@@ -21,6 +21,15 @@ use crate::ServerEvent;
 /// format's limit).
 const PIECE_BYTES: usize = 1 << 20;
 
+/// Desyncs a room logs in full (the notice, the located report in at most
+/// 40 lines, its snapshot and bundle): past them, a player that keeps
+/// diverging (on a server that drops nobody for its hash) is counted, not
+/// logged, so one liar cannot fill the log.
+pub(super) const LOGGED_DESYNCS: usize = 16;
+
+/// Desync bundles a room writes (each holds the replay so far).
+const MAX_BUNDLES: usize = 4;
+
 /// A snapshot the room checked against the agreed hash of its tick.
 pub(super) struct CheckedSnapshot {
     tick: u64,
@@ -39,7 +48,11 @@ impl RoomTask {
         bytes: Vec<u8>,
     ) {
         let name = &self.name;
+        let log = self.located.len() < LOGGED_DESYNCS;
         let Some(expected) = agreed_hash else {
+            if !log {
+                return;
+            }
             crate::log!(
                 "room {name}: snapshot of tick {tick} from slot {}: no agreed hash to check it against; not kept",
                 from.0
@@ -54,6 +67,7 @@ impl RoomTask {
                     bytes,
                 });
             }
+            _ if !log => {}
             Ok(w) => crate::log!(
                 "room {name}: snapshot of tick {tick} from slot {} hashes to {:016x}, the agreed hash is {expected:016x}; not kept",
                 from.0,
@@ -73,6 +87,18 @@ impl RoomTask {
             .take()
             .map(|t| format!(" ({} ms after the notice)", t.elapsed().as_millis()))
             .unwrap_or_default();
+        if self.located.len() >= LOGGED_DESYNCS {
+            // Counted (the room's report keeps it), not logged, no bundle.
+            self.desync_snapshot = None;
+            self.located.push(report.clone());
+            self.shared.emit(ServerEvent::DesyncLocated {
+                room: self.name.clone(),
+                report,
+                bundle: None,
+                at: Instant::now(),
+            });
+            return;
+        }
         // At most 40 lines a desync, however many bodies a report lists
         // (every player got the whole report, and the bundle keeps it).
         let text = report.to_string();
@@ -88,7 +114,12 @@ impl RoomTask {
             self.name,
             lines[..shown].join("\n")
         );
-        let bundle = self.write_bundle(&report);
+        let bundle = if self.bundles.len() < MAX_BUNDLES {
+            self.write_bundle(&report)
+        } else {
+            self.desync_snapshot = None;
+            None
+        };
         if let Some(p) = &bundle {
             crate::log!("room {}: desync bundle {}", self.name, p.display());
             self.bundles.push(p.clone());

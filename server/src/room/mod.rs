@@ -1132,12 +1132,21 @@ impl RoomTask {
                         wrong.iter().map(|s| s.0).collect::<Vec<_>>()
                     ),
                 };
-                crate::log!(
-                    "room {}: DESYNC at tick {}: {}; verdict: {verdict}",
-                    self.name,
-                    notice.tick,
-                    hashes.join(", ")
-                );
+                let logged = self.desyncs.len();
+                if logged < bundle::LOGGED_DESYNCS {
+                    crate::log!(
+                        "room {}: DESYNC at tick {}: {}; verdict: {verdict}",
+                        self.name,
+                        notice.tick,
+                        hashes.join(", ")
+                    );
+                } else if logged == bundle::LOGGED_DESYNCS {
+                    crate::log!(
+                        "room {}: DESYNC at tick {}; more than {logged} desyncs in this match: the rest are counted (lockstep_desyncs_total, the room's report), not logged",
+                        self.name,
+                        notice.tick
+                    );
+                }
                 self.shared.emit(ServerEvent::Desync {
                     room: self.name.clone(),
                     notice: notice.clone(),
