@@ -139,21 +139,38 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
         Ok(None) => return Err(fail("stream ended before the join".into())),
         Err(e) => Err(format!("before joining: {e}")),
     };
-    let join = frame.and_then(|f| match ClientMessage::decode(&f) {
-        Ok(ClientMessage::Join(j)) => Ok(j),
-        Ok(other) => Err(format!("{} before joining", other.kind())),
-        Err(e) => Err(format!("undecodable join: {e}")),
-    });
+    let join = frame
+        .map_err(|detail| (CloseReason::ProtocolViolation, detail))
+        .and_then(|f| match ClientMessage::decode(&f) {
+            Ok(ClientMessage::Join(j)) => Ok(j),
+            Ok(other) => Err((
+                CloseReason::ProtocolViolation,
+                format!("{} before joining", other.kind()),
+            )),
+            // A client of another protocol version is told so (the QUIC
+            // close code and reason text are readable to it).
+            Err(lockstep_proto::DecodeError::WrongVersion { found, expected }) => Err((
+                CloseReason::VersionMismatch,
+                format!("client protocol version {found}, server {expected}"),
+            )),
+            Err(e) => Err((
+                CloseReason::ProtocolViolation,
+                format!("undecodable join: {e}"),
+            )),
+        });
     let (writer_tx, writer_rx) = mpsc::channel(WRITER_QUEUE);
     let writer = tokio::spawn(write_loop(connection.clone(), send, writer_rx));
     let join = match join {
         Ok(j) => j,
-        Err(detail) => {
+        Err((reason, detail)) => {
             // A broken first frame is a protocol violation like any other:
             // the client is told why, with its close code.
-            let close = close_of(CloseReason::ProtocolViolation, detail);
+            let close = close_of(reason, detail);
             send_close(&writer_tx, &close);
-            let why = format!("protocol violation: {}", close.detail);
+            let why = match reason {
+                CloseReason::VersionMismatch => format!("join refused: {}", close.detail),
+                _ => format!("protocol violation: {}", close.detail),
+            };
             return Err((why, Some(connection), Some(writer)));
         }
     };

@@ -1214,6 +1214,190 @@ async fn with_tokens_required_only_valid_tokens_join_and_each_seats_one_connecti
     assert!(refusals >= 5, "{:?}", report.refused);
 }
 
+/// Sends `first` as a connection's first frame and returns the server's
+/// `Close` (reason, detail) and the QUIC close code the connection ended
+/// with.
+async fn refused_raw(
+    server: SocketAddr,
+    cert: &std::path::Path,
+    first: &[u8],
+) -> (CloseReason, String, u64) {
+    let (_endpoint, connection, mut send, mut recv) = raw_connect(server, cert).await;
+    write_frame(&mut send, first).await.expect("write");
+    let (reason, detail) = close_reason(&mut recv).await.expect("a close message");
+    let code = match connection.closed().await {
+        quinn::ConnectionError::ApplicationClosed(c) => c.error_code.into_inner(),
+        e => panic!("closed without a code: {e}"),
+    };
+    (reason, detail, code)
+}
+
+/// Every refusal of a join reachable over QUIC (issue 42, item 8), one
+/// server, each with its `Close` reason, detail and QUIC close code:
+/// a first frame that is not a join, a join of another protocol version
+/// (in the header or in the join), an over-long token, a used token, a
+/// seat the room does not have, a taken seat, a full room, the server's
+/// room limit, and a match in progress. (Token texts: the tokens test;
+/// `WrongRoom`: the Agones tests; drops during a match: the tests of each
+/// attack.)
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_join_refusal_reachable_over_quic_has_its_close_code_and_reason() {
+    use lockstep_proto::Join;
+    use lockstep_server::issue_token;
+    let secret = b"a refusal test secret, 16+ bytes".to_vec();
+    let key = secret.clone();
+    let server = TestServer::start(tmp("refusals"), move |c| {
+        c.room.max_players = 2;
+        c.room.start_players = 2;
+        c.max_rooms = 1;
+        c.token_secret = Some(key);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let now = std::time::SystemTime::now();
+    let token = |seat: u8, player: &str| {
+        issue_token(
+            &secret,
+            "refusals",
+            Some(seat),
+            player,
+            Duration::from_secs(600),
+            now,
+        )
+        .unwrap()
+    };
+    let join = |token: Option<String>| {
+        ClientMessage::Join(Join {
+            protocol_version: lockstep_proto::PROTOCOL_VERSION,
+            room: "refusals".into(),
+            player_name: "p".into(),
+            token,
+            rejoin: None,
+        })
+        .encode()
+        .unwrap()
+    };
+    // The seat owner, in seat 1.
+    let (_e1, c1, _s1, _r1, owner) = {
+        let (endpoint, connection, mut send, mut recv) = raw_connect(addr, &cert).await;
+        write_frame(&mut send, &join(Some(token(1, "owner"))))
+            .await
+            .unwrap();
+        let frame = read_frame(&mut recv).await.unwrap().unwrap();
+        let ServerMessage::Welcome(w) = ServerMessage::decode(&frame).unwrap() else {
+            panic!("expected a welcome");
+        };
+        assert!(w.rejoin.is_some());
+        (endpoint, connection, send, recv, w.slot)
+    };
+    assert_eq!(owner, Slot(1));
+    let mut old_header = join(None);
+    old_header[0] = 3;
+    let mut old_join = join(None);
+    old_join[3] = 3;
+    let mut long_token = vec![4, 0, 0, 4, 8];
+    long_token.extend_from_slice(b"refusals");
+    long_token.extend_from_slice(&[0, 1, 251]);
+    long_token.extend_from_slice(&345u16.to_le_bytes());
+    long_token.extend(std::iter::repeat_n(b'a', 345));
+    long_token.push(0);
+    let table: Vec<(&str, Vec<u8>, CloseReason, &str, u64)> = vec![
+        (
+            "a first frame that is not a join",
+            ClientMessage::Leave.encode().unwrap(),
+            CloseReason::ProtocolViolation,
+            "leave before joining",
+            1,
+        ),
+        (
+            "another protocol version's header",
+            old_header,
+            CloseReason::VersionMismatch,
+            "client protocol version 3, server 4",
+            2,
+        ),
+        (
+            "another protocol version in the join",
+            old_join,
+            CloseReason::VersionMismatch,
+            "client protocol version 3, server 4",
+            2,
+        ),
+        (
+            "a token over the longest token",
+            long_token,
+            CloseReason::ProtocolViolation,
+            "undecodable join: protocol violation: join token of 345 bytes exceeds 344",
+            1,
+        ),
+        (
+            "a copy of the owner's token",
+            join(Some(token(1, "owner"))),
+            CloseReason::BadToken,
+            "this join token was already used in this match; its holder rejoins with the rejoin credential of its welcome",
+            2,
+        ),
+        (
+            "a seat the room does not have",
+            join(Some(token(5, "p"))),
+            CloseReason::BadToken,
+            "the join token's seat 5 is not in this room",
+            2,
+        ),
+        (
+            "another token for the taken seat",
+            join(Some(token(1, "mallory"))),
+            CloseReason::SeatTaken,
+            "seat 1 is taken",
+            2,
+        ),
+    ];
+    for (what, first, reason, detail, code) in table {
+        let got = refused_raw(addr, &cert, &first).await;
+        assert_eq!(got, (reason, detail.to_owned(), code), "{what}");
+    }
+    // Seat 0 taken: the room is full; another room is over the server's
+    // limit of one.
+    let (_e0, c0, _s0, _r0, zero) = raw_join(addr, &cert, "refusals", "zero").await;
+    assert_eq!(zero, Slot(0));
+    let got = refused_raw(addr, &cert, &join(None)).await;
+    assert_eq!(
+        got,
+        (CloseReason::RoomFull, "room is full (2 players)".into(), 2)
+    );
+    let other = Session::join_message("other", "p").encode().unwrap();
+    let got = refused_raw(addr, &cert, &other).await;
+    assert_eq!(
+        got,
+        (
+            CloseReason::RoomFull,
+            "the server has 1 rooms open, its limit".into(),
+            2
+        )
+    );
+    // Both send their first input: the match starts, and a join now is
+    // refused (no late join).
+    c0.send_datagram(inputs(Slot(0), 0, 5)).unwrap();
+    c1.send_datagram(inputs(Slot(1), 0, 5)).unwrap();
+    let mut server = server;
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    let got = refused_raw(addr, &cert, &join(None)).await;
+    assert_eq!(
+        got,
+        (
+            CloseReason::MatchInProgress,
+            "match already in progress".into(),
+            2
+        )
+    );
+    let report = server.shutdown().await;
+    assert_eq!(report.refused_total, 10, "{:?}", report.refused);
+}
+
 /// Sybil voters against the default `lockstep-server` (no flag but
 /// `--scene`): four raw connections report the same fake hash on every tick
 /// beside three honest bots. By majority they would win; the program
