@@ -391,3 +391,45 @@ fn a_bundle_with_a_foreign_snapshot_is_refused_with_its_tick() {
         "{out}"
     );
 }
+
+/// The README lists every exit status of `lockstep replay`, the ones of
+/// `lockstep_client::offline::exit_status` and nothing else; a command
+/// line without a file is a usage error (2).
+#[test]
+fn the_readme_lists_every_replay_exit_status() {
+    use lockstep_client::offline::exit_status;
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md"))
+        .expect("README.md");
+    let start = readme
+        .find("`lockstep replay FILE` re-simulates")
+        .expect("the replay section");
+    let table = &readme[start..];
+    let table = &table[table.find("| status | meaning |").expect("the table")..];
+    let listed: Vec<u8> = table
+        .lines()
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .map(|l| {
+            l.split('|')
+                .nth(1)
+                .unwrap()
+                .trim()
+                .parse()
+                .expect("a status")
+        })
+        .collect();
+    let every = [
+        exit_status::OK,
+        exit_status::MISMATCH,
+        exit_status::INVALID,
+        exit_status::WRONG_RULES,
+        exit_status::WRONG_HASH_LAYOUT,
+        exit_status::CUT,
+    ];
+    assert_eq!(listed, every);
+    let out = Command::new(env!("CARGO_BIN_EXE_lockstep"))
+        .arg("replay")
+        .output()
+        .expect("run lockstep");
+    assert_eq!(out.status.code(), Some(2));
+}
