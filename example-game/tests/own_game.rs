@@ -219,9 +219,16 @@ async fn a_killed_player_rejoins_its_seat_mid_round_and_agrees() {
             .unwrap()
         })
         .collect();
+    // Player 1's options keep the rejoin credential its welcome gives
+    // (clones share it): its token seats it once, the credential again.
+    let owner = options.client_options(1);
     let mut tasks = Vec::new();
     for i in 0..3 {
-        let o = options.client_options(i);
+        let o = if i == 1 {
+            owner.clone()
+        } else {
+            options.client_options(i)
+        };
         tasks.push(tokio::spawn(join_and_play(o, |_| {})));
         tokio::time::sleep(Duration::from_millis(30)).await;
     }
@@ -229,7 +236,7 @@ async fn a_killed_player_rejoins_its_seat_mid_round_and_agrees() {
     tasks[1].abort();
     let _ = (&mut tasks[1]).await;
     tokio::time::sleep(Duration::from_millis(300)).await;
-    let again = join_and_play(options.client_options(1), |c| {
+    let again = join_and_play(owner, |c| {
         assert_eq!(c.slot(), Slot(1));
         started_mid_round(c);
     })
