@@ -731,18 +731,20 @@ impl Room {
             return;
         }
         let index = id.slot.index();
+        // Who may come back to the seat: not a player removed for cause.
+        let keeps_seat = !matches!(
+            reason,
+            LeaveReason::Kicked
+                | LeaveReason::RoomClosed
+                | LeaveReason::Diverged
+                | LeaveReason::NoHashReports
+                | LeaveReason::JoinRefused
+        );
         if let Some(p) = &self.players[index]
             && let Some(key) = p.ticket
             && self.epoch.is_some()
             && p.admitted
-            && !matches!(
-                reason,
-                LeaveReason::Kicked
-                    | LeaveReason::RoomClosed
-                    | LeaveReason::Diverged
-                    | LeaveReason::NoHashReports
-                    | LeaveReason::JoinRefused
-            )
+            && keeps_seat
         {
             self.reserved[index] = Some((key, now.saturating_add(self.config.rejoin_grace)));
         }
@@ -761,7 +763,13 @@ impl Room {
         });
         if let Some(j) = &self.joining {
             if j.id == id {
-                self.joining = None;
+                // A rejoiner lost while its snapshot came keeps its seat's
+                // reservation.
+                if let Some(r) = self.joining.take().and_then(|j| j.reservation)
+                    && keeps_seat
+                {
+                    self.reserved[index] = Some(r);
+                }
             } else if j.source == Some(id.slot) {
                 self.retry_join(now, "the player giving the snapshot left", false);
             }

@@ -1075,6 +1075,15 @@ fn a_credential_past_its_reservation_is_refused_and_a_failed_rejoin_keeps_the_se
     let second = room.join(now, &back).unwrap();
     assert_eq!(second.slot, Slot(1));
     drain(&mut room);
+    // Its connection drops while the snapshot comes: still reserved.
+    room.disconnect(now, second);
+    drain(&mut room);
+    assert_eq!(
+        room.join(now, &join_msg("stranger")),
+        Err(JoinError::MatchInProgress)
+    );
+    let second = room.join(now, &back).unwrap();
+    drain(&mut room);
     room.kick(now, second, CloseReason::Kicked, "test");
     drain(&mut room);
     // Kicked: no reservation, so the credential no longer seats it.
