@@ -473,10 +473,13 @@ pub struct RoomReport {
     /// Snapshots players gave joiners that did not check out (each player's
     /// count is in its [`PlayerReport::bad_snapshots`]).
     pub bad_snapshots: u64,
-    /// Every desync notice, in order.
+    /// The desync notices, in order (the first 256: a player that keeps
+    /// diverging does not grow the report; `desync_notices` counts all).
     pub desyncs: Vec<DesyncNotice>,
+    /// Desync notices raised in all.
+    pub desync_notices: u64,
     /// Where the room located them (one search at a time: a notice raised
-    /// during a search has no report).
+    /// during a search has no report; the first 256 reports are kept).
     pub located: Vec<lockstep_proto::DesyncReport>,
     /// The desync bundles written (with a replay directory only).
     pub bundles: Vec<PathBuf>,

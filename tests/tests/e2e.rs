@@ -764,6 +764,166 @@ async fn raw_liar(
     closed
 }
 
+/// Counts the server's log lines (a multi-line event counts each line)
+/// inside the span of one room, by its name: a layer of the process's
+/// tracing subscriber, installed once for this test binary.
+mod room_logs {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::{Arc, Mutex, OnceLock};
+
+    use tracing::field::{Field, Visit};
+    use tracing::span::{Attributes, Id};
+    use tracing::{Event, Subscriber};
+    use tracing_subscriber::layer::{Context, Layer, SubscriberExt};
+    use tracing_subscriber::registry::LookupSpan;
+
+    type Counters = Mutex<Vec<(String, Arc<AtomicUsize>, Arc<Mutex<Vec<String>>>)>>;
+
+    struct Counter(&'static Counters);
+
+    /// The room a span is for.
+    struct RoomName(String);
+
+    struct Fields {
+        room: Option<String>,
+        message: Option<String>,
+    }
+
+    impl Visit for Fields {
+        fn record_debug(&mut self, field: &Field, value: &dyn std::fmt::Debug) {
+            match field.name() {
+                "room" => self.room = Some(format!("{value:?}")),
+                "message" => self.message = Some(format!("{value:?}")),
+                _ => {}
+            }
+        }
+    }
+
+    impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for Counter {
+        fn on_new_span(&self, attrs: &Attributes<'_>, id: &Id, ctx: Context<'_, S>) {
+            let mut f = Fields {
+                room: None,
+                message: None,
+            };
+            attrs.record(&mut f);
+            if let (Some(room), Some(span)) = (f.room, ctx.span(id)) {
+                span.extensions_mut().insert(RoomName(room));
+            }
+        }
+
+        fn on_event(&self, event: &Event<'_>, ctx: Context<'_, S>) {
+            let Some(scope) = ctx.event_scope(event) else {
+                return;
+            };
+            let room = scope
+                .from_root()
+                .find_map(|s| s.extensions().get::<RoomName>().map(|r| r.0.clone()));
+            let Some(room) = room else { return };
+            let counters = self.0.lock().unwrap();
+            if let Some((_, n, lines)) = counters.iter().find(|c| c.0 == room) {
+                let mut f = Fields {
+                    room: None,
+                    message: None,
+                };
+                event.record(&mut f);
+                let text = f.message.unwrap_or_default();
+                n.fetch_add(text.lines().count().max(1), Ordering::Relaxed);
+                lines
+                    .lock()
+                    .unwrap()
+                    .extend(text.lines().map(str::to_owned));
+            }
+        }
+    }
+
+    static COUNTERS: OnceLock<&'static Counters> = OnceLock::new();
+
+    /// Starts counting the log lines of room `room`: the line count, and
+    /// the lines.
+    pub fn count(room: &str) -> (Arc<AtomicUsize>, Arc<Mutex<Vec<String>>>) {
+        let counters = *COUNTERS.get_or_init(|| {
+            let c: &'static Counters = Box::leak(Box::default());
+            let subscriber = tracing_subscriber::registry().with(Counter(c));
+            tracing::subscriber::set_global_default(subscriber).expect("one subscriber");
+            c
+        });
+        let n = Arc::new(AtomicUsize::new(0));
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        counters
+            .lock()
+            .unwrap()
+            .push((room.to_owned(), n.clone(), lines.clone()));
+        (n, lines)
+    }
+}
+
+/// Bounded logs (issue 42, item 7): on a server that does not verify and
+/// drops nobody for its hash, a bot that simulates right but reports a
+/// wrong hash on every even tick raises a new divergence every other
+/// tick. The room logs its first 16 desyncs (notice, located report,
+/// bundle) and says once that it stops; the rest are counted, not
+/// logged. Its report keeps every notice (up to 256) and at most 4
+/// bundles; the bots (the liar's real hashes too) agree on every tick and
+/// the replay, holding only the hashes every player reported, re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_liar_raising_a_desync_every_other_tick_cannot_fill_the_log() {
+    use lockstep_client::bot::run_bot;
+    let (lines, text) = room_logs::count("many-desyncs");
+    let mut server = TestServer::start(tmp("many-desyncs"), |c| {
+        program_config(c, &["--no-verify"]);
+        c.room.start_players = 3;
+        c.room.match_ticks = Some(300);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let options = BotOptions::new(addr, &cert, "many-desyncs", 3);
+    let mut tasks = Vec::new();
+    for i in 0..3 {
+        let mut o = options.client_options(i);
+        o.lie_on_even_ticks = i == 2;
+        tasks.push(tokio::spawn(run_bot(
+            o,
+            std::sync::Arc::new(Demo),
+            1,
+            false,
+            std::future::pending(),
+        )));
+        tokio::time::sleep(Duration::from_millis(30)).await;
+    }
+    let mut bots = Vec::new();
+    for t in tasks {
+        bots.push(t.await.unwrap().expect("bot plays"));
+    }
+    let ended = server.match_end(Duration::from_secs(10)).await;
+    server.shutdown().await;
+    assert_same_hashes(&bots, 300);
+    assert!(ended.desync_notices >= 32, "{}", ended.desync_notices);
+    assert_eq!(ended.desyncs.len() as u64, ended.desync_notices.min(256));
+    assert!(ended.bundles.len() <= 4, "{:?}", ended.bundles);
+    let text = text.lock().unwrap().clone();
+    let notices = text.iter().filter(|l| l.contains("DESYNC at tick")).count();
+    let reports = text.iter().filter(|l| l.contains("desync bundle")).count();
+    let total = lines.load(std::sync::atomic::Ordering::Relaxed);
+    println!(
+        "{} desync notices, {} located; the room logged {total} lines, {notices} notice lines",
+        ended.desync_notices,
+        ended.located.len()
+    );
+    assert_eq!(
+        notices, 17,
+        "16 logged and the one that says the rest are not"
+    );
+    assert!(reports <= 4, "{reports}");
+    assert!(
+        text.iter().any(|l| l.contains("the rest are counted")),
+        "{text:#?}"
+    );
+    assert!(total < 900, "{total} lines");
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!(check.ticks, 300);
+    assert!(check.checked >= 100, "{}", check.checked);
+}
+
 /// Forensics bounded by what the server knows (issue 42, item 7), against
 /// the default (verifying) program: two liars report a made-up hash beside
 /// two bots and lie to the desync search. One claims a world of 2^20

@@ -120,6 +120,11 @@ pub struct ClientOptions {
     /// does not restore. Default off.
     #[cfg(feature = "test-hooks")]
     pub corrupt_snapshots: bool,
+    /// Test hook (feature `test-hooks`): the client simulates every tick
+    /// right but reports a wrong hash for every even tick (a liar that
+    /// raises a new divergence every other tick). Default off.
+    #[cfg(feature = "test-hooks")]
+    pub lie_on_even_ticks: bool,
 }
 
 impl ClientOptions {
@@ -147,6 +152,8 @@ impl ClientOptions {
             max_prediction: 8,
             #[cfg(feature = "test-hooks")]
             corrupt_snapshots: false,
+            #[cfg(feature = "test-hooks")]
+            lie_on_even_ticks: false,
         }
     }
 }
@@ -1122,6 +1129,8 @@ impl LiveClient {
             // A player that joined a running match catches up on the ticks
             // before its start without reporting them (it was not in them).
             if bundle.tick >= self.session.start_tick() {
+                #[cfg(feature = "test-hooks")]
+                let hash = hash ^ u64::from(self.options.lie_on_even_ticks && bundle.tick % 2 == 0);
                 self.session.report_hash(bundle.tick, hash, bodies)?;
             }
             self.ticks_applied += 1;

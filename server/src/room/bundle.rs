@@ -30,6 +30,11 @@ pub(super) const LOGGED_DESYNCS: usize = 16;
 /// Desync bundles a room writes (each holds the replay so far).
 const MAX_BUNDLES: usize = 4;
 
+/// Desync notices and located reports a room's report keeps (the rest are
+/// counted: `RoomStats::desync_notices`, `RoomStats::desyncs_located`), so
+/// its memory does not grow with a player that keeps diverging.
+pub(super) const KEPT_DESYNCS: usize = 256;
+
 /// A snapshot the room checked against the agreed hash of its tick.
 pub(super) struct CheckedSnapshot {
     tick: u64,
@@ -48,7 +53,7 @@ impl RoomTask {
         bytes: Vec<u8>,
     ) {
         let name = &self.name;
-        let log = self.located.len() < LOGGED_DESYNCS;
+        let log = self.room.stats().desyncs_located < LOGGED_DESYNCS as u64;
         let Some(expected) = agreed_hash else {
             if !log {
                 return;
@@ -87,10 +92,15 @@ impl RoomTask {
             .take()
             .map(|t| format!(" ({} ms after the notice)", t.elapsed().as_millis()))
             .unwrap_or_default();
-        if self.located.len() >= LOGGED_DESYNCS {
-            // Counted (the room's report keeps it), not logged, no bundle.
+        // The room counted it already.
+        let located = self.room.stats().desyncs_located;
+        if located > LOGGED_DESYNCS as u64 {
+            // Counted (the room's report keeps the first ones), not
+            // logged, no bundle.
             self.desync_snapshot = None;
-            self.located.push(report.clone());
+            if self.located.len() < KEPT_DESYNCS {
+                self.located.push(report.clone());
+            }
             self.shared.emit(ServerEvent::DesyncLocated {
                 room: self.name.clone(),
                 report,

@@ -1132,15 +1132,16 @@ impl RoomTask {
                         wrong.iter().map(|s| s.0).collect::<Vec<_>>()
                     ),
                 };
-                let logged = self.desyncs.len();
-                if logged < bundle::LOGGED_DESYNCS {
+                // The room counted this notice already.
+                let logged = self.room.stats().desync_notices.saturating_sub(1);
+                if logged < bundle::LOGGED_DESYNCS as u64 {
                     crate::log!(
                         "room {}: DESYNC at tick {}: {}; verdict: {verdict}",
                         self.name,
                         notice.tick,
                         hashes.join(", ")
                     );
-                } else if logged == bundle::LOGGED_DESYNCS {
+                } else if logged == bundle::LOGGED_DESYNCS as u64 {
                     crate::log!(
                         "room {}: DESYNC at tick {}; more than {logged} desyncs in this match: the rest are counted (lockstep_desyncs_total, the room's report), not logged",
                         self.name,
@@ -1156,7 +1157,9 @@ impl RoomTask {
                     .metrics
                     .desyncs
                     .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                self.desyncs.push(notice);
+                if self.desyncs.len() < bundle::KEPT_DESYNCS {
+                    self.desyncs.push(notice);
+                }
             }
             RoomEvent::DesyncLocated(report) => self.on_desync_located(report),
             RoomEvent::JoinSnapshot {

@@ -175,6 +175,7 @@ impl RoomTask {
             mismatched_ticks: stats.mismatched_ticks,
             bad_snapshots: stats.bad_snapshots,
             desyncs: self.desyncs.clone(),
+            desync_notices: stats.desync_notices,
             located: self.located.clone(),
             forensics_bytes_down: self.forensics_bytes.0,
             forensics_bytes_up: self.forensics_bytes.1,
@@ -200,7 +201,7 @@ impl RoomTask {
             report.ticks,
             report.ticks_compared,
             report.mismatched_ticks,
-            report.desyncs.len(),
+            report.desync_notices,
             report
                 .replay
                 .as_ref()
