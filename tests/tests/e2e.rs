@@ -1011,6 +1011,7 @@ async fn liars_about_their_world_make_the_server_pull_bounded_bytes() {
         )));
     }
     // One divergence: one notice and one report.
+    assert_eq!(ended.desync_notices, 1);
     assert_eq!(ended.desyncs.len(), 1, "{:?}", ended.desyncs);
     assert_eq!(ended.located.len(), 1);
     let report = &ended.located[0];
