@@ -148,11 +148,14 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
                 format!("{} before joining", other.kind()),
             )),
             // A client of another protocol version is told so (the QUIC
-            // close code and reason text are readable to it).
-            Err(lockstep_proto::DecodeError::WrongVersion { found, expected }) => Err((
-                CloseReason::VersionMismatch,
-                format!("client protocol version {found}, server {expected}"),
-            )),
+            // close code and reason text are readable to it); a header
+            // that names no plausible version (garbage) is a violation.
+            Err(lockstep_proto::DecodeError::WrongVersion { found, expected }) if found <= 255 => {
+                Err((
+                    CloseReason::VersionMismatch,
+                    format!("client protocol version {found}, server {expected}"),
+                ))
+            }
             Err(e) => Err((
                 CloseReason::ProtocolViolation,
                 format!("undecodable join: {e}"),
