@@ -2076,6 +2076,97 @@ async fn a_replayed_token_is_refused_and_its_owner_rejoins_with_its_credential()
     assert_eq!((check.ticks, check.checked), (600, 600));
 }
 
+/// The owner comes back while its old connection still holds the seat
+/// (the server has not noticed it is gone, e.g. the game restarted): the
+/// rejoin credential drops the old connection and the new one takes the
+/// seat from the agreed snapshot, matching the others to the end; the
+/// old bot's session ends; the replay re-verifies.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_rejoin_with_the_credential_replaces_the_owner_s_stale_connection() {
+    use lockstep_client::bot::run_bot;
+    use lockstep_server::issue_token;
+    let secret = b"replace test secret, 16+ bytes".to_vec();
+    let key = secret.clone();
+    let mut server = TestServer::start(tmp("replace"), move |c| {
+        c.room.start_players = 3;
+        c.room.match_ticks = Some(480);
+        c.token_secret = Some(key);
+    })
+    .await;
+    let (addr, cert) = (server.addr, server.cert.clone());
+    let now = std::time::SystemTime::now();
+    let mut options = BotOptions::new(addr, &cert, "replace", 3);
+    options.tokens = (0..3u8)
+        .map(|s| {
+            let name = format!("bot-{s}");
+            issue_token(
+                &secret,
+                "replace",
+                Some(s),
+                &name,
+                Duration::from_secs(600),
+                now,
+            )
+            .unwrap()
+        })
+        .collect();
+    let owner = options.client_options(1);
+    let mut tasks = Vec::new();
+    for i in 0..3 {
+        let o = if i == 1 {
+            owner.clone()
+        } else {
+            options.client_options(i)
+        };
+        tasks.push(tokio::spawn(run_bot(
+            o,
+            std::sync::Arc::new(Demo),
+            1,
+            false,
+            std::future::pending(),
+        )));
+        tokio::time::sleep(Duration::from_millis(30)).await;
+    }
+    server
+        .wait_for(Duration::from_secs(10), |e| {
+            matches!(e, ServerEvent::MatchStarted { .. }).then_some(())
+        })
+        .await;
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    // The old bot still plays; the owner connects again beside it.
+    let again = run_bot(
+        owner.clone(),
+        std::sync::Arc::new(Demo),
+        1,
+        false,
+        std::future::pending(),
+    )
+    .await
+    .expect("the owner takes its seat back");
+    let old = tasks.remove(1).await.unwrap();
+    let mut others = Vec::new();
+    for t in tasks {
+        others.push(t.await.unwrap().expect("bot plays"));
+    }
+    let ended = server.match_end(Duration::from_secs(10)).await;
+    server.shutdown().await;
+    assert_same_hashes(&others, 480);
+    assert_eq!(again.slot, Slot(1));
+    assert!(again.first_applied > 60, "{}", again.first_applied);
+    assert_eq!(again.hashes.len() as u64, 480 - again.first_applied);
+    for (i, h) in again.hashes.iter().enumerate() {
+        let t = again.first_applied as usize + i;
+        assert_eq!(*h, others[0].hashes[t], "tick {t}");
+    }
+    // The old connection was dropped before the end of the match.
+    if let Ok(r) = &old {
+        assert!((r.hashes.len() as u64) < 480, "{}", r.hashes.len());
+    }
+    assert!(ended.desyncs.is_empty(), "{:?}", ended.desyncs);
+    let check = verify_replay_file(ended.replay.as_ref().unwrap(), &Demo).expect("replay verifies");
+    assert_eq!((check.ticks, check.checked), (480, 480));
+}
+
 /// One HTTP GET on the metrics listener: status line and body.
 async fn http_get(addr: SocketAddr, path: &str) -> (String, String) {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
