@@ -401,5 +401,4 @@ pub fn contact_hull_hull(
 }
 
 #[cfg(test)]
-#[path = "tests_gjk.rs"]
 mod tests_gjk;
