@@ -132,32 +132,9 @@ pub fn csv(suite: &str, rows: &[Row]) -> String {
     out
 }
 
-/// A deterministic generator for benchmark inputs (SplitMix64), so runs
-/// compare like with like.
-#[derive(Clone, Debug)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// A generator from a seed.
-    pub fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// A uniform value in `[lo, hi)`.
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        lo + (hi - lo) * unit
-    }
-}
+/// The generator of benchmark inputs: the workspace's one seeded test
+/// generator (SplitMix64), so runs compare like with like.
+pub use lockstep_testsupport::Rng;
 
 /// Round trips a probe of [`core_round_trip_ns`] makes.
 pub const ROUND_TRIPS: usize = 20_000;

@@ -17,7 +17,6 @@
 //! executes, not as a measurement.
 
 mod accuracy;
-mod alloc;
 mod callgrind;
 mod engines;
 mod harness;
@@ -38,6 +37,7 @@ use clap::Parser;
 
 use harness::Budget;
 use lockstep_core::{ContactRows, WorldConfig};
+use lockstep_testsupport::alloc;
 
 /// The heap high-water mark is measured in this binary (see [`alloc`]).
 #[global_allocator]

@@ -20,6 +20,8 @@ pub mod scene;
 pub mod shape;
 pub mod snapshot;
 pub(crate) mod solver;
+#[cfg(any(test, feature = "test-support"))]
+pub mod testing;
 pub(crate) mod workers;
 pub mod world;
 

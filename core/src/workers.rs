@@ -563,6 +563,7 @@ impl<const N: usize> ColorGate<'_, N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::Rng;
 
     #[test]
     fn for_each_block_visits_every_item_once_in_blocks() {
@@ -690,16 +691,14 @@ mod tests {
     }
 
     /// Ranges of `N` colours of random sizes (some empty) laid end to end.
-    fn random_ranges<const N: usize>(seed: &mut u64) -> [Range<usize>; N] {
+    fn random_ranges<const N: usize>(rng: &mut Rng) -> [Range<usize>; N] {
         let mut at = 0;
         std::array::from_fn(|_| {
-            *seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let len = match (*seed >> 33) % 4 {
+            let x = rng.next_u64();
+            let len = match (x >> 33) % 4 {
                 0 => 0,
-                1 => (*seed >> 40) as usize % 5,
-                _ => (*seed >> 40) as usize % 200,
+                1 => (x >> 40) as usize % 5,
+                _ => (x >> 40) as usize % 200,
             };
             at += len;
             at - len..at
@@ -709,11 +708,11 @@ mod tests {
     #[test]
     fn the_gate_visits_every_block_once_never_before_the_colours_before_it() {
         const N: usize = 24;
-        let mut seed = 7u64;
+        let mut rng = Rng::new(7);
         for count in [1, 2, 3, 4, 8] {
             let w = Workers::new(count);
             for round in 0..30 {
-                let ranges = random_ranges::<N>(&mut seed);
+                let ranges = random_ranges::<N>(&mut rng);
                 let len = ranges[N - 1].end;
                 let colour_of = |i: usize| ranges.iter().position(|r| r.contains(&i)).unwrap();
                 let seen: Vec<AtomicUsize> = (0..len).map(|_| AtomicUsize::new(0)).collect();

@@ -2,11 +2,9 @@
 //! through thin shapes; slow bodies pay nothing; the stage is
 //! deterministic.
 
-mod common;
-
 use std::time::Instant;
 
-use common::{Rng, f, s, v as v3, zero_g};
+use lockstep_testsupport::{Rng, f, s, v as v3, zero_g};
 
 use lockstep_core::shape::{Capsule, Cuboid, Shape, Sphere};
 use lockstep_core::world::CCD_TARGET_GAP;
@@ -23,21 +21,20 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-/// The projectile distributions of these tests, on the shared SplitMix64.
-impl Rng {
-    /// Uniform in `[lo, hi)`.
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * ((self.next() >> 11) as f64 / (1u64 << 53) as f64)
-    }
-
+/// The projectile distributions of these tests, on the shared generator.
+trait Draw {
     /// A uniformly random rotation (normalised random quaternion).
+    fn rotation(&mut self) -> Quat;
+}
+
+impl Draw for Rng {
     fn rotation(&mut self) -> Quat {
         loop {
             let q = [
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
             ];
             let n = dot([q[0], q[1], q[2]], [q[0], q[1], q[2]]) + q[3] * q[3];
             if n > 0.01 && n <= 1.0 {
@@ -75,8 +72,8 @@ impl Target {
 /// or a randomly oriented, spinning box (half-extents 2–20 cm).
 fn shoot(w: &mut World, rng: &mut Rng, target: &Target, filter: CollisionFilter) -> BodyHandle {
     let (u, v) = (
-        rng.range(-0.7, 0.7) * target.half_size,
-        rng.range(-0.7, 0.7) * target.half_size,
+        rng.uniform(-0.7, 0.7) * target.half_size,
+        rng.uniform(-0.7, 0.7) * target.half_size,
     );
     let aim: [f64; 3] = std::array::from_fn(|k| {
         target.center[k]
@@ -84,42 +81,42 @@ fn shoot(w: &mut World, rng: &mut Rng, target: &Target, filter: CollisionFilter)
             + target.t1[k] * u
             + target.t2[k] * v
     });
-    let theta = rng.range(0.0, 60f64.to_radians());
-    let phi = rng.range(0.0, std::f64::consts::TAU);
+    let theta = rng.uniform(0.0, 60f64.to_radians());
+    let phi = rng.uniform(0.0, std::f64::consts::TAU);
     let back: [f64; 3] = std::array::from_fn(|k| {
         theta.cos() * target.normal[k]
             + theta.sin() * (phi.cos() * target.t1[k] + phi.sin() * target.t2[k])
     });
-    let dist = rng.range(2.0, 5.0);
-    let speed = rng.range(50.0, 500.0);
+    let dist = rng.uniform(2.0, 5.0);
+    let speed = rng.uniform(50.0, 500.0);
     let start = [
         aim[0] + back[0] * dist,
         aim[1] + back[1] * dist,
         aim[2] + back[2] * dist,
     ];
     let vel = [-back[0] * speed, -back[1] * speed, -back[2] * speed];
-    let sphere = rng.next().is_multiple_of(2);
+    let sphere = rng.next_u64().is_multiple_of(2);
     let mut desc = BodyDesc::dynamic()
         .position(v3(start[0], start[1], start[2]))
         .linear_velocity(v3(vel[0], vel[1], vel[2]));
     let shape = if sphere {
-        Shape::Sphere(Sphere::new(s(rng.range(0.02, 0.2))).unwrap())
+        Shape::Sphere(Sphere::new(s(rng.uniform(0.02, 0.2))).unwrap())
     } else {
         desc = desc.rotation(rng.rotation()).angular_velocity(v3(
-            rng.range(-10.0, 10.0),
-            rng.range(-10.0, 10.0),
-            rng.range(-10.0, 10.0),
+            rng.uniform(-10.0, 10.0),
+            rng.uniform(-10.0, 10.0),
+            rng.uniform(-10.0, 10.0),
         ));
         Shape::Cuboid(
             Cuboid::new(v3(
-                rng.range(0.02, 0.2),
-                rng.range(0.02, 0.2),
-                rng.range(0.02, 0.2),
+                rng.uniform(0.02, 0.2),
+                rng.uniform(0.02, 0.2),
+                rng.uniform(0.02, 0.2),
             ))
             .unwrap(),
         )
     };
-    let restitution = if rng.next().is_multiple_of(2) {
+    let restitution = if rng.next_u64().is_multiple_of(2) {
         0.0
     } else {
         0.5
@@ -173,7 +170,7 @@ const BATCH_TICKS: u32 = 18;
 /// (x = 0, 200 m × 200 m) in normal gravity. Returns (tunnelled, shots,
 /// CCD hits, CCD bodies).
 fn wall_shots(seed: u64, batches: u32, per_batch: u32) -> (u32, u32, u32, u32) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let wall = Target {
         center: [0.0; 3],
         normal: [-1.0, 0.0, 0.0],
@@ -196,7 +193,7 @@ fn wall_shots(seed: u64, batches: u32, per_batch: u32) -> (u32, u32, u32, u32) {
             // Each shot aims at its own patch of the wall, so the batch
             // spreads out (±30 m) instead of piling up in one place.
             let mut lane = wall;
-            lane.center = [0.0, rng.range(-30.0, 30.0), rng.range(-30.0, 30.0)];
+            lane.center = [0.0, rng.uniform(-30.0, 30.0), rng.uniform(-30.0, 30.0)];
             lane.half_size = 1.0;
             let b = shoot(&mut w, &mut rng, &lane, SHOTS);
             shots.push((b, wall));
@@ -215,7 +212,7 @@ fn wall_shots(seed: u64, batches: u32, per_batch: u32) -> (u32, u32, u32, u32) {
 /// its own box and the boxes 32 lanes away. Returns (tunnelled, shots, CCD
 /// hits, CCD bodies).
 fn thin_box_shots(seed: u64, batches: u32, per_batch: u32) -> (u32, u32, u32, u32) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut totals = (0, 0, 0, 0);
     for _ in 0..batches {
         let mut w = zero_g();
@@ -330,11 +327,11 @@ fn rod_world(speed: f64, phase: f64, offset: f64) -> (World, BodyHandle) {
 
 #[test]
 fn a_rod_spinning_at_50_rad_per_s_does_not_pass_through_a_1_cm_wall() {
-    let mut rng = Rng(0xcc_d003);
+    let mut rng = Rng::new(0xcc_d003);
     let mut hits = 0;
     for run in 0..200 {
-        let speed = rng.range(50.0, 150.0);
-        let (mut w, rod) = rod_world(speed, rng.range(0.0, 3.2), rng.range(0.0, 1.0));
+        let speed = rng.uniform(50.0, 150.0);
+        let (mut w, rod) = rod_world(speed, rng.uniform(0.0, 3.2), rng.uniform(0.0, 1.0));
         for tick in 0..30 {
             let r = w.step();
             assert!(!r.overflowed());
@@ -533,7 +530,7 @@ fn a_ccd_hit_stops_the_body_a_few_mm_short_and_keeps_its_velocity() {
 #[test]
 fn ccd_is_deterministic_and_survives_a_snapshot() {
     let build = || {
-        let mut rng = Rng(0xcc_d004);
+        let mut rng = Rng::new(0xcc_d004);
         let mut w = World::new(WorldConfig::default()).unwrap();
         let wb = w.create_body(&BodyDesc::fixed()).unwrap();
         w.add_collider(
@@ -667,7 +664,7 @@ fn fast_bodies_pay_for_a_sweep_slow_ones_do_not_and_nothing_grows_once_warm() {
 fn two_thousand_shots_at_a_triangle_mesh_wall_never_cross_it() {
     use lockstep_core::shape::TriMesh;
     use std::sync::Arc;
-    let mut rng = Rng(0xcc_d005);
+    let mut rng = Rng::new(0xcc_d005);
     let wall = Target {
         center: [0.0; 3],
         normal: [-1.0, 0.0, 0.0],
@@ -701,7 +698,7 @@ fn two_thousand_shots_at_a_triangle_mesh_wall_never_cross_it() {
         let mut shots = Vec::new();
         for _ in 0..100 {
             let mut lane = wall;
-            lane.center = [0.0, rng.range(-30.0, 30.0), rng.range(-30.0, 30.0)];
+            lane.center = [0.0, rng.uniform(-30.0, 30.0), rng.uniform(-30.0, 30.0)];
             lane.half_size = 1.0;
             shots.push((shoot(&mut w, &mut rng, &lane, SHOTS), wall));
         }

@@ -1,14 +1,12 @@
 //! The collision stage inside `World::step`: candidate pairs, manifolds,
 //! touch and trigger events, filtering.
 
-mod common;
-
-use common::{s, v, zero_g};
 use lockstep_core::contact::{ContactEventKind, PairKind};
 use lockstep_core::shape::{Capsule, Cuboid, Shape, Sphere};
 use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, CollisionFilter, Quat, Transform, Vec3, World, WorldConfig,
 };
+use lockstep_testsupport::{s, v, zero_g};
 
 fn ball(w: &mut World, name: &str, at: Vec3, vel: Vec3) -> lockstep_core::BodyHandle {
     let b = w
@@ -397,7 +395,7 @@ fn grounded_world(sleep: bool) -> World {
         ..WorldConfig::default()
     })
     .unwrap();
-    common::ground(&mut w, lockstep_core::Material::default());
+    lockstep_testsupport::ground(&mut w, lockstep_core::Material::default());
     w
 }
 
@@ -593,7 +591,7 @@ fn a_ball_on_a_box_never_reuses_while_the_box_on_the_ground_does() {
         ..WorldConfig::default()
     })
     .unwrap();
-    common::ground(&mut w, lockstep_core::Material::default());
+    lockstep_testsupport::ground(&mut w, lockstep_core::Material::default());
     let bx = w
         .create_body(&BodyDesc::dynamic().position(v(0.0, 0.5, 0.0)))
         .unwrap();

@@ -8,10 +8,7 @@ use lockstep_core::world::{Stage, StepObserver};
 use lockstep_core::{
     BodyDesc, ColliderDesc, Faults, Quat, Scalar, Transform, Vec3, World, WorldConfig,
 };
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
+use lockstep_testsupport::s;
 
 /// A mixed scene: spinning anisotropic boxes, a compound, a kinematic body
 /// steered each tick, forces and impulses from a scripted "game".
@@ -186,11 +183,9 @@ fn corrupt_snapshots_are_errors_not_panics() {
     extra.push(0);
     assert!(World::restore(&extra).is_err());
     // Flip bits all over the payload: every result is Ok or Err, never a panic.
-    let mut x: u64 = 99;
+    let mut rng = lockstep_testsupport::Rng::new(99);
     for _ in 0..2000 {
-        x = x
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        let x = rng.next_u64();
         let mut b = bytes.clone();
         let i = 8 + (x >> 33) as usize % (b.len() - 8);
         b[i] ^= 1 << ((x >> 20) % 8);

@@ -1,10 +1,8 @@
 //! Coulomb friction against closed forms. Each test prints its figures.
 
-mod common;
-
-use common::{Rng, f, ground, s, v};
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
 use lockstep_core::{BodyDesc, ColliderDesc, Material, World, WorldConfig};
+use lockstep_testsupport::{Rng, f, ground, s, v};
 
 const G: f64 = 9.81;
 
@@ -86,9 +84,9 @@ fn slide(tick_rate: u32, substeps: u32, settle: u32, deg: f64, v0: f64, mu: f64)
 fn a_sliding_box_stops_at_the_closed_form_distance_in_every_direction() {
     let (v0, mu) = (5.0, 0.5);
     let expected = stop_distance(v0, mu);
-    let mut rng = Rng(0x5eed_f41c);
+    let mut rng = Rng::new(0x5eed_f41c);
     let mut dirs = vec![0.0, 30.0, 45.0, 60.0, 90.0, 135.0, 200.0, 315.0];
-    dirs.extend((0..4).map(|_| (rng.next() >> 11) as f64 / (1u64 << 53) as f64 * 360.0));
+    dirs.extend((0..4).map(|_| rng.unit() * 360.0));
     for deg in dirs {
         let d = slide(60, 4, 30, deg, v0, mu);
         let err = (d - expected).abs() / expected;
@@ -203,9 +201,9 @@ fn slide_to_roll(tick_rate: u32, substeps: u32, deg: f64, v0: f64, mu: f64, r: f
 fn a_sliding_sphere_starts_rolling_at_the_closed_form_time_and_speed() {
     let (v0, mu, r) = (5.0, 0.5, 0.5);
     let t_star = 2.0 * v0 / (7.0 * mu * G);
-    let mut rng = Rng(0x0b5e_55ed);
+    let mut rng = Rng::new(0x0b5e_55ed);
     let mut dirs = vec![0.0, 45.0, 120.0];
-    dirs.extend((0..2).map(|_| (rng.next() >> 11) as f64 / (1u64 << 53) as f64 * 360.0));
+    dirs.extend((0..2).map(|_| rng.unit() * 360.0));
     for (rate, substeps) in [(60, 4), (240, 4)] {
         for &deg in &dirs {
             let roll = slide_to_roll(rate, substeps, deg, v0, mu, r);

@@ -3,10 +3,7 @@
 
 use lockstep_core::shape::{Shape, Sphere};
 use lockstep_core::{BodyDesc, ColliderDesc, Scalar, Vec3, World, WorldConfig};
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
+use lockstep_testsupport::s;
 
 fn world(gravity: Vec3, substeps: u32) -> World {
     World::new(WorldConfig {

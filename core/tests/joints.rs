@@ -7,14 +7,7 @@ use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, Quat, Scalar, Transform, Vec3, World, WorldConfig,
     WorldError,
 };
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
-
-fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
+use lockstep_testsupport::{s, v};
 
 fn f(v: Scalar) -> f64 {
     v.to_f64()

@@ -5,10 +5,7 @@ use lockstep_core::shape::{Cuboid, Shape};
 use lockstep_core::{
     BodyDesc, ColliderDesc, Quat, Scalar, Transform, Vec3, World, WorldConfig, WorldError,
 };
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
+use lockstep_testsupport::s;
 
 fn platform(w: &mut World) -> lockstep_core::BodyHandle {
     let k = w

@@ -15,11 +15,9 @@
 //! The invariant of the soak ([`check_no_frozen_growth`]): velocity must
 //! never grow while the pose stays bit-identical.
 
-mod common;
-
-use common::{Rng, f, s, v};
 use lockstep_core::shape::{Capsule, ConvexHull, Cuboid, Shape, Sphere};
 use lockstep_core::{BodyDesc, BodyHandle, ColliderDesc, Material, Quat, Vec3, World, WorldConfig};
+use lockstep_testsupport::{Rng, f, s, v};
 
 const G: f64 = 9.81;
 
@@ -194,8 +192,8 @@ fn no_shape_dropped_on_a_box_freezes_with_a_growing_velocity() {
         .unwrap()
         .into()
     };
-    let mut rng = Rng(18);
-    let mut unit = move || (rng.next() >> 11) as f64 / (1u64 << 53) as f64;
+    let mut rng = Rng::new(18);
+    let mut unit = move || rng.unit();
     let mut latest = 0;
     for i in 0..48 {
         let shape = match i % 4 {

@@ -7,11 +7,9 @@
 //! rest, 11 cm at the deepest). Above 1:64 the solver's shock pass holds
 //! each upper body against the one under it instead.
 
-mod common;
-
-use common::{f, ground, s, v};
 use lockstep_core::shape::{Cuboid, Shape};
 use lockstep_core::{BodyDesc, BodyHandle, ColliderDesc, Material, World, WorldConfig};
+use lockstep_testsupport::{f, ground, s, v};
 
 const G: f64 = 9.81;
 

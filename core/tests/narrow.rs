@@ -5,13 +5,11 @@
 //! value past the format's range sends its constraint to the Q32.32 rows
 //! on every machine alike.
 
-mod common;
-
-use common::{ground, pile_in, s, step_pile, v};
 use lockstep_core::scene::{build_world_with_config, parse_scene};
 use lockstep_core::{
     BodyDesc, ColliderDesc, ContactOrder, ContactRows, Material, StepReport, World, WorldConfig,
 };
+use lockstep_testsupport::{ground, pile_in, s, step_pile, v};
 
 fn narrow(order: ContactOrder) -> WorldConfig {
     WorldConfig {

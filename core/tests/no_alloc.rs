@@ -3,52 +3,17 @@
 //! test harness's own threads allocate at any time), and the world is
 //! stepped on the test's thread.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
 use lockstep_core::world::{Stage, StepObserver};
 use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, ContactOrder, ContactRows, Quat, Scalar, StepReport,
     Transform, Vec3, World, WorldConfig,
 };
-
-struct Counting;
-
-thread_local! {
-    // Const-initialised and without a destructor: reading it never allocates.
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-fn count() {
-    // `try_with` so an allocation during thread teardown is simply not counted.
-    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-}
-
-fn allocations() -> u64 {
-    ALLOCATIONS.with(Cell::get)
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use lockstep_testsupport::alloc::{Counting, allocations};
+use lockstep_testsupport::s;
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
 
 /// Fifty spinning boxes and spheres dropped just onto a floor, and a
 /// kinematic body.

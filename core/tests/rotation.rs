@@ -4,10 +4,7 @@
 
 use lockstep_core::shape::{Cuboid, Shape};
 use lockstep_core::{BodyDesc, ColliderDesc, Scalar, Vec3, World, WorldConfig};
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
+use lockstep_testsupport::s;
 
 fn zero_g(substeps: u32) -> World {
     World::new(WorldConfig {

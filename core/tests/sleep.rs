@@ -6,14 +6,7 @@ use lockstep_core::shape::{Cuboid, Shape};
 use lockstep_core::{
     BodyDesc, BodyHandle, ColliderDesc, Material, Scalar, Transform, Vec3, World, WorldConfig,
 };
-
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
-
-fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
+use lockstep_testsupport::{s, v};
 
 fn world() -> World {
     World::new(WorldConfig::default()).unwrap()

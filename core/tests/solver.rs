@@ -2,11 +2,9 @@
 //! rolling, stacking, mass ratios, overlap recovery, warm starting. Each
 //! test prints its error.
 
-mod common;
-
-use common::{f, ground, s, v};
 use lockstep_core::shape::{Cuboid, Shape, Sphere};
 use lockstep_core::{BodyDesc, BodyHandle, ColliderDesc, Material, Vec3, World, WorldConfig};
+use lockstep_testsupport::{f, ground, s, v};
 
 const G: f64 = 9.81;
 

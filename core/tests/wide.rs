@@ -7,12 +7,10 @@
 //! and that the guard refused the batches it must; elsewhere both runs are
 //! the scalar rows and the comparison is trivially equal.
 
-mod common;
-
-use common::{s, v};
 use lockstep_core::ContactEvent;
 use lockstep_core::scene::{build_world_with_config, parse_scene};
 use lockstep_core::{BodyDesc, ColliderDesc, ContactOrder, StepReport, World, WorldConfig};
+use lockstep_testsupport::{s, v};
 
 /// What a run left after each tick: the state hash, the step's report (lane
 /// counts zeroed) and its contact events.
@@ -90,9 +88,9 @@ fn lanes_on_this_cpu() -> bool {
     w.wide()
 }
 
-/// The shared pit (common::pile) in colour order.
+/// The shared pit (lockstep_testsupport::pile) in colour order.
 fn pile(n: usize, seed: u64) -> World {
-    common::pile(ContactOrder::Colors, n, seed)
+    lockstep_testsupport::pile(ContactOrder::Colors, n, seed)
 }
 
 #[test]

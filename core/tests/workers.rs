@@ -5,12 +5,10 @@
 //! and the integrators' bodies are split over the workers; and the order
 //! itself is a world setting (hashed, kept in snapshots).
 
-mod common;
-
-use common::{pile, step_pile};
 use lockstep_core::ContactEvent;
 use lockstep_core::scene::{build_world_with_config, parse_scene};
 use lockstep_core::{ContactOrder, StepReport, World, WorldConfig};
+use lockstep_testsupport::{pile, step_pile};
 
 const COUNTS: [usize; 5] = [1, 2, 3, 4, 8];
 

@@ -17,7 +17,8 @@
 //!
 //! # What happens to a datagram
 //! For each datagram, in each direction, the relay draws (always the same
-//! five numbers, in order, from a SplitMix64 stream seeded by
+//! five numbers, in order, from `lockstep_testsupport::Rng`, a SplitMix64
+//! stream, seeded by
 //! `(config.seed, flow, direction)`, where `flow` numbers the clients in
 //! the order they first sent):
 //! 1. *loss*: dropped with probability `loss`, independently of the others;
@@ -47,6 +48,7 @@ use std::sync::atomic::{AtomicU64, Ordering as AtomicOrdering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
+use lockstep_testsupport::Rng;
 use tokio::net::UdpSocket;
 use tokio::sync::{Notify, watch};
 use tokio::task::{JoinHandle, JoinSet};
@@ -306,20 +308,6 @@ fn loopback(addr: SocketAddr) -> SocketAddr {
 
 // ---- random fates -------------------------------------------------------------
 
-/// SplitMix64: small, fast, and good enough for test noise.
-#[derive(Clone, Debug)]
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-}
-
 /// A 64-bit draw as a uniform number in [0, 1) (its top 53 bits).
 fn unit(x: u64) -> f64 {
     (x >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
@@ -328,7 +316,7 @@ fn unit(x: u64) -> f64 {
 /// Decides the fate of each datagram of one client in one direction.
 #[derive(Debug)]
 struct Fates {
-    rng: SplitMix64,
+    rng: Rng,
     config: LinkConfig,
     /// Sequence number of the next datagram (for reordering stats).
     next_seq: u64,
@@ -345,10 +333,10 @@ struct Fate {
 
 impl Fates {
     fn new(config: LinkConfig, flow: u64, dir: Direction) -> Fates {
-        let mut seeder = SplitMix64(config.seed ^ flow.wrapping_mul(0xd6e8_feb8_6659_fd93));
+        let mut seeder = Rng::new(config.seed ^ flow.wrapping_mul(0xd6e8_feb8_6659_fd93));
         let salt = seeder.next_u64() ^ (dir.index() as u64 + 1);
         Fates {
-            rng: SplitMix64(SplitMix64(salt).next_u64()),
+            rng: Rng::new(Rng::new(salt).next_u64()),
             config,
             next_seq: 0,
         }

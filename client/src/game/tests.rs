@@ -3,6 +3,7 @@
 //! bots, and determinism.
 
 use lockstep_core::{BodyKind, Scalar, StepReport, Vec3, World};
+use lockstep_testsupport::Rng;
 
 use super::*;
 
@@ -78,18 +79,15 @@ fn within_by(l: &PlayerLimits, p: Vec3, slack: Scalar) -> bool {
 /// settle it; 2 cm is the bound.
 const SQUEEZE_SLACK: Scalar = Scalar::from_bits(85_899_346);
 
-/// A small xorshift64* generator for fuzzing byte strings.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
+/// Byte strings for fuzzing, from the workspace's test generator.
+trait Bytes {
+    fn bytes(&mut self, max_len: usize) -> Vec<u8>;
+}
+
+impl Bytes for Rng {
     fn bytes(&mut self, max_len: usize) -> Vec<u8> {
-        let len = (self.next() % (max_len as u64 + 1)) as usize;
-        (0..len).map(|_| self.next() as u8).collect()
+        let len = self.below(max_len as u64 + 1) as usize;
+        (0..len).map(|_| self.next_u64() as u8).collect()
     }
 }
 
@@ -147,7 +145,7 @@ fn malformed_bytes_do_not_decode() {
 
 #[test]
 fn random_bytes_never_panic_and_decode_only_when_well_formed() {
-    let mut rng = Rng(0x1234_5678_9abc_def1);
+    let mut rng = Rng::new(0x1234_5678_9abc_def1);
     let mut decoded = 0;
     for _ in 0..100_000 {
         let b = rng.bytes(4);
@@ -572,17 +570,21 @@ fn slots_beyond_sixteen_are_ignored_and_the_first_entry_of_a_slot_wins() {
 #[test]
 fn random_input_bytes_never_panic_or_fault() {
     let (mut world, mut game) = demo();
-    let mut rng = Rng(99);
+    let mut rng = Rng::new(99);
     for _ in 0..600 {
         let mut inputs: Vec<(u8, Vec<u8>)> = Vec::new();
         for s in 0..20u8 {
-            if !rng.next().is_multiple_of(3) {
+            if !rng.next_u64().is_multiple_of(3) {
                 // Mostly well-formed-length strings, sometimes anything ≤ 64.
-                let bytes = if rng.next().is_multiple_of(2) {
+                let bytes = if rng.next_u64().is_multiple_of(2) {
                     rng.bytes(64)
                 } else {
                     let mut b = rng.bytes(0);
-                    b.extend([rng.next() as u8, rng.next() as u8, (rng.next() % 2) as u8]);
+                    b.extend([
+                        rng.next_u64() as u8,
+                        rng.next_u64() as u8,
+                        (rng.next_u64() % 2) as u8,
+                    ]);
                     b
                 };
                 inputs.push((s, bytes));

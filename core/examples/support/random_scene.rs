@@ -12,24 +12,19 @@ use lockstep_core::shape::{Capsule, ConvexHull, Cuboid, Shape, Sphere};
 use lockstep_core::{
     BodyDesc, ColliderDesc, Material, Quat, Scalar, Transform, Vec3, World, WorldConfig,
 };
+use lockstep_testsupport::Rng;
 
-/// SplitMix64, seeded by its field (the same generator as the core's tests).
-struct Rng(u64);
+/// The scene's draws, on the workspace's one seeded test generator
+/// (SplitMix64; its integer draws are `Rng::int`).
+trait Draw {
+    fn milli(&mut self, lo: i64, hi: i64) -> Scalar;
+    fn vec(&mut self, lo: i64, hi: i64) -> Vec3;
+    fn rotation(&mut self) -> Quat;
+    fn shape(&mut self) -> Result<Shape, Box<dyn std::error::Error>>;
+    fn material(&mut self) -> Material;
+}
 
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// An integer in `lo..=hi`.
-    fn int(&mut self, lo: i64, hi: i64) -> i64 {
-        lo + (self.next() % (hi - lo + 1) as u64) as i64
-    }
-
+impl Draw for Rng {
     /// A value in `[lo, hi]` thousandths, exactly `k/1000` for an integer k.
     fn milli(&mut self, lo: i64, hi: i64) -> Scalar {
         Scalar::from_ratio(self.int(lo, hi), 1000)
@@ -73,7 +68,7 @@ impl Rng {
 /// or so dynamic bodies of every convex kind (some of two shapes), thrown
 /// with random positions, rotations and velocities.
 pub fn random_world(seed: u64) -> Result<World, Box<dyn std::error::Error>> {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut world = World::new(WorldConfig::default())?;
     let ground = world.create_body(
         &BodyDesc::fixed()

@@ -620,17 +620,7 @@ pub fn acos(x: Scalar) -> Scalar {
 mod tests {
     use super::*;
 
-    /// A small deterministic generator for test inputs.
-    struct SplitMix(u64);
-    impl SplitMix {
-        fn next(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-    }
+    use crate::testing::Rng;
 
     #[test]
     fn seed_table_is_within_two_to_the_minus_9_of_the_reciprocal_root() {
@@ -648,12 +638,12 @@ mod tests {
 
     #[test]
     fn reciprocal_root_kernel_has_33_bits() {
-        let mut rng = SplitMix(7);
+        let mut rng = Rng::new(7);
         let mut worst = 0.0f64;
         // Both ends of every seed interval (where the seed is worst), then
         // random arguments.
         let ends = (128u64..512).flat_map(|i| [i << 55, ((i + 1) << 55).wrapping_sub(1) | 1 << 62]);
-        let random = (0..200_000).map(|_| rng.next() | 1 << 62);
+        let random = (0..200_000).map(|_| rng.next_u64() | 1 << 62);
         for x in ends.chain(random).collect::<Vec<_>>() {
             let y = rsqrt_q61(x) as f64 / 2f64.powi(61);
             let a = x as f64 / 2f64.powi(64);
@@ -666,10 +656,10 @@ mod tests {
     fn isqrt_estimate_is_within_one_of_the_floor() {
         // Replays isqrt_u128's estimate and measures how far the exact
         // fix-up has to move it, over random normalised inputs.
-        let mut rng = SplitMix(11);
+        let mut rng = Rng::new(11);
         let mut hist = [0u32; 3];
         for _ in 0..200_000 {
-            let m = ((rng.next() as u128) << 64 | rng.next() as u128) | 1 << 126;
+            let m = ((rng.next_u64() as u128) << 64 | rng.next_u64() as u128) | 1 << 126;
             let x = (m >> 64) as u64;
             let y = rsqrt_q61(x);
             let s = ((x as u128 * y as u128) >> 61).min(u64::MAX as u128) as u64;

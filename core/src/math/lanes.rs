@@ -305,13 +305,8 @@ mod tests {
 
     #[test]
     fn lanes_match_the_twin_on_random_inputs_of_every_magnitude() {
-        let mut seed = 0x1F3A_u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            seed
-        };
+        let mut rng = crate::testing::Rng::new(0x1F3A);
+        let mut next = || rng.next_u64();
         let (mut ifma, mut guarded) = (0, 0);
         for _ in 0..20_000 {
             let mut a = [0i64; LANES];

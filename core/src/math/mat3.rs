@@ -456,10 +456,7 @@ impl Sub for SymMat3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn s(v: f64) -> Scalar {
-        Scalar::from_f64_lossy(v)
-    }
+    use crate::testing::{Rng, s};
 
     fn close(a: &Mat3, b: &Mat3, ulps: i64) -> bool {
         (0..3).all(|c| (a.cols[c] - b.cols[c]).abs().max_element() <= Scalar::from_bits(ulps))
@@ -474,27 +471,19 @@ mod tests {
         assert!(close(&(m * m.transpose()), &Mat3::IDENTITY, 16));
     }
 
-    /// A small deterministic generator for the tests below.
-    fn lcg(state: &mut u64) -> f64 {
-        *state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*state >> 11) as f64) / ((1u64 << 53) as f64)
-    }
-
     #[test]
     fn fast_symmetric_inverse_is_within_an_ulp_of_the_exact_one() {
-        let mut st = 7u64;
+        let mut st = Rng::new(7);
         let mut checked = 0;
         for case in 0..2000 {
             // Scales from 1e-4 to 1e3, as effective masses of joints span.
-            let scale = 10f64.powf(-4.0 + 7.0 * lcg(&mut st));
-            let mut e = || s((lcg(&mut st) - 0.5) * scale);
+            let scale = 10f64.powf(-4.0 + 7.0 * st.unit());
+            let mut e = || s((st.unit() - 0.5) * scale);
             let (xy, xz, yz) = (e(), e(), e());
             // Diagonally dominant (positive definite) for most cases, and
             // indefinite for every fifth.
-            let dom = |off: Scalar, st: &mut u64| {
-                let extra = s(lcg(st) * scale);
+            let dom = |off: Scalar, st: &mut Rng| {
+                let extra = s(st.unit() * scale);
                 if case % 5 == 0 {
                     -extra
                 } else {
@@ -541,9 +530,9 @@ mod tests {
 
     #[test]
     fn skew_sandwich_matches_the_matrix_product() {
-        let mut st = 11u64;
+        let mut st = Rng::new(11);
         for _ in 0..500 {
-            let mut e = || s((lcg(&mut st) - 0.5) * 4.0);
+            let mut e = || s((st.unit() - 0.5) * 4.0);
             let sym = SymMat3 {
                 xx: e(),
                 yy: e(),
@@ -565,9 +554,9 @@ mod tests {
 
     #[test]
     fn scalar_skew_sandwich_has_the_general_bits() {
-        let mut st = 13u64;
+        let mut st = Rng::new(13);
         for _ in 0..2000 {
-            let mut e = || Scalar::from_bits((lcg(&mut st) * 2f64.powi(40)) as i64 - (1 << 39));
+            let mut e = || Scalar::from_bits((st.unit() * 2f64.powi(40)) as i64 - (1 << 39));
             let k = e().abs();
             let r = Vec3::new(e(), e(), e());
             let general = SymMat3::from_diagonal(Vec3::new(k, k, k)).skew_sandwich(r);

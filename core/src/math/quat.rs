@@ -189,10 +189,7 @@ impl Mul for Quat {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn s(v: f64) -> Scalar {
-        Scalar::from_f64_lossy(v)
-    }
+    use crate::testing::s;
 
     #[test]
     fn quarter_turn_about_y_takes_x_to_minus_z() {

@@ -526,10 +526,7 @@ impl<'de> Deserialize<'de> for Scalar {
 mod tests {
     use super::*;
     use crate::math::faults::{self, FaultScope};
-
-    fn s(v: f64) -> Scalar {
-        Scalar::from_f64_lossy(v)
-    }
+    use crate::testing::{Rng, s};
 
     #[test]
     fn multiplication_rounds_to_nearest_and_is_odd_symmetric() {
@@ -547,11 +544,9 @@ mod tests {
 
     #[test]
     fn multiplication_is_within_half_an_ulp_of_the_exact_product() {
-        let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut rng = Rng::new(0x9e37_79b9_7f4a_7c15);
         for _ in 0..10_000 {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
+            let x = rng.next_u64();
             let a = Scalar::from_bits((x as i64) >> 24);
             let b = Scalar::from_bits((x.rotate_left(32) as i64) >> 26);
             let exact = a.wide_mul(b); // value * 2^64
@@ -623,11 +618,9 @@ mod tests {
 
     #[test]
     fn to_f32_is_the_nearest_float() {
-        let mut x: u64 = 7;
+        let mut rng = Rng::new(7);
         for _ in 0..10_000 {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            let x = rng.next_u64();
             // Below 2^21 the f64 is exact, so rounding it to f32 is the one
             // rounding to compare with.
             let v = Scalar::from_bits((x as i64) >> 10);

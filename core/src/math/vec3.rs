@@ -359,14 +359,7 @@ pub(crate) fn scale_to_unit<const N: usize>(components: [Scalar; N], sq: u128) -
 mod tests {
     use super::*;
     use crate::math::faults::{FaultScope, Faults};
-
-    fn v(x: f64, y: f64, z: f64) -> Vec3 {
-        Vec3::new(
-            Scalar::from_f64_lossy(x),
-            Scalar::from_f64_lossy(y),
-            Scalar::from_f64_lossy(z),
-        )
-    }
+    use crate::testing::{Rng, v};
 
     #[test]
     fn length_of_world_scale_vectors_does_not_overflow() {
@@ -396,11 +389,9 @@ mod tests {
 
     #[test]
     fn normalize_gives_unit_length_within_two_ulps() {
-        let mut x: u64 = 7;
+        let mut rng = Rng::new(7);
         for _ in 0..10_000 {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            let x = rng.next_u64();
             let p = Vec3::new(
                 Scalar::from_bits((x as i64) >> 20),
                 Scalar::from_bits((x.rotate_left(21) as i64) >> 20),

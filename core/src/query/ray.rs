@@ -454,22 +454,18 @@ fn ray_heightfield(f: &HeightField, o: Vec3, d: Vec3, max: Scalar) -> Option<Loc
 mod tests {
     use super::*;
 
-    /// splitmix64: a seeded integer generator for the test's rays.
-    struct Rng(u64);
+    use crate::testing::Rng;
 
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^ (z >> 31)
-        }
+    /// Fixed-point draws for the test's rays.
+    trait Draw {
+        fn scalar(&mut self, lo: i64, hi: i64) -> Scalar;
+    }
 
+    impl Draw for Rng {
         /// A Scalar in `[lo, hi)` with 2⁻¹⁶ m resolution.
         fn scalar(&mut self, lo: i64, hi: i64) -> Scalar {
             let span = ((hi - lo) as u64) << 16;
-            Scalar::from_bits((lo << 32) + (((self.next() % span) as i64) << 16))
+            Scalar::from_bits((lo << 32) + ((self.below(span) as i64) << 16))
         }
     }
 
@@ -498,7 +494,7 @@ mod tests {
         }
         for k in 0..64 {
             if k % 4 == 0 {
-                let copy = idx[(rng.next() % idx.len() as u64) as usize];
+                let copy = idx[(rng.next_u64() % idx.len() as u64) as usize];
                 idx.push(copy);
                 continue;
             }
@@ -514,7 +510,7 @@ mod tests {
 
     #[test]
     fn mesh_ray_tree_walk_matches_the_linear_scan_on_4000_seeded_rays() {
-        let mut rng = Rng(0x5eed_0005);
+        let mut rng = Rng::new(0x5eed_0005);
         let mesh = test_mesh(&mut rng);
         let (mut hits, mut ties) = (0, 0);
         for k in 0..4000 {
@@ -523,9 +519,9 @@ mod tests {
             // some aimed exactly through a grid vertex (shared edges).
             let d = if k % 8 == 0 {
                 let target = Vec3::from_ints(
-                    (rng.next() % 25) as i32 - 12,
+                    (rng.next_u64() % 25) as i32 - 12,
                     0,
-                    (rng.next() % 25) as i32 - 12,
+                    (rng.next_u64() % 25) as i32 - 12,
                 );
                 (target - o).mul_int(2)
             } else if k % 3 == 0 {

@@ -150,13 +150,10 @@ impl Capsule {
 mod tests {
     use super::*;
     use crate::shape::Sphere;
+    use crate::testing::s;
     use std::f64::consts::PI;
 
     const ULP: f64 = 1.0 / 4_294_967_296.0;
-
-    fn s(v: f64) -> Scalar {
-        Scalar::from_f64_lossy(v)
-    }
 
     /// Mass, I_x and I_y of a capsule by slicing it into discs along y and
     /// integrating with the midpoint rule in f64. Each disc of radius ρ at

@@ -118,12 +118,9 @@ impl Cuboid {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::s;
 
     const ULP: f64 = 1.0 / 4_294_967_296.0;
-
-    fn s(v: f64) -> Scalar {
-        Scalar::from_f64_lossy(v)
-    }
 
     #[test]
     fn box_mass_properties_are_within_half_an_ulp_of_the_closed_form() {

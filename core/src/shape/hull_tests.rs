@@ -4,41 +4,21 @@
 use super::wide::{orient3d, raw};
 use super::*;
 use crate::math::{Quat, SymMat3};
+use crate::testing::{Rng, s, v};
 
 const ULP: f64 = 1.0 / 4_294_967_296.0;
 
-fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
-
-fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
-
-struct Lcg(u64);
-
-impl Lcg {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        self.0
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn shuffle<T>(&mut self, xs: &mut [T]) {
-        for i in (1..xs.len()).rev() {
-            let j = (self.next_u64() % (i as u64 + 1)) as usize;
-            xs.swap(i, j);
-        }
+/// Shuffles `xs` (Fisher–Yates).
+fn shuffle<T>(g: &mut Rng, xs: &mut [T]) {
+    for i in (1..xs.len()).rev() {
+        let j = g.below(i as u64 + 1) as usize;
+        xs.swap(i, j);
     }
 }
 
 /// `n` points on the sphere of radius `r`, uniformly distributed.
 fn sphere_points(n: usize, r: f64, seed: u64) -> Vec<Vec3> {
-    let mut g = Lcg(seed);
+    let mut g = Rng::new(seed);
     (0..n)
         .map(|_| {
             let z = 2.0 * g.unit() - 1.0;
@@ -293,7 +273,7 @@ fn duplicate_interior_and_boundary_points_do_not_change_the_hull() {
     let clean = ConvexHull::from_points(&base).unwrap();
     let mut extra = base.clone();
     extra.extend_from_slice(&base[..20]); // duplicates
-    let mut g = Lcg(99);
+    let mut g = Rng::new(99);
     for _ in 0..50 {
         // interior points
         extra.push(v(g.unit() - 0.5, g.unit() - 0.5, g.unit() - 0.5));
@@ -324,7 +304,7 @@ fn duplicate_interior_and_boundary_points_do_not_change_the_hull() {
             ));
         }
     }
-    g.shuffle(&mut extra);
+    shuffle(&mut g, &mut extra);
     let messy = ConvexHull::from_points(&extra).unwrap();
     assert_eq!(messy, clean);
     check_valid(&messy, &extra);
@@ -351,10 +331,10 @@ fn input_order_does_not_change_a_single_bit() {
     let pts = sphere_points(120, 3.0, 21);
     let reference = ConvexHull::from_points(&pts).unwrap();
     let mp = reference.mass_properties(s(1.25)).unwrap();
-    let mut g = Lcg(5);
+    let mut g = Rng::new(5);
     for _ in 0..5 {
         let mut shuffled = pts.clone();
-        g.shuffle(&mut shuffled);
+        shuffle(&mut g, &mut shuffled);
         let h = ConvexHull::from_points(&shuffled).unwrap();
         assert_eq!(h, reference);
         assert_eq!(h.volume(), reference.volume());
@@ -522,7 +502,7 @@ fn support_takes_the_lowest_index_among_ties() {
     assert_eq!(h.support(v(0.1, 0.2, -0.3)), Vec3::from_ints(1, 1, -1));
     // Against brute force on a sphere hull.
     let hull = ConvexHull::from_points(&sphere_points(80, 1.0, 13)).unwrap();
-    let mut g = Lcg(3);
+    let mut g = Rng::new(3);
     for _ in 0..200 {
         let d = v(g.unit() - 0.5, g.unit() - 0.5, g.unit() - 0.5);
         let best = hull.vertices().iter().map(|p| p.dot_wide(d)).max().unwrap();
@@ -542,12 +522,12 @@ fn a_hull_rebuilt_from_its_vertices_is_identical_and_serde_round_trips() {
 
 #[test]
 fn a_thousand_random_points_build_a_valid_hull() {
-    let mut g = Lcg(1234);
+    let mut g = Rng::new(1234);
     // Points in a cube, many coplanar by construction (snapped to a coarse
     // grid), to stress the exact predicates.
     let pts: Vec<Vec3> = (0..1000)
         .map(|_| {
-            let c = |g: &mut Lcg| Scalar::from_int((g.unit() * 9.0) as i32 - 4);
+            let c = |g: &mut Rng| Scalar::from_int((g.unit() * 9.0) as i32 - 4);
             Vec3::new(c(&mut g), c(&mut g), c(&mut g))
         })
         .collect();

@@ -159,14 +159,7 @@ mod tests {
     use super::*;
     use crate::math::Quat;
     use crate::shape::{Cuboid, Shape};
-
-    fn s(v: f64) -> Scalar {
-        Scalar::from_f64_lossy(v)
-    }
-
-    fn v(x: f64, y: f64, z: f64) -> Vec3 {
-        Vec3::new(s(x), s(y), s(z))
-    }
+    use crate::testing::{s, v};
 
     fn max_diff(a: &SymMat3, b: &SymMat3) -> i64 {
         [

@@ -453,30 +453,21 @@ mod tests {
     use super::*;
     use crate::math::Quat;
 
-    fn s(v: f64) -> Scalar {
-        Scalar::from_f64_lossy(v)
-    }
+    use crate::testing::{Rng, s};
 
-    fn lcg(state: &mut u64) -> f64 {
-        *state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (*state >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn random_pose(state: &mut u64) -> Transform {
+    fn random_pose(rng: &mut Rng) -> Transform {
         let axis = Vec3::new(
-            s(lcg(state) - 0.5),
-            s(lcg(state) - 0.5),
-            s(lcg(state) - 0.5),
+            s(rng.unit() - 0.5),
+            s(rng.unit() - 0.5),
+            s(rng.unit() - 0.5),
         )
         .try_normalize()
         .unwrap_or(Vec3::X);
-        let q = Quat::from_axis_angle(axis, s(lcg(state) * 6.3)).normalize();
+        let q = Quat::from_axis_angle(axis, s(rng.unit() * 6.3)).normalize();
         let t = Vec3::new(
-            s(lcg(state) * 200.0 - 100.0),
-            s(lcg(state) * 20.0),
-            s(lcg(state) * 200.0 - 100.0),
+            s(rng.unit() * 200.0 - 100.0),
+            s(rng.unit() * 20.0),
+            s(rng.unit() * 200.0 - 100.0),
         );
         Transform::new(t, q)
     }
@@ -597,7 +588,7 @@ mod tests {
 
     #[test]
     fn world_boxes_contain_the_posed_shape_for_random_rotations() {
-        let mut st = 11u64;
+        let mut st = Rng::new(11);
         let all = shapes();
         for _ in 0..500 {
             let pose = random_pose(&mut st);

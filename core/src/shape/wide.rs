@@ -467,13 +467,7 @@ pub(crate) fn ratio_to_scalar_saturating(num: &BigInt, den: &BigInt, shift: u32)
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn lcg(state: &mut u64) -> u64 {
-        *state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        *state
-    }
+    use crate::testing::Rng;
 
     /// A reference 3×3 determinant with i128 entries, evaluated on BigInts.
     fn det_big(u: RawPoint, v: RawPoint, w: RawPoint) -> BigInt {
@@ -488,13 +482,13 @@ mod tests {
     #[test]
     fn orientation_sign_agrees_with_bigint_determinant_at_the_coordinate_limit() {
         let lim = 1i64 << 52;
-        let mut s = 42u64;
+        let mut rng = Rng::new(42);
         for round in 0..20_000 {
             let mut p = [[0i64; 3]; 4];
             for q in p.iter_mut() {
                 for c in q.iter_mut() {
                     // Mix extreme values with random ones.
-                    let r = lcg(&mut s);
+                    let r = rng.next_u64();
                     *c = match r % 5 {
                         0 => lim,
                         1 => -lim,
@@ -535,10 +529,11 @@ mod tests {
         assert_eq!(d(4, 3), BigInt::from_i128(1));
         assert_eq!(d(-4, -3), BigInt::from_i128(1));
         assert_eq!(d(4, -3), BigInt::from_i128(-1));
-        let mut s = 9u64;
+        let mut rng = Rng::new(9);
         for _ in 0..2_000 {
-            let n = (lcg(&mut s) as i128) << 40 | lcg(&mut s) as i128;
-            let m = ((lcg(&mut s) >> 3) as i128 + 1) * if s & 1 == 0 { 1 } else { -1 };
+            let n = (rng.next_u64() as i128) << 40 | rng.next_u64() as i128;
+            let m =
+                ((rng.next_u64() >> 3) as i128 + 1) * if rng.next_u64() & 1 == 0 { 1 } else { -1 };
             let want = crate::math::scalar::div_round_i128(n, m);
             assert_eq!(d(n, m), BigInt::from_i128(want), "{n} / {m}");
         }

@@ -7,13 +7,7 @@ use super::*;
 use crate::math::Quat;
 use crate::shape::{Capsule, Cuboid, Sphere};
 
-pub(super) fn s(x: f64) -> Scalar {
-    Scalar::from_f64_lossy(x)
-}
-
-pub(super) fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
+pub(super) use crate::testing::{s, v};
 
 pub(super) fn f(x: Scalar) -> f64 {
     x.to_f64()
@@ -88,6 +82,13 @@ pub(super) fn to_world(pose: &Transform, p: V) -> V {
 }
 
 /// Seeded xorshift64* for the property tests.
+///
+/// Not yet the workspace's one test generator (`crate::testing::Rng`): on
+/// that generator's stream, with the same seeds, three tests here fail
+/// (box-box points off both surfaces, a capsule-box contact deeper than the
+/// f64 reference, a hull on a flat mesh 0.6 mm off its lowest vertex). They
+/// are left on this stream until the narrow phase's owner has looked at
+/// those inputs.
 pub(super) struct Rng(u64);
 
 impl Rng {

@@ -1,7 +1,7 @@
 //! Broad phase: pair set against brute force, kind rules, determinism,
 //! independence from tree shape, allocation, timing.
 
-use super::rng::XorShift;
+use super::rng::{Draw, Rng};
 use crate::collision::broad_phase::{BroadPhase, PairStats, ProxyId, ProxyKey, ProxyKind};
 use crate::math::{Aabb, Scalar, Vec3};
 
@@ -66,12 +66,12 @@ fn brute_force(bp: &BroadPhase, bodies: &[Body]) -> Pairs {
 /// velocities, teleports, kind changes, creations and removals. Returns the
 /// pair list of every step (and checks it against brute force if asked).
 fn run_scene(seed: u64, n: usize, steps: usize, check: bool) -> (Vec<Pairs>, PairStats) {
-    let mut rng = XorShift::new(seed);
+    let mut rng = Rng::new(seed);
     let mut bp = BroadPhase::new(margin());
     let mut bodies: Vec<Body> = Vec::new();
     let mut serial = 0u64;
     let extent = 20;
-    let spawn = |bp: &mut BroadPhase, rng: &mut XorShift, serial: &mut u64| {
+    let spawn = |bp: &mut BroadPhase, rng: &mut Rng, serial: &mut u64| {
         let aabb = rng.aabb(extent, 2);
         let key = key_of(*serial);
         *serial += 1;
@@ -186,7 +186,7 @@ fn same_operations_give_bit_identical_pair_lists() {
 /// The same final set of proxies reached by three different histories.
 #[test]
 fn pair_list_does_not_depend_on_tree_shape_or_insertion_history() {
-    let mut rng = XorShift::new(31337);
+    let mut rng = Rng::new(31337);
     let protos: Vec<(Aabb, ProxyKey, ProxyKind)> = (0..800)
         .map(|i| (rng.aabb(15, 2), key_of(i), kind_of(rng.next_u64())))
         .collect();
@@ -468,7 +468,7 @@ fn a_restored_snapshot_continues_with_the_same_pairs() {
 #[test]
 #[ignore]
 fn broad_phase_timing_10000_moving_proxies_100_steps() {
-    let mut rng = XorShift::new(2024);
+    let mut rng = Rng::new(2024);
     let n = 10_000;
     let mut bp = BroadPhase::with_capacity(margin(), n + 1, 8 * n);
     let ground = Aabb::new(Vec3::from_ints(-60, -2, -60), Vec3::from_ints(60, 0, 60));

@@ -1,9 +1,10 @@
 //! Dynamic tree: invariants, queries against brute force, fat boxes,
 //! rebuild, determinism.
 
-use super::rng::XorShift;
+use super::rng::{Draw, Rng};
 use crate::collision::dynamic_tree::{DynamicTree, LeafId, TreeError};
 use crate::math::{Aabb, Scalar, Vec3};
+use crate::testing::{s, v};
 
 fn margin() -> Scalar {
     Scalar::from_ratio(1, 10)
@@ -32,7 +33,7 @@ fn query_sorted(tree: &DynamicTree, q: &Aabb) -> Vec<u64> {
 
 #[test]
 fn tree_stays_valid_through_6000_random_inserts_moves_and_removes() {
-    let mut rng = XorShift::new(0x5eed_0001);
+    let mut rng = Rng::new(0x5eed_0001);
     let mut tree = DynamicTree::new(margin());
     let mut live: Vec<(LeafId, Aabb)> = Vec::new();
     let (mut inserts, mut removes, mut moves, mut reinserted) = (0, 0, 0, 0);
@@ -84,7 +85,7 @@ fn tree_stays_valid_through_6000_random_inserts_moves_and_removes() {
 
 #[test]
 fn query_matches_brute_force_for_500_random_boxes() {
-    let mut rng = XorShift::new(42);
+    let mut rng = Rng::new(42);
     let mut tree = DynamicTree::new(margin());
     for i in 0..2000 {
         tree.create_proxy(rng.aabb(50, 2), i);
@@ -98,7 +99,7 @@ fn query_matches_brute_force_for_500_random_boxes() {
     }
     tree.rebuild();
     let mut total_after = 0;
-    let mut rng = XorShift::new(43);
+    let mut rng = Rng::new(43);
     for _ in 0..500 {
         let q = rng.aabb(55, 12);
         let expected = brute_force(&tree, &q);
@@ -214,7 +215,7 @@ fn rebuild_keeps_every_leaf_and_lowers_the_sah_cost_of_a_sorted_insertion() {
         assert_eq!(tree.fat_aabb(id), Ok(b.expanded(margin())));
     }
     // Moves after a rebuild keep working.
-    let mut rng = XorShift::new(9);
+    let mut rng = Rng::new(9);
     for k in 0..200u32 {
         let d = rng.vec(-2, 2);
         let b = Aabb::from_center_half_extents(d, Vec3::splat(Scalar::ONE));
@@ -225,7 +226,7 @@ fn rebuild_keeps_every_leaf_and_lowers_the_sah_cost_of_a_sorted_insertion() {
 
 #[test]
 fn heights_stay_logarithmic_for_10000_random_inserts() {
-    let mut rng = XorShift::new(77);
+    let mut rng = Rng::new(77);
     let mut tree = DynamicTree::new(margin());
     for i in 0..10_000 {
         tree.create_proxy(rng.aabb(100, 2), i);
@@ -241,7 +242,7 @@ fn heights_stay_logarithmic_for_10000_random_inserts() {
 }
 
 fn scripted_tree(seed: u64) -> DynamicTree {
-    let mut rng = XorShift::new(seed);
+    let mut rng = Rng::new(seed);
     let mut tree = DynamicTree::new(margin());
     let mut live = Vec::new();
     for op in 0..3000 {
@@ -278,15 +279,6 @@ fn same_operations_give_bit_identical_trees() {
     assert_eq!(back.internal_area(), scripted_tree(5).internal_area());
 }
 
-/// The ray test's numbers: `x` in Q32.32.
-fn s(x: f64) -> Scalar {
-    Scalar::from_f64_lossy(x)
-}
-
-fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
-
 /// The f64 slab test (the parameter interval of the segment `o + t·d`
 /// inside `[lo, hi]`), for cross-checking the exact one away from ties.
 fn slab_f64(o: [f64; 3], d: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> Option<(f64, f64)> {
@@ -307,7 +299,7 @@ fn slab_f64(o: [f64; 3], d: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> Option<(f64
 
 #[test]
 fn tree_ray_traversal_visits_exactly_the_boxes_the_segment_touches() {
-    let mut st = XorShift::new(17);
+    let mut st = Rng::new(17);
     let mut tree = DynamicTree::new(s(0.1));
     for i in 0..400u64 {
         let c = [

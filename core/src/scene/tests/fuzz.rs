@@ -4,6 +4,7 @@ use super::errors::assert_error;
 use super::{BALL, PYRAMID, SHAPES, SPIN, parse};
 use crate::math::Scalar;
 use crate::scene::*;
+use crate::testing::Rng;
 
 // ---- robustness ----
 
@@ -35,26 +36,21 @@ fn extreme_but_valid_values_are_handled_without_overflow() {
     );
 }
 
-/// A small deterministic generator (64-bit LCG, high bits).
-struct Lcg(u64);
+/// Indices drawn from the workspace's test generator.
+trait Pick {
+    /// A number in `0..n` (0 when `n` is 0).
+    fn pick(&mut self, n: usize) -> usize;
+}
 
-impl Lcg {
-    fn next(&mut self) -> u64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        self.0 >> 33
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
+impl Pick for Rng {
+    fn pick(&mut self, n: usize) -> usize {
+        self.below(n.max(1) as u64) as usize
     }
 }
 
 /// One random edit of `text`: truncation, deletion, insertion of TOML-ish
 /// characters, a replaced number, or a duplicated or dropped line.
-fn mutate(text: &str, rng: &mut Lcg) -> String {
+fn mutate(text: &str, rng: &mut Rng) -> String {
     const PIECES: &[&str] = &[
         "[",
         "]",
@@ -92,23 +88,23 @@ fn mutate(text: &str, rng: &mut Lcg) -> String {
         "]]",
     ];
     let chars: Vec<char> = text.chars().collect();
-    let at = rng.below(chars.len() + 1);
+    let at = rng.pick(chars.len() + 1);
     let mut out: Vec<char> = chars.clone();
-    match rng.below(6) {
+    match rng.pick(6) {
         0 => out.truncate(at),
         1 => {
-            let end = (at + 1 + rng.below(12)).min(out.len());
+            let end = (at + 1 + rng.pick(12)).min(out.len());
             out.drain(at.min(end)..end);
         }
         2 | 3 => {
-            let piece = PIECES[rng.below(PIECES.len())];
+            let piece = PIECES[rng.pick(PIECES.len())];
             out.splice(at..at, piece.chars());
         }
         4 => {
             let lines: Vec<&str> = text.lines().collect();
-            let i = rng.below(lines.len());
+            let i = rng.pick(lines.len());
             let mut l: Vec<String> = lines.iter().map(|s| (*s).to_owned()).collect();
-            if rng.below(2) == 0 {
+            if rng.pick(2) == 0 {
                 l.insert(i, lines.get(i).copied().unwrap_or("").to_owned());
             } else if i < l.len() {
                 l.remove(i);
@@ -126,7 +122,7 @@ fn mutate(text: &str, rng: &mut Lcg) -> String {
             while end < out.len() && out[end].is_ascii_digit() {
                 end += 1;
             }
-            out.splice(start..end, digits[rng.below(digits.len())].chars());
+            out.splice(start..end, digits[rng.pick(digits.len())].chars());
         }
     }
     out.into_iter().collect()
@@ -134,13 +130,13 @@ fn mutate(text: &str, rng: &mut Lcg) -> String {
 
 #[test]
 fn mutated_scene_files_give_errors_not_panics() {
-    let mut rng = Lcg(0x5eed_1234_abcd_0001);
+    let mut rng = Rng::new(0x5eed_1234_abcd_0001);
     let mut ok = 0;
     let mut err = 0;
     for round in 0..1500 {
         let base = [PYRAMID, SHAPES, SPIN][round % 3];
         let mut text = mutate(base, &mut rng);
-        for _ in 0..rng.below(3) {
+        for _ in 0..rng.pick(3) {
             text = mutate(&text, &mut rng);
         }
         let result = std::panic::catch_unwind(|| parse_scene(&text, "fuzz.toml"));

@@ -4,12 +4,12 @@
 use std::sync::Arc;
 
 use super::*;
-use crate::collision::tests::rng::XorShift;
+use crate::collision::tests::rng::{Draw, Rng};
 use crate::math::Quat;
 use crate::shape::{ConvexHull, Cuboid};
 
 /// `n` points on a sphere of radius `r` (seeded), as the pile scenes use.
-fn round_hull(rng: &mut XorShift, n: usize, r: i32) -> Arc<ConvexHull> {
+fn round_hull(rng: &mut Rng, n: usize, r: i32) -> Arc<ConvexHull> {
     loop {
         let pts: Vec<Vec3> = (0..n)
             .filter_map(|_| (rng.vec(-4, 4)).try_normalize())
@@ -22,7 +22,7 @@ fn round_hull(rng: &mut XorShift, n: usize, r: i32) -> Arc<ConvexHull> {
 }
 
 /// A random rotation (a normalised random quaternion).
-fn rotation(rng: &mut XorShift) -> Quat {
+fn rotation(rng: &mut Rng) -> Quat {
     loop {
         let v = rng.vec(-1, 1);
         let w = rng.scalar(-1, 1);
@@ -36,7 +36,7 @@ fn rotation(rng: &mut XorShift) -> Quat {
 /// B's pose: rotated at random, its origin at a random direction from A's
 /// at `reach` × a distance between 0.6 and 1.15 (so pairs range from deep
 /// through touching to apart by more than the margin).
-fn pose_near(rng: &mut XorShift, a: &Transform, reach: Scalar) -> Transform {
+fn pose_near(rng: &mut Rng, a: &Transform, reach: Scalar) -> Transform {
     let dir = loop {
         if let Some(u) = rng.vec(-1, 1).try_normalize() {
             break u;
@@ -53,7 +53,7 @@ struct Tally {
     edge: u32,
 }
 
-fn check<PA: Poly, PB: Poly>(a: &PA, b: &PB, reach: Scalar, rng: &mut XorShift, tally: &mut Tally) {
+fn check<PA: Poly, PB: Poly>(a: &PA, b: &PB, reach: Scalar, rng: &mut Rng, tally: &mut Tally) {
     let margin = Scalar::from_ratio(2, 100);
     let far = Transform::new(
         Vec3::new(
@@ -85,7 +85,7 @@ fn check<PA: Poly, PB: Poly>(a: &PA, b: &PB, reach: Scalar, rng: &mut XorShift, 
 
 #[test]
 fn pruned_sat_gives_the_same_manifolds_as_testing_every_feature() {
-    let mut rng = XorShift::new(0x5eed_0042);
+    let mut rng = Rng::new(0x5eed_0042);
     let mut tally = Tally::default();
     let cube = BoxPoly::new(&Cuboid::new(Vec3::from_ints(1, 1, 1)).unwrap());
     let slab = BoxPoly::new(

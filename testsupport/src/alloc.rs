@@ -1,11 +1,16 @@
-//! A counting global allocator: the bench binary's heap high-water mark, so
-//! a suite can report the bytes an engine holds per body.
+//! A counting global allocator: the system allocator with bookkeeping, for
+//! a test or benchmark binary that installs it with `#[global_allocator]`.
 //!
-//! It wraps the system allocator with two relaxed atomics (bytes live now,
-//! highest since the last reset). The cost is a few nanoseconds per
-//! allocation, paid equally by both engines.
+//! It keeps two things. Per thread, the number of allocations (and
+//! reallocations) made on that thread, so a test can prove that a warm step
+//! allocates nothing while the harness's own threads allocate at any time
+//! ([`allocations`]). For the process, the bytes live now and their peak
+//! since the last reset, so a benchmark can report the heap an engine
+//! holds ([`live`], [`reset_peak`], [`peak`]). The cost is a few
+//! nanoseconds per allocation.
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -13,11 +18,22 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// (e.g. tests running in parallel) do not reset each other's peak.
 pub static MEASUREMENT: Mutex<()> = Mutex::new(());
 
-/// The system allocator, counting live bytes and their peak.
+/// The system allocator, counting allocations per thread and live bytes
+/// with their peak.
 pub struct Counting;
 
 static LIVE: AtomicUsize = AtomicUsize::new(0);
 static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+thread_local! {
+    // Const-initialised and without a destructor: reading it never allocates.
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+fn counted() {
+    // `try_with` so an allocation during thread teardown is simply not counted.
+    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
 
 fn grew(bytes: usize) {
     let now = LIVE.fetch_add(bytes, Ordering::Relaxed) + bytes;
@@ -28,6 +44,7 @@ fn grew(bytes: usize) {
 // only bookkeeping.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        counted();
         // SAFETY: forwarded with the caller's layout.
         let p = unsafe { System.alloc(layout) };
         if !p.is_null() {
@@ -37,6 +54,7 @@ unsafe impl GlobalAlloc for Counting {
     }
 
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        counted();
         // SAFETY: forwarded with the caller's layout.
         let p = unsafe { System.alloc_zeroed(layout) };
         if !p.is_null() {
@@ -52,6 +70,7 @@ unsafe impl GlobalAlloc for Counting {
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        counted();
         // SAFETY: forwarded with the caller's pointer, layout and size.
         let p = unsafe { System.realloc(ptr, layout, new_size) };
         if !p.is_null() {
@@ -60,6 +79,12 @@ unsafe impl GlobalAlloc for Counting {
         }
         p
     }
+}
+
+/// Allocations and reallocations made on this thread so far (only while
+/// [`Counting`] is the global allocator).
+pub fn allocations() -> u64 {
+    ALLOCATIONS.with(Cell::get)
 }
 
 /// Bytes allocated and not yet freed.
@@ -84,6 +109,9 @@ pub fn peak() -> usize {
 mod tests {
     use super::*;
 
+    #[global_allocator]
+    static COUNTING: Counting = Counting;
+
     #[test]
     fn peak_tracks_a_large_allocation_after_it_is_freed() {
         let _one_at_a_time = MEASUREMENT.lock().unwrap_or_else(|e| e.into_inner());
@@ -93,5 +121,13 @@ mod tests {
         drop(v);
         // Other test threads may allocate too, so only a lower bound holds.
         assert!(peak() >= base + (1 << 20));
+    }
+
+    #[test]
+    fn allocations_count_on_this_thread() {
+        let before = allocations();
+        let v = std::hint::black_box(vec![1u8; 64]);
+        drop(v);
+        assert_eq!(allocations(), before + 1);
     }
 }

@@ -1,44 +1,12 @@
-//! Helpers that several integration tests share: the seeded generator, the
-//! f64 ↔ fixed-point conversions used to write test inputs and read
-//! results, and the zero-gravity world. One copy here means a fix to any of
-//! them reaches every test that uses it.
-//!
-//! Each test file is its own crate and includes this module with
-//! `mod common;`, using only part of it; hence the `dead_code` allowance.
-
-#![allow(dead_code)]
+//! Scenes and helpers that several tests share: the zero-gravity world,
+//! the ground, and the walled pit with a paddle and a seeded pile.
 
 use lockstep_core::shape::{Cuboid, Shape};
 use lockstep_core::{
-    BodyDesc, BodyHandle, ColliderDesc, ContactOrder, Material, Quat, Scalar, Vec3, World,
-    WorldConfig,
+    BodyDesc, BodyHandle, ColliderDesc, ContactOrder, Material, Quat, Vec3, World, WorldConfig,
 };
 
-/// SplitMix64, seeded by its field: a tiny deterministic generator (no
-/// `rand` dependency), so every run of a randomised test draws the same
-/// inputs. Tests add their own sampling methods in `impl Rng` blocks.
-pub struct Rng(pub u64);
-
-impl Rng {
-    /// The next 64 random bits.
-    pub fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-}
-
-/// A test input in metres (or any unit) as the nearest Scalar.
-pub fn s(v: f64) -> Scalar {
-    Scalar::from_f64_lossy(v)
-}
-
-/// A test vector from f64 components.
-pub fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(s(x), s(y), s(z))
-}
+use crate::{Rng, s, v};
 
 /// A result vector as f64 components, for comparing with closed forms.
 pub fn f(v: Vec3) -> [f64; 3] {
@@ -135,8 +103,8 @@ pub fn pile_in(config: WorldConfig, n: usize, seed: u64) -> World {
         .unwrap();
     w.add_collider(paddle, ColliderDesc::cuboid(s(3.0), s(0.2), s(0.3)))
         .unwrap();
-    let mut rng = Rng(seed);
-    let mut unit = || (rng.next() >> 11) as f64 / (1u64 << 53) as f64;
+    let mut rng = Rng::new(seed);
+    let mut unit = || rng.unit();
     for i in 0..n {
         let (layer, k) = (i / 36, i % 36);
         let pos = v(

@@ -1,0 +1,15 @@
+//! What the workspace's tests and benchmarks share, in one place: the one
+//! seeded generator ([`Rng`]), the helpers that write test numbers as the
+//! core's types ([`s`], [`v`], [`f`]), a counting global allocator
+//! ([`alloc`]) and the scenes several tests build ([`scenes`]).
+//!
+//! Dev-only: no product crate depends on it. The generator and the number
+//! helpers live in the core (`lockstep_core::testing`, behind its
+//! `test-support` feature) so that the core's own unit tests draw from the
+//! same generator; this crate turns the feature on and re-exports them.
+
+pub mod alloc;
+pub mod scenes;
+
+pub use lockstep_core::testing::{Rng, s, v};
+pub use scenes::{f, ground, pile, pile_in, step_pile, zero_g};
