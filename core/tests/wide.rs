@@ -6,6 +6,11 @@
 //! with the lanes (AVX-512 IFMA), the tests also check that the lanes ran,
 //! and that the guard refused the batches it must; elsewhere both runs are
 //! the scalar rows and the comparison is trivially equal.
+//!
+//! The switch is behind lockstep-core's `wide` feature; lockstep-testsupport
+//! (a dev-dependency) turns it on, so these tests run in `cargo test`.
+
+#![cfg(feature = "wide")]
 
 use lockstep_core::ContactEvent;
 use lockstep_core::scene::{build_world_with_config, parse_scene};

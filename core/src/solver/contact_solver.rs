@@ -520,12 +520,14 @@ impl ContactSolver {
 
     /// Turns the wide kernels on where the CPU has them (`true`), or off.
     /// Not simulation state: the results are the same bits.
+    #[cfg(feature = "wide")]
     pub(crate) fn set_wide(&mut self, on: bool) {
         self.wide_on = on;
     }
 
     /// Whether the passes use the wide kernels: turned on, and the CPU has
     /// them.
+    #[cfg(feature = "wide")]
     pub(crate) fn wide(&self) -> bool {
         self.wide_on && wide::available()
     }

@@ -250,7 +250,7 @@ pub struct StepReport {
     pub contact_overflow: u32,
     /// Batches of eight contact constraints of one colour whose normal rows
     /// ran on the CPU's exact wide lanes (AVX-512 IFMA; see
-    /// [`World::set_wide`](crate::World::set_wide)), over all the
+    /// `World::set_wide`, with the `wide` feature), over all the
     /// step's solve and relax passes. Zero in pair order, with the lanes
     /// off (the default), and on CPUs without them: the results are the
     /// same bits.

@@ -198,12 +198,17 @@ impl World {
     /// Not simulation state, like the worker count: peers with and without
     /// the lanes compute the same bits, and the setting is in neither the
     /// state hash nor snapshots (a restored world has them off).
+    ///
+    /// Only with the `wide` cargo feature: an experiment, not a setting a
+    /// game needs.
+    #[cfg(feature = "wide")]
     pub fn set_wide(&mut self, on: bool) {
         self.solver.set_wide(on);
     }
 
     /// Whether steps use the wide lanes: turned on and present on this CPU
-    /// (see [`World::set_wide`]).
+    /// (see [`World::set_wide`]; only with the `wide` feature).
+    #[cfg(feature = "wide")]
     pub fn wide(&self) -> bool {
         self.solver.wide()
     }
