@@ -5,6 +5,7 @@
 //! cargo run --release -p lockstep-bench -- math [--csv FILE] [--quick]
 //! cargo run --release -p lockstep-bench -- engines [--quick] [--csv FILE] [--scenes a,b] [--runs N] [--steps N] [--threads N] [--stages [--callgrind-dir DIR]]
 //! cargo run --release -p lockstep-bench -- sleep [--quick] [--csv FILE]
+//! cargo run --release -p lockstep-bench -- queries [--quick] [--csv FILE] [--runs N]
 //! cargo run --release -p lockstep-bench -- profile [--scenes a,b] [--steps N] [--threads N] [--stages]
 //! cargo run --release -p lockstep-bench -- accuracy [--quick] [--csv FILE] [--scenes a,b] [--runs N]
 //! cargo run --release -p lockstep-bench -- stress [--quick] [--csv FILE] [--scenes a,b]
@@ -23,6 +24,7 @@ mod harness;
 mod math;
 mod net;
 mod profile;
+mod queries;
 mod rollback;
 mod scene_file;
 mod scenes;
@@ -130,6 +132,12 @@ const SUITES: &[Suite] = &[
         about: "performance scenes (docs/engines.md), ours vs rapier3d, alternating in one process",
         run: engines::run,
         scenes: engine_scenes,
+    },
+    Suite {
+        name: "queries",
+        about: "rays and sphere sweeps across 1,000 boxes, and a triangle mesh's build",
+        run: queries::run,
+        scenes: Vec::new,
     },
     Suite {
         name: "sleep",

@@ -871,54 +871,6 @@ fn a_thousand_queries_leave_the_state_hash_unchanged() {
 }
 
 #[test]
-#[ignore]
-fn query_timing() {
-    use std::time::Instant;
-    let mut w = world();
-    for i in 0..1000 {
-        let at = v(
-            (i % 10) as f64 * 3.0,
-            ((i / 10) % 10) as f64 * 3.0,
-            (i / 100) as f64 * 3.0,
-        );
-        fixed(&mut w, at, Quat::IDENTITY, cuboid(0.5, 0.5, 0.5));
-    }
-    let mut st = 5u64;
-    let rays: Vec<Ray> = (0..20_000)
-        .map(|_| {
-            let o = v(-5.0, lcg(&mut st) * 30.0, lcg(&mut st) * 30.0);
-            let e = v(35.0, lcg(&mut st) * 30.0, lcg(&mut st) * 30.0);
-            Ray::new(o, e - o)
-        })
-        .collect();
-    let f = QueryFilter::default();
-    let t0 = Instant::now();
-    let mut hits = 0;
-    for r in &rays {
-        hits += usize::from(w.cast_ray_closest(r, &f).is_some());
-    }
-    let ray_ns = t0.elapsed().as_nanos() as f64 / rays.len() as f64;
-    let ball = sphere(0.25);
-    let n = 2_000;
-    let t0 = Instant::now();
-    let mut sweeps = 0;
-    for r in rays.iter().take(n) {
-        let pose = Transform::from_translation(r.origin);
-        sweeps += usize::from(
-            w.cast_shape(&ball, &pose, r.translation, &f)
-                .unwrap()
-                .is_some(),
-        );
-    }
-    let sweep_ns = t0.elapsed().as_nanos() as f64 / n as f64;
-    println!(
-        "closest ray vs 1000 boxes: {ray_ns:.0} ns ({hits} hits of {}); sphere sweep: {sweep_ns:.0} ns ({sweeps} hits of {n})",
-        rays.len()
-    );
-    assert!(hits > rays.len() / 2);
-}
-
-#[test]
 fn world_ray_queries_match_brute_force_over_every_collider() {
     use lockstep_core::query::cast_ray_shape;
     let w = scene();

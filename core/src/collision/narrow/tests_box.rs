@@ -639,36 +639,3 @@ fn sphere_box_and_capsule_box_agree_with_f64_references() {
         assert!(hits > 300);
     }
 }
-
-#[test]
-#[ignore = "timing figure; run in release with --ignored --nocapture"]
-fn narrow_timing() {
-    use std::hint::black_box;
-    use std::time::Instant;
-    let mut rng = Rng::new(1);
-    for (name, a, b) in pair_kinds() {
-        let poses: Vec<(Transform, Transform)> =
-            (0..1024).map(|_| (rng.pose(0.6), rng.pose(0.6))).collect();
-        let mut m = Manifold::EMPTY;
-        let mut hits = 0u32;
-        for (pa, pb) in &poses {
-            hits += contact(&a, pa, &b, pb, s(0.05), &mut m) as u32;
-        }
-        let rounds = 200;
-        let start = Instant::now();
-        for _ in 0..rounds {
-            for (pa, pb) in &poses {
-                black_box(contact(
-                    black_box(&a),
-                    pa,
-                    black_box(&b),
-                    pb,
-                    s(0.05),
-                    &mut m,
-                ));
-            }
-        }
-        let ns = start.elapsed().as_nanos() as f64 / (rounds * poses.len()) as f64;
-        println!("narrow_timing {name}: {ns:.1} ns per call ({hits} of 1024 poses in contact)");
-    }
-}

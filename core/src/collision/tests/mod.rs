@@ -1,5 +1,5 @@
 //! Tests of the broad phase: tree invariants, queries and pairs against
-//! brute force, determinism, allocation, timing.
+//! brute force, determinism, allocation.
 
 mod broad_phase;
 pub(in crate::collision) mod rng;
