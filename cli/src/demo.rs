@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use lockstep_client::bot::{BotOptions, run_bots};
 use lockstep_client::game::{Demo, DemoGame, RulesFactory};
-use lockstep_client::offline::verify_replay_file;
+use lockstep_tools::verify_replay_file;
 use tokio::sync::{mpsc, oneshot};
 
 use lockstep_server::{

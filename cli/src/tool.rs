@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Subcommand, ValueEnum};
-use lockstep_client::offline::tune::{self, Candidates, CostBasis, TuneOptions};
-use lockstep_client::offline::{
+use lockstep_tools::tune::{self, Candidates, CostBasis, TuneOptions};
+use lockstep_tools::{
     SimOptions, SyncTestError, SyncTestOptions, check_replay_command, run_sim, sync_test,
 };
 
@@ -156,7 +156,7 @@ pub fn run_tool(app: &App, command: ToolCommand) -> ExitCode {
             app,
             &file,
             listen,
-            lockstep_client::view::Window { from, ticks },
+            lockstep_tools::view::Window { from, ticks },
         ),
         ToolCommand::Tune {
             scene,
@@ -276,9 +276,9 @@ fn view(
     app: &App,
     file: &std::path::Path,
     listen: std::net::SocketAddr,
-    window: lockstep_client::view::Window,
+    window: lockstep_tools::view::Window,
 ) -> ExitCode {
-    let data = match lockstep_client::view::load_view(file, &*app.game, window) {
+    let data = match lockstep_tools::view::load_view(file, &*app.game, window) {
         Ok(d) => d,
         Err(e) => {
             eprintln!("lockstep view: error: {e}");
@@ -302,7 +302,7 @@ fn view(
         data.ticks.last().copied().unwrap_or(0),
     );
     let _ = std::io::stdout().flush();
-    match lockstep_client::view::http::serve_data(listener, data) {
+    match lockstep_tools::view::http::serve_data(listener, data) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("lockstep view: error: {e}");

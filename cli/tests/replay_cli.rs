@@ -5,11 +5,11 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use lockstep_client::game::{Demo, DemoGame, DemoInput, RulesFactory, bot_input};
-use lockstep_client::offline::apply_bundle;
 use lockstep_proto::{
     PROTOCOL_VERSION, PlayerId, PlayerInput, ReplayHeader, ReplayRecorder, RoomEvent, RulesId,
     Slot, TickBundle,
 };
+use lockstep_tools::apply_bundle;
 
 /// Plays `ticks` ticks of the demo offline with two players and records
 /// them; `corrupt` makes both players report a wrong hash at that tick.

@@ -1,10 +1,11 @@
 //! # lockstep-client
 //!
 //! The client side of lockstep: the network client ([`net`]), headless bots
-//! ([`bot`]), the game layer every peer runs before each step ([`game`]),
-//! and the offline tools behind the `lockstep` CLI (simulate a scene file,
-//! dump its state, verify a replay). The feature `test-hooks` adds
-//! `testing` rules that make a peer desync on purpose.
+//! ([`bot`]) and the game layer every peer runs before each step
+//! ([`game`]). The offline tools behind the `lockstep` CLI (simulate a scene
+//! file, verify a replay, tune, view) are the `lockstep-tools` crate. The
+//! feature `test-hooks` adds `testing` rules that make a peer desync on
+//! purpose.
 
 #![warn(missing_docs)]
 
@@ -12,7 +13,5 @@ pub mod bot;
 pub mod game;
 pub mod load;
 pub mod net;
-pub mod offline;
 #[cfg(feature = "test-hooks")]
 pub mod testing;
-pub mod view;

@@ -17,11 +17,11 @@ use std::time::Duration;
 use lockstep_client::bot::{BotOptions, run_bots};
 use lockstep_client::game::RulesFactory;
 use lockstep_client::net::{Client, ClientOptions};
-use lockstep_client::offline::{ReplayVerifyError, verify_replay};
 use lockstep_example_game::{PaddleGame, PaddleInput, SCENE};
 use lockstep_proto::Replay;
 use lockstep_proto::replay::{ReplayRecord, encode_record};
 use lockstep_server::{ServerConfig, ServerEvent, TlsSource, run};
+use lockstep_tools::{ReplayVerifyError, verify_replay};
 use tokio::sync::{mpsc, oneshot};
 
 const TICKS: u64 = 180;

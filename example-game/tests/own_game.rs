@@ -12,12 +12,12 @@ use std::time::Duration;
 use lockstep_client::bot::{BotOptions, run_bots};
 use lockstep_client::game::{BotPolicy, RulesFactory, RulesVerifier};
 use lockstep_client::net::{Client, ClientReport};
-use lockstep_client::offline::verify_replay_file;
 use lockstep_example_game::{
     ChaseBot, LAST_DROP_FIELD, PaddleGame, PaddleInput, PaddleRules, SCENE,
 };
 use lockstep_proto::{Replay, Slot};
 use lockstep_server::{RoomReport, ServerConfig, ServerEvent, TlsSource, run};
+use lockstep_tools::verify_replay_file;
 use tokio::sync::{mpsc, oneshot};
 
 const BIN: &str = env!("CARGO_BIN_EXE_example-game");

@@ -31,7 +31,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use lockstep_client::game::RulesFactory;
-use lockstep_client::offline::{
+use lockstep_tools::{
     ReplayCheck, ReplayVerifyError, SyncTestOptions, SyncTestReport, sync_test, verify_replay_file,
 };
 
@@ -219,7 +219,7 @@ pub fn assert_replays(dir: impl AsRef<Path>, game: &dyn RulesFactory) -> KitRepo
 /// The sync test for a test: plays `scene` (TOML, `label` in errors) with
 /// `game`'s rules and four scripted bots for 600 ticks beside a twin, and
 /// every tick re-simulates the last two from the saved state with fresh
-/// rules (see [`lockstep_client::offline::sync_test`]); panics naming the
+/// rules (see [`lockstep_tools::sync_test`]); panics naming the
 /// first tick and the fields that differ. It catches rules that are not
 /// deterministic (a `HashMap`'s iteration order, a clock, a float that
 /// depends on the machine is not among them: run the replays on each

@@ -14,7 +14,7 @@ pub mod link;
 
 use std::path::{Path, PathBuf};
 
-use lockstep_client::offline::load_scene_file;
+use lockstep_tools::load_scene_file;
 
 /// How many ticks the golden files cover.
 pub const GOLDEN_TICKS: u64 = 1000;

@@ -10,12 +10,12 @@ use std::time::{Duration, SystemTime};
 use lockstep_client::bot::{BotOptions, run_bots};
 use lockstep_client::game::Demo;
 use lockstep_client::net::{Client, ClientError, ClientOptions};
-use lockstep_client::offline::verify_replay_file;
 use lockstep_proto::CloseReason;
 use lockstep_server::agones::{AgonesSettings, ROOM_KEY, TOKEN_SECRET_KEY};
 use lockstep_server::{ServerError, issue_token};
 use lockstep_tests::agones::StandIn;
 use lockstep_tests::harness::{TestServer, assert_same_hashes, bots_ok};
+use lockstep_tools::verify_replay_file;
 
 fn tmp(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("agones-{name}"))

@@ -14,7 +14,6 @@ use bytes::Bytes;
 use lockstep_client::bot::{BotOptions, run_bots};
 use lockstep_client::game::{Demo, DemoGame};
 use lockstep_client::net::{client_config, load_certs, read_frame, write_frame};
-use lockstep_client::offline::verify_replay_file;
 use lockstep_client::testing::Diverge;
 use lockstep_proto::{
     ClientMessage, CloseReason, InputDatagram, Replay, ServerMessage, Session, Slot, Verdict,
@@ -22,6 +21,7 @@ use lockstep_proto::{
 use lockstep_server::ServerEvent;
 use lockstep_tests::harness::{TestServer, assert_same_hashes, bots_ok};
 use lockstep_tests::link::{LinkConditioner, LinkConfig};
+use lockstep_tools::verify_replay_file;
 
 /// The configuration the `lockstep-server` program runs with given only
 /// `--scene` (and `extra` flags), on the harness's address, certificate,
@@ -216,7 +216,7 @@ async fn a_bot_nudged_one_ulp_at_tick_300_is_the_only_one_reported_at_tick_300()
     // tick 299 checked, and passes as a regression test.
     assert_eq!(ended.bundles.len(), 1);
     let bundle = Replay::parse(&std::fs::read(&ended.bundles[0]).unwrap()).unwrap();
-    let c = lockstep_client::offline::reproduce_bundle(&bundle, &Demo).expect("bundle reproduces");
+    let c = lockstep_tools::reproduce_bundle(&bundle, &Demo).expect("bundle reproduces");
     assert_eq!(c.snapshot_tick, Some(299));
     assert_eq!(c.hashes_checked, 300);
     assert!(c.reproduces());

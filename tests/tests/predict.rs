@@ -14,9 +14,9 @@ use std::time::Duration;
 
 use lockstep_client::bot::{BotOptions, run_bots};
 use lockstep_client::game::{Demo, RulesFactory};
-use lockstep_client::offline::verify_replay_file;
 use lockstep_tests::harness::{TestServer, assert_same_hashes, bots_ok};
 use lockstep_tests::link::{LinkConditioner, LinkConfig};
+use lockstep_tools::verify_replay_file;
 
 const TICKS: usize = 1200;
 

@@ -13,7 +13,7 @@
 //! client, each bot and each replay check build their own), and optionally
 //! a scripted bot input. The client ([`crate::net::Client::connect`]), the
 //! bots ([`crate::bot`]) and the replay check
-//! ([`crate::offline::verify_replay`]) all take one.
+//! (`lockstep_tools::verify_replay`) all take one.
 //!
 //! The demo ([`Demo`], rules [`DemoGame`]) is one such game: each player
 //! walks a capsule (the character controller) around a walled arena with piles of boxes
@@ -40,7 +40,9 @@ pub use lockstep_core::{GameState, GameStateError};
 pub use lockstep_proto::RulesId;
 pub use policy::{BotPolicy, BotView};
 use thiserror::Error;
-pub use tick::{PLAYERS_FIELD, SEED_FIELD, TickError, apply_tick, match_seed, start_match};
+pub use tick::{
+    PLAYERS_FIELD, SEED_FIELD, TickError, apply_bundle, apply_tick, match_seed, start_match,
+};
 
 /// The game layer: turns one tick's player inputs into forces and impulses
 /// on the world, called by every peer (bots, clients, the offline replay
@@ -349,7 +351,7 @@ impl lockstep_proto::verify::TickVerifier for VerifiedWorld {
     fn apply(&mut self, bundle: &lockstep_proto::TickBundle) -> u64 {
         // A tick the rules cannot apply fails alike on every peer; the
         // hash of the state as it is stays the verdict.
-        let _ = crate::offline::apply_bundle(&mut self.world, &mut *self.rules, bundle);
+        let _ = apply_bundle(&mut self.world, &mut *self.rules, bundle);
         self.world.state_hash()
     }
 

@@ -2,6 +2,7 @@
 //! rules' inputs, their state saved into the world, the step.
 
 use lockstep_core::{GameStateError, StepReport, World};
+use lockstep_proto::TickBundle;
 use thiserror::Error;
 
 use super::GameRules;
@@ -103,6 +104,24 @@ pub fn apply_tick(
         .save_state(world.game_state_mut())
         .map_err(|source| TickError::SaveState { tick, source })?;
     Ok(world.step())
+}
+
+/// Applies one bundle to the world with [`apply_tick`]: the sequence every
+/// client runs, so the result hashes the same.
+///
+/// # Errors
+/// [`TickError`] from the rules.
+pub fn apply_bundle(
+    world: &mut World,
+    game: &mut dyn GameRules,
+    bundle: &TickBundle,
+) -> Result<StepReport, TickError> {
+    let inputs: Vec<(u8, &[u8])> = bundle
+        .inputs
+        .iter()
+        .map(|p| (p.slot.0, p.input.as_slice()))
+        .collect();
+    apply_tick(world, game, bundle.tick, &inputs)
 }
 
 #[cfg(test)]

@@ -416,7 +416,7 @@ mod tests {
             // The bundle of `now - lead` is confirmed.
             if let Some(t) = now.checked_sub(lead) {
                 let b = bundle(t, &[(0, own(t)), (1, other(t))]);
-                crate::offline::apply_bundle(&mut confirmed, &mut *rules, &b).unwrap();
+                crate::game::apply_bundle(&mut confirmed, &mut *rules, &b).unwrap();
                 confirmed_hashes.push(confirmed.state_hash());
                 p.confirmed(&b, confirmed.state_hash());
             }
@@ -468,7 +468,7 @@ mod tests {
             p.own_input(now, &own(now));
             if let Some(t) = now.checked_sub(4) {
                 let b = bundle(t, &[(0, own(t)), (1, other(t))]);
-                crate::offline::apply_bundle(&mut confirmed, &mut *rules, &b).unwrap();
+                crate::game::apply_bundle(&mut confirmed, &mut *rules, &b).unwrap();
                 p.confirmed(&b, confirmed.state_hash());
             }
             let next = now.saturating_sub(3);
@@ -494,7 +494,7 @@ mod tests {
         for t in 0..60 {
             p.own_input(t + 4, &still);
             let b = bundle(t, &[(0, still.clone()), (1, still.clone())]);
-            crate::offline::apply_bundle(&mut confirmed, &mut *rules, &b).unwrap();
+            crate::game::apply_bundle(&mut confirmed, &mut *rules, &b).unwrap();
             p.confirmed(&b, confirmed.state_hash());
             p.advance(&confirmed, t + 1, t + 4).unwrap();
         }

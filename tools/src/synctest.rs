@@ -26,8 +26,8 @@ use lockstep_core::World;
 use lockstep_proto::forensics::{field_diffs, list_diffs};
 use thiserror::Error;
 
-use crate::game::{GameRules, RulesFactory, apply_tick, start_match};
-use crate::net::{dump_bodies, dump_game};
+use lockstep_client::game::{GameRules, RulesFactory, apply_tick, start_match};
+use lockstep_client::net::{dump_bodies, dump_game};
 
 /// What the sync test runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -294,7 +294,7 @@ mod tests {
     use lockstep_core::{BodyHandle, Scalar, Vec3};
 
     use super::*;
-    use crate::game::{Demo, GameError, GameState, GameStateError, RulesId};
+    use lockstep_client::game::{Demo, GameError, GameState, GameStateError, RulesId};
 
     const SCENE: &str = "[[bodies]]\nname = \"ball\"\nkind = \"dynamic\"\nposition = [0, 5, 0]\n\
                          [[bodies.shapes]]\nkind = \"sphere\"\nradius = 0.5\n";
@@ -444,8 +444,8 @@ mod tests {
     #[test]
     fn the_demo_passes() {
         let r = sync_test(
-            crate::game::DemoGame::SCENE,
-            crate::game::DemoGame::SCENE_FILE,
+            lockstep_client::game::DemoGame::SCENE,
+            lockstep_client::game::DemoGame::SCENE_FILE,
             &Demo,
             &SyncTestOptions {
                 ticks: 90,

@@ -17,8 +17,8 @@ pub use lockstep_view::{
     world_json,
 };
 
-use crate::game::RulesFactory;
-use crate::offline::{apply_bundle, check_header, is_bundle, match_world};
+use crate::{apply_bundle, check_header, is_bundle, match_world};
+use lockstep_client::game::RulesFactory;
 
 /// Why a file could not be viewed.
 #[derive(Debug, thiserror::Error)]
@@ -329,7 +329,7 @@ mod tests {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
         load_view(
             &path,
-            &crate::game::Demo,
+            &lockstep_client::game::Demo,
             Window {
                 from: None,
                 ticks: Some(30),
@@ -344,7 +344,7 @@ mod tests {
         assert_eq!(v.kind, ViewKind::Scene);
         assert_eq!(v.ticks, (0..=30).collect::<Vec<_>>());
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
-        let world = crate::offline::load_scene_file(&path).unwrap();
+        let world = crate::load_scene_file(&path).unwrap();
         assert_eq!(v.bodies.len(), world.body_handles().count());
         let mut kinds: Vec<&str> = v
             .bodies
@@ -394,7 +394,7 @@ mod tests {
             from: Some(100),
             ticks: Some(20),
         };
-        let v = load_view(&path, &crate::game::Demo, window).unwrap();
+        let v = load_view(&path, &lockstep_client::game::Demo, window).unwrap();
         assert_eq!(v.ticks, (100..=120).collect::<Vec<_>>());
         let full = shapes_to(120);
         assert_eq!(v.states[0], full.states[100]);
@@ -407,18 +407,18 @@ mod tests {
             from: None,
             ticks: Some(ticks),
         };
-        load_view(&path, &crate::game::Demo, window).unwrap()
+        load_view(&path, &lockstep_client::game::Demo, window).unwrap()
     }
 
     #[test]
     fn the_exact_state_is_the_dump_of_that_tick() {
         let v = shapes();
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/shapes.toml");
-        let mut world = crate::offline::load_scene_file(&path).unwrap();
+        let mut world = crate::load_scene_file(&path).unwrap();
         for _ in 0..30 {
             world.step();
         }
-        let dump = crate::offline::dump_state(&world);
+        let dump = crate::dump_state(&world);
         for (i, b) in dump.bodies.iter().enumerate() {
             let s: serde_json::Value =
                 serde_json::from_str(&state_json(&v, 30, i).unwrap()).unwrap();
@@ -471,19 +471,23 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let bad = dir.join("bad.toml");
         std::fs::write(&bad, "[[body]]\nshape = 3\n").unwrap();
-        let e = load_view(&bad, &crate::game::Demo, Window::default())
+        let e = load_view(&bad, &lockstep_client::game::Demo, Window::default())
             .unwrap_err()
             .to_string();
         assert!(e.contains("bad.toml"), "{e}");
         let bin = dir.join("junk.replay");
         std::fs::write(&bin, [0xff, 0xfe, 0x00, 0x01]).unwrap();
-        let e = load_view(&bin, &crate::game::Demo, Window::default())
+        let e = load_view(&bin, &lockstep_client::game::Demo, Window::default())
             .unwrap_err()
             .to_string();
         assert!(e.contains("neither a scene file"), "{e}");
-        let e = load_view(&dir.join("missing"), &crate::game::Demo, Window::default())
-            .unwrap_err()
-            .to_string();
+        let e = load_view(
+            &dir.join("missing"),
+            &lockstep_client::game::Demo,
+            Window::default(),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.starts_with("reading "), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -9,7 +9,7 @@ mod common;
 
 use common::{scene, temp_dir};
 
-use lockstep_client::offline::tune::{
+use lockstep_tools::tune::{
     Candidates, CostBasis, Plan, Scene, Settings, TuneError, TuneOptions, reference_settings,
     run_tune,
 };

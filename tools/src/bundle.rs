@@ -9,8 +9,8 @@ use lockstep_core::World;
 use lockstep_proto::{BodyDiff, DesyncReport, FieldDiff, FieldDump, Replay, Slot, SuspectReport};
 
 use super::replay::{ReplayVerifyError, apply_bundle, check_header, match_world};
-use crate::game::RulesFactory;
-use crate::net::{dump_bodies, dump_game};
+use lockstep_client::game::RulesFactory;
+use lockstep_client::net::{dump_bodies, dump_game};
 
 /// What re-simulating a bundle found.
 #[derive(Clone, Debug)]

@@ -15,12 +15,13 @@
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
+use lockstep_core::World;
 use lockstep_core::world::STATE_HASH_VERSION;
-use lockstep_core::{StepReport, World};
-use lockstep_proto::{Replay, ReplayError, RulesId, TickBundle};
+use lockstep_proto::{Replay, ReplayError, RulesId};
 use thiserror::Error;
 
-use crate::game::{GameRules, RulesFactory, TickError, apply_tick, start_match};
+pub use lockstep_client::game::apply_bundle;
+use lockstep_client::game::{GameRules, RulesFactory, TickError, start_match};
 
 /// A body whose hash differs from the one recorded in the replay.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -235,24 +236,6 @@ impl ReplayVerifyError {
             _ => exit_status::INVALID,
         }
     }
-}
-
-/// Applies one bundle to the world with [`apply_tick`]: the sequence every
-/// client runs, so the result hashes the same.
-///
-/// # Errors
-/// [`TickError`] from the rules.
-pub fn apply_bundle(
-    world: &mut World,
-    game: &mut dyn GameRules,
-    bundle: &TickBundle,
-) -> Result<StepReport, TickError> {
-    let inputs: Vec<(u8, &[u8])> = bundle
-        .inputs
-        .iter()
-        .map(|p| (p.slot.0, p.input.as_slice()))
-        .collect();
-    apply_tick(world, game, bundle.tick, &inputs)
 }
 
 /// A failed tick as a replay error.
