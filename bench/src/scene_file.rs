@@ -67,7 +67,7 @@ pub fn build_ours(
         sleep,
         contact_order: order,
         contact_rows: rows,
-        ..desc.world.config()
+        ..desc.world
     };
     let world = build_world_with_config(desc, config, FILE_NAME).unwrap_or_else(|e| panic!("{e}"));
     // The builder creates the bodies in file order.

@@ -36,7 +36,7 @@ fn pyramid(rows: ContactRows) -> World {
     let desc = parse_scene(&text, "pyramid.toml").unwrap();
     let config = WorldConfig {
         contact_rows: rows,
-        ..desc.world.config()
+        ..desc.world
     };
     build_world_with_config(&desc, config, "pyramid.toml").unwrap()
 }
@@ -248,9 +248,9 @@ fn high_mass_ratio_contacts_stay_on_the_q32_rows() {
 fn scene_files_name_the_rows_and_a_bad_name_is_refused() {
     let text = "[world]\ncontact_rows = \"narrow\"\n";
     let desc = parse_scene(text, "t.toml").unwrap();
-    assert_eq!(desc.world.config().contact_rows, ContactRows::Narrow);
+    assert_eq!(desc.world.contact_rows, ContactRows::Narrow);
     let desc = parse_scene("[world]\n", "t.toml").unwrap();
-    assert_eq!(desc.world.config().contact_rows, ContactRows::Exact);
+    assert_eq!(desc.world.contact_rows, ContactRows::Exact);
     let err = parse_scene("[world]\ncontact_rows = \"fast\"\n", "t.toml").unwrap_err();
     let msg = err.to_string();
     assert!(
@@ -273,7 +273,7 @@ fn the_lanes_step_to_the_scalar_rows_hashes_and_reports() {
         let config = WorldConfig {
             contact_order: ContactOrder::Colors,
             contact_rows: ContactRows::Narrow,
-            ..desc.world.config()
+            ..desc.world
         };
         build_world_with_config(&desc, config, "pyramid.toml").unwrap()
     };

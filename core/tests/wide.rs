@@ -114,7 +114,7 @@ fn the_scene_files_step_to_the_same_bits_with_the_lanes_on_and_off() {
         let desc = parse_scene(&text, name).unwrap();
         let config = WorldConfig {
             contact_order: ContactOrder::Colors,
-            ..desc.world.config()
+            ..desc.world
         };
         let build = || build_world_with_config(&desc, config, name).unwrap();
         compare(&build, 120, name);

@@ -82,7 +82,7 @@ fn the_scene_files_step_to_the_same_hashes_reports_and_events_with_1_to_8_worker
         for order in [ContactOrder::Colors, ContactOrder::Pairs] {
             let config = WorldConfig {
                 contact_order: order,
-                ..desc.world.config()
+                ..desc.world
             };
             let build = || build_world_with_config(&desc, config, name).unwrap();
             let (reference, _, _) = trace(build(), 120);

@@ -31,14 +31,14 @@ pub fn load_world(text: &str, file_name: &str) -> Result<World, SceneError> {
 /// geometry that parsed cannot be built, e.g. a convex hull whose points are
 /// all coplanar or out of range.
 pub fn build_world(desc: &SceneDesc, file_name: &str) -> Result<World, SceneError> {
-    build_world_with_config(desc, desc.world.config(), file_name)
+    build_world_with_config(desc, desc.world, file_name)
 }
 
 /// Builds the bodies a scene describes into a world with other settings:
 /// `config` replaces everything the scene's `[world]` table gives (start
-/// from [`WorldDesc::config`](super::WorldDesc::config) to change only some
-/// settings). `lockstep tune` runs one scene at many tick rates,
-/// substep and solver iteration counts this way.
+/// from the scene's own [`SceneDesc::world`] to change only some
+/// settings). `lockstep tune` runs one scene at many tick rates, substep
+/// and solver iteration counts this way.
 ///
 /// # Errors
 /// As [`build_world`]; also an `OutOfRange` error (line 1) if `config` is

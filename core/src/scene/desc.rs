@@ -15,8 +15,12 @@ use crate::world::WorldConfig;
 /// A whole scene: world settings, the named materials, and the bodies.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneDesc {
-    /// Gravity, tick rate, substeps and the other world settings.
-    pub world: WorldDesc,
+    /// The `[world]` table: gravity, tick rate, substeps and every other
+    /// world setting, as the file gives them; the keys it leaves out keep
+    /// [`WorldConfig::default`]'s values (Earth gravity along −y, 60 ticks
+    /// per second, 4 substeps, ...). A world built from the scene uses it
+    /// as it is.
+    pub world: WorldConfig,
     /// The `[materials.*]` tables in file order. Kept (although every shape
     /// already has its material resolved) so tools can list and re-export
     /// them.
@@ -67,71 +71,6 @@ impl SceneDesc {
             .iter()
             .find(|(n, _)| n == name)
             .map(|(_, m)| m)
-    }
-}
-
-/// The `[world]` table: global simulation settings.
-#[derive(Clone, Debug, PartialEq)]
-pub struct WorldDesc {
-    /// Gravitational acceleration, m/s². Default `[0, -9.81, 0]`.
-    pub gravity: Vec3,
-    /// Simulation ticks per second, in `1..=10000`. Default 60. Stored as the
-    /// integer so that the time step can be computed as an exact ratio; see
-    /// [`WorldDesc::dt`].
-    pub tick_rate: u32,
-    /// Solver substeps per tick, in `1..=64`. Default 4.
-    pub substeps: u32,
-    /// Everything else a world is set up with (solver passes, contact
-    /// spring, margins, push-out, restitution threshold, sleeping), as the
-    /// file's `[world]` keys give it; the keys it leaves out keep
-    /// [`WorldConfig::default`]'s values. Its `gravity`, `tick_rate` and
-    /// `substeps` are not read: the fields above are. See
-    /// [`WorldDesc::config`].
-    pub settings: WorldConfig,
-}
-
-impl WorldDesc {
-    /// The default gravity, `[0, -9.81, 0]` m/s², built exactly.
-    pub fn default_gravity() -> Vec3 {
-        Vec3::new(Scalar::ZERO, -Scalar::from_ratio(981, 100), Scalar::ZERO)
-    }
-
-    /// The tick length in seconds, `1 / tick_rate`, rounded once to the
-    /// nearest Q32.32 value (never through a float).
-    pub fn dt(&self) -> Scalar {
-        Scalar::from_ratio(1, i64::from(self.tick_rate.max(1)))
-    }
-
-    /// The world settings this table describes: the gravity, tick rate and
-    /// substeps above with the rest of [`WorldDesc::settings`].
-    pub fn config(&self) -> WorldConfig {
-        WorldConfig {
-            gravity: self.gravity,
-            tick_rate: self.tick_rate,
-            substeps: self.substeps,
-            ..self.settings
-        }
-    }
-
-    /// The substep length in seconds, `1 / (tick_rate · substeps)`, rounded
-    /// once (not `dt() / substeps`, which would round twice).
-    pub fn substep_dt(&self) -> Scalar {
-        let per_second = i64::from(self.tick_rate.max(1)) * i64::from(self.substeps.max(1));
-        Scalar::from_ratio(1, per_second)
-    }
-}
-
-impl Default for WorldDesc {
-    /// The values used for keys a scene leaves out: Earth gravity along −y,
-    /// 60 ticks per second, 4 substeps, and [`WorldConfig::default`] for
-    /// the rest.
-    fn default() -> WorldDesc {
-        WorldDesc {
-            gravity: WorldDesc::default_gravity(),
-            tick_rate: 60,
-            substeps: 4,
-            settings: WorldConfig::default(),
-        }
     }
 }
 

@@ -22,7 +22,7 @@ mod tests;
 pub use build::{build_world, build_world_with_config, load_world};
 pub use desc::{
     BodyDesc, BodyKindDesc, DEFAULT_DENSITY, DEFAULT_FRICTION, DEFAULT_RESTITUTION, GeometryDesc,
-    JointSceneDesc, MassSpec, MaterialDesc, SceneDesc, ShapeDesc, WorldDesc,
+    JointSceneDesc, MassSpec, MaterialDesc, SceneDesc, ShapeDesc,
 };
 pub use error::{SceneError, SceneErrorKind};
 pub use parse::parse_scene;

@@ -8,13 +8,13 @@
 
 use toml_edit::Document;
 
-use super::desc::{BodyDesc, BodyKindDesc, JointSceneDesc, MaterialDesc, SceneDesc, WorldDesc};
+use super::desc::{BodyDesc, BodyKindDesc, JointSceneDesc, MaterialDesc, SceneDesc};
 use super::error::{SceneError, SceneErrorKind, Source, line_starts};
 use super::reader::{Result, TableView};
 use super::rotation::read_rotation;
 use super::shape::read_shape;
 use crate::math::{Quat, Scalar, Transform, Vec3};
-use crate::world::{ContactOrder, ContactRows, MAX_SOLVER_ITERATIONS};
+use crate::world::{ContactOrder, ContactRows, MAX_SOLVER_ITERATIONS, WorldConfig};
 
 /// Keys of the root table.
 const ROOT_KEYS: &[&str] = &["world", "materials", "bodies", "joints"];
@@ -123,7 +123,7 @@ pub fn parse_scene(text: &str, file_name: &str) -> std::result::Result<SceneDesc
             t.set_context("world".to_owned());
             read_world(&t)?
         }
-        None => WorldDesc::default(),
+        None => WorldConfig::default(),
     };
 
     let mut materials = Vec::new();
@@ -470,9 +470,9 @@ fn syntax_error(src: &Source<'_>, e: &toml_edit::TomlError) -> SceneError {
 }
 
 /// Reads `[world]`.
-fn read_world(t: &TableView<'_>) -> Result<WorldDesc> {
+fn read_world(t: &TableView<'_>) -> Result<WorldConfig> {
     t.check_keys(WORLD_KEYS, "[world]")?;
-    let mut world = WorldDesc::default();
+    let mut world = WorldConfig::default();
     if let Some(f) = t.get("gravity") {
         world.gravity = t.vec3(&f)?;
     }
@@ -484,7 +484,7 @@ fn read_world(t: &TableView<'_>) -> Result<WorldDesc> {
         let rule = format!("1 to {MAX_SUBSTEPS}");
         world.substeps = t.integer(&f, 1, MAX_SUBSTEPS, &rule)? as u32;
     }
-    let settings = &mut world.settings;
+    let settings = &mut world;
     for (key, slot) in [
         ("solver_iterations", &mut settings.solver_iterations),
         ("relax_iterations", &mut settings.relax_iterations),

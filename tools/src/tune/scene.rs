@@ -60,7 +60,7 @@ impl Scene {
 
     /// The settings the scene file gives.
     pub fn own(&self) -> Settings {
-        let d = self.desc.world.config();
+        let d = self.desc.world;
         Settings {
             tick_rate: d.tick_rate,
             substeps: d.substeps,
@@ -82,7 +82,7 @@ impl Scene {
             substeps: s.substeps,
             solver_iterations: s.solver_iterations,
             relax_iterations: s.relax_iterations,
-            ..self.desc.world.config()
+            ..self.desc.world
         };
         Ok(build_world_with_config(&self.desc, config, &self.file)?)
     }

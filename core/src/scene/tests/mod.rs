@@ -247,7 +247,7 @@ fn integers_and_hex_integers_are_exact_scalars() {
 fn an_empty_file_is_an_empty_world_with_default_settings() {
     let scene = parse("");
     assert!(scene.bodies.is_empty() && scene.materials.is_empty());
-    assert_eq!(scene.world, WorldDesc::default());
+    assert_eq!(scene.world, WorldConfig::default());
     // 9.81 × 2^32 = 42133629173.76 -> 42133629174.
     assert_eq!(scene.world.gravity, v("0", "-9.81", "0"));
     assert_eq!(scene.world.gravity.y.to_bits(), -42_133_629_174);
@@ -418,7 +418,7 @@ fn world_settings_reach_the_world() {
     let scene = parse(
         "[world]\nsolver_iterations = 4\nrelax_iterations = 2\ncontact_hertz = 30\ncontact_damping_ratio = 1\ncontact_margin = 0.01\nbroad_phase_margin = 0.2\nmax_push_out = 1.5\nrestitution_threshold = 0.5\nsleep = false\nsleep_linear_threshold = 0.01\nsleep_angular_threshold = 0.02\ntime_to_sleep = 2\n",
     );
-    let c = scene.world.config();
+    let c = scene.world;
     assert_eq!((c.solver_iterations, c.relax_iterations), (4, 2));
     assert_eq!(c.contact_hertz, Scalar::from_int(30));
     assert_eq!(c.contact_damping_ratio, Scalar::ONE);
@@ -433,7 +433,7 @@ fn world_settings_reach_the_world() {
     let world = build_world(&scene, "test.toml").unwrap();
     assert_eq!(world.config(), &c);
     // Left out: the defaults.
-    assert_eq!(parse("").world.config(), WorldConfig::default());
+    assert_eq!(parse("").world, WorldConfig::default());
 }
 
 #[test]
