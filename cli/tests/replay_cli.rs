@@ -393,11 +393,11 @@ fn a_bundle_with_a_foreign_snapshot_is_refused_with_its_tick() {
 }
 
 /// The README lists every exit status of `lockstep replay`, the ones of
-/// `lockstep_client::offline::exit_status` and nothing else; a command
+/// `lockstep_tools::exit_status` and nothing else; a command
 /// line without a file is a usage error (2).
 #[test]
 fn the_readme_lists_every_replay_exit_status() {
-    use lockstep_client::offline::exit_status;
+    use lockstep_tools::exit_status;
     let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md"))
         .expect("README.md");
     let start = readme
