@@ -227,10 +227,14 @@ fn ray_hull(hull: &ConvexHull, o: Vec3, d: Vec3) -> Option<LocalHit> {
         if dist > 0 {
             inside = false;
         }
+        // Outside this face's plane and not closing on it (parallel, or
+        // moving away): the ray never gets in. (Only a plane the ray
+        // closes on can be entered; without this, a ray whose line crosses
+        // the hull behind its origin "hit" at fraction 0.)
+        if dist > 0 && rate >= 0 {
+            return None;
+        }
         if rate == 0 {
-            if dist > 0 {
-                return None;
-            }
             continue;
         }
         if rate < 0 {
@@ -506,6 +510,31 @@ mod tests {
             idx.push([base, base + 1, base + 2]);
         }
         TriMesh::new(v, idx).unwrap()
+    }
+
+    /// A ray that starts outside a hull and moves away from it misses, even
+    /// though its line runs through the hull behind the origin; towards the
+    /// hull it hits where it enters.
+    #[test]
+    fn a_ray_leaving_a_hull_from_outside_misses() {
+        let corners: Vec<Vec3> = (0..8)
+            .map(|i| Vec3::from_ints(1 - 2 * (i & 1), 1 - (i & 2), 1 - (i & 4) / 2))
+            .collect();
+        let hull = ConvexHull::from_points(&corners).unwrap();
+        let o = Vec3::from_ints(3, 0, 0);
+        assert_eq!(ray_hull(&hull, o, Vec3::from_ints(1, 0, 0)), None);
+        assert_eq!(ray_hull(&hull, o, Vec3::from_ints(4, 1, 0)), None);
+        // Towards it: enters the x = 1 face at 2/4 of the way.
+        let (t, n) = ray_hull(&hull, o, Vec3::from_ints(-4, 0, 0)).unwrap();
+        assert_eq!(t, Scalar::HALF);
+        assert_eq!(n, Some(Vec3::X));
+        // Too short to reach it.
+        assert_eq!(ray_hull(&hull, o, Vec3::from_ints(-1, 0, 0)), None);
+        // From inside: fraction 0, no face.
+        assert_eq!(
+            ray_hull(&hull, Vec3::ZERO, Vec3::from_ints(5, 0, 0)),
+            Some((Scalar::ZERO, None))
+        );
     }
 
     #[test]
