@@ -12,6 +12,7 @@ pub mod character;
 pub mod collider;
 pub(crate) mod collision;
 pub mod game_state;
+mod handles;
 pub mod hash;
 pub mod joint;
 pub mod math;

@@ -17,7 +17,7 @@
 //! every stage that walks it visits bodies in exactly the order a walk over
 //! all slots would; it depends only on the bodies' states.
 
-use super::{BodyHot, BodyKind};
+use super::state::{BodyHot, BodyKind};
 
 /// Whether the step moves a body in this slot (awake dynamic or kinematic).
 #[inline]

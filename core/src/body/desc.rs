@@ -2,7 +2,7 @@
 
 use crate::math::{Quat, Scalar, Vec3};
 
-use super::BodyKind;
+use super::state::BodyKind;
 
 /// A description of a body to create with
 /// [`World::create_body`](crate::World::create_body). Shapes are added

@@ -6,7 +6,8 @@ use crate::arena::Arena;
 use crate::math::Vec3;
 
 use super::awake::{AwakeIndex, moves, push_counted};
-use super::{BodyCold, BodyHandle, BodyHot, BodyKind};
+use super::state::{BodyCold, BodyHot, BodyKind};
+use crate::handles::BodyHandle;
 
 /// All bodies of a world. Cold data lives in a generational arena; hot data
 /// in a plain array indexed by the same slot index, so the integrator walks

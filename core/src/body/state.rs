@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::collider::ColliderHandle;
+use crate::handles::ColliderHandle;
 use crate::math::{Quat, Scalar, SymMat3, Transform, Vec3};
 
 /// How a body moves.

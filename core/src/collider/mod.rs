@@ -10,22 +10,11 @@ pub use material::Material;
 
 use serde::{Deserialize, Serialize};
 
-use crate::arena::RawHandle;
-use crate::body::BodyHandle;
-use crate::collision::ProxyId;
+use crate::collision::broad_phase::ProxyId;
+use crate::handles::BodyHandle;
+pub use crate::handles::ColliderHandle;
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::{Capsule, Cuboid, MassProperties, Shape, Sphere};
-
-/// Identifies a collider: `{index, generation}`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-pub struct ColliderHandle(pub RawHandle);
-
-impl ColliderHandle {
-    /// The slot index.
-    pub fn index(self) -> u32 {
-        self.0.index
-    }
-}
 
 /// How a collider's mass is given.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

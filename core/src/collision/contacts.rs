@@ -34,7 +34,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::collider::ColliderHandle;
+use crate::handles::ColliderHandle;
 use crate::math::Scalar;
 use crate::workers::{SharedMut, Workers};
 

@@ -1,5 +1,6 @@
 //! Time of impact: the one conservative-advancement routine behind shape
-//! sweeps (`World::cast_shape`, [`crate::query::sweep`]) and continuous
+//! sweeps (`World::cast_shape`,
+//! [`sweep_shape`](crate::query::sweep::sweep_shape)) and continuous
 //! collision (the CCD stage of `World::step`).
 //!
 //! **The motion.** A body frame moves over the fraction `t ∈ [0, 1]`: its

@@ -393,7 +393,7 @@ impl Scalar {
 #[macro_export]
 macro_rules! scalar {
     ($lit:literal) => {
-        const { $crate::math::Scalar::from_decimal_str(stringify!($lit)) }
+        const { $crate::math::scalar::Scalar::from_decimal_str(stringify!($lit)) }
     };
 }
 

@@ -2,8 +2,8 @@
 //! test behind the world's overlap query, and the mesh and height-field
 //! triangle walks that sweeps share.
 
+use super::convex::{QueryError, Triangle, convex_support};
 use super::ray::{cell_span, triangle_outside};
-use super::{QueryError, Triangle, convex_support};
 use crate::collision::narrow::gjk::{DistanceResult, distance};
 use crate::math::{Aabb, Transform, Vec3};
 use crate::shape::Shape;

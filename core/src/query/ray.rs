@@ -25,7 +25,7 @@
 //! watertight). Coordinates relative to the ray origin must stay below about
 //! 2¹⁵ m (the products of the triangle test fit Q32.32 there).
 
-use crate::collision::dynamic_tree::{Frac, segment_box};
+use crate::collision::dynamic_tree::ray::{Frac, segment_box};
 use crate::collision::narrow::gjk::{cross_wide, unit_from_wide};
 use crate::collision::narrow::{closest_point_on_segment, ratio01};
 use crate::math::elem::isqrt_u128;

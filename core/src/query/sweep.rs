@@ -23,8 +23,8 @@
 //! the swept box is swept as a convex shape; the nearest wins, the lowest
 //! triangle index on ties.
 
+use super::convex::{QueryError, Triangle, convex_support};
 use super::overlap::{box_in_frame, for_each_triangle, raw_box};
-use super::{QueryError, Triangle, convex_support};
 use crate::collision::narrow::epa::penetration;
 use crate::collision::narrow::gjk::SupportShape;
 use crate::collision::toi::{Motion, Toi, ToiPoint, ToiSettings, time_of_impact};

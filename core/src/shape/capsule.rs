@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::ShapeError;
+use super::error::ShapeError;
 use super::mass::MassProperties;
 use super::wide::{BigInt, product, ratio_to_scalar, ratio_to_scalar_saturating};
 use crate::math::{Aabb, Scalar, SymMat3, Vec3};

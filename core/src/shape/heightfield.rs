@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use super::ShapeError;
+use super::error::ShapeError;
 use crate::math::scalar::{round_shift, round_shift32};
 use crate::math::{Aabb, Scalar, Vec3};
 
@@ -207,7 +207,7 @@ impl HeightField {
     /// Whether edge `k` (corner `k` to corner `(k + 1) % 3`) of triangle
     /// `index` is a convex crease a body can hit; computed on the fly from
     /// the neighbouring triangle in the grid with the same rule as
-    /// [`TriMesh::edge_active`](super::TriMesh::edge_active). Edges on the
+    /// [`TriMesh::edge_active`](super::trimesh::TriMesh::edge_active). Edges on the
     /// grid's border are active. `false` past the end.
     pub fn edge_active(&self, index: u64, k: usize) -> bool {
         if index >= self.triangle_count() || k > 2 {
@@ -241,10 +241,10 @@ impl HeightField {
         };
         let nbt = nbt[nb.2 as usize];
         match (
-            super::TriMesh::triangle_normal(tri[0], tri[1], tri[2]),
-            super::TriMesh::triangle_normal(nbt[0], nbt[1], nbt[2]),
+            super::trimesh::TriMesh::triangle_normal(tri[0], tri[1], tri[2]),
+            super::trimesh::TriMesh::triangle_normal(nbt[0], nbt[1], nbt[2]),
         ) {
-            (Some(n1), Some(n2)) => super::TriMesh::crease_is_active(n1, n2, tri[k], w),
+            (Some(n1), Some(n2)) => super::trimesh::TriMesh::crease_is_active(n1, n2, tri[k], w),
             _ => true,
         }
     }

@@ -3,11 +3,12 @@
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use super::error::ShapeError;
 use super::mass::MassProperties;
 use super::quickhull;
+use super::rotation_margin;
 use super::sat_features::SatFeatures;
 use super::wide::{self, BigInt, RawPoint, from_raw, orient3d, ratio_to_scalar, raw};
-use super::{ShapeError, rotation_margin};
 use crate::math::{Aabb, Mat3, Scalar, SymMat3, Transform, Vec3};
 
 /// A face of a [`ConvexHull`]: a convex polygon.

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::ShapeError;
+use super::error::ShapeError;
 use super::wide::BigInt;
 use crate::math::faults::{self, Faults};
 use crate::math::scalar::div_round_i128;

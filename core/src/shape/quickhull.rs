@@ -14,7 +14,7 @@
 //! triangles are merged into polygons afterwards, and vertices that ended up
 //! in the middle of a face or of an edge are dropped.
 
-use super::ShapeError;
+use super::error::ShapeError;
 use super::wide::{RawPoint, Wide192, cross, orient3d, sub};
 
 const NONE: u32 = u32::MAX;

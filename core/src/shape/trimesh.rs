@@ -2,10 +2,10 @@
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use super::ShapeError;
+use super::error::ShapeError;
 use super::wide::{BigInt, raw, unit_of_wide};
 
-use crate::collision::dynamic_tree::{Frac, segment_box};
+use crate::collision::dynamic_tree::ray::{Frac, segment_box};
 use crate::math::{Aabb, Scalar, Vec3};
 
 /// A triangle mesh for static geometry: terrain pieces, walls, ramps.

@@ -238,6 +238,19 @@ pub(crate) fn finish_angular_velocities(hot: &mut [BodyHot], awake: &[u32], work
     });
 }
 
+/// The quaternion rotation vector (axis × angle, angle in [0, π]) taking
+/// orientation `from` to `to`.
+pub(crate) fn rotation_delta(from: Quat, to: Quat) -> Vec3 {
+    let d = (to * from.conjugate()).canonical();
+    match d.xyz().normalize_and_length() {
+        Some((axis, s)) => {
+            let angle = crate::math::elem::atan2(s, d.w) * Scalar::TWO;
+            axis * angle
+        }
+        None => Vec3::ZERO,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

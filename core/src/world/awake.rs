@@ -34,7 +34,7 @@ use crate::collision::contacts::PairKind;
 use crate::math::Vec3;
 use crate::solver::sleep;
 
-use super::World;
+use super::state::World;
 
 impl World {
     /// Wakes a live body (see the free function [`wake`]).

@@ -4,7 +4,7 @@ use crate::body::{BodyCold, BodyHandle, BodyHot, BodyKind};
 use crate::collider::ColliderHandle;
 use crate::math::{Quat, Scalar, SymMat3, Transform, Vec3};
 
-/// A read-only view of one body's state, from [`World::body`](super::World::body).
+/// A read-only view of one body's state, from [`World::body`](super::state::World::body).
 #[derive(Clone, Copy, Debug)]
 pub struct BodyRef<'a> {
     handle: BodyHandle,
@@ -33,7 +33,7 @@ impl<'a> BodyRef<'a> {
     }
 
     /// The kinematic target set for the coming step
-    /// ([`World::set_kinematic_target`](super::World::set_kinematic_target)),
+    /// ([`World::set_kinematic_target`](super::state::World::set_kinematic_target)),
     /// if any: where a kinematic body will be after it.
     pub fn kinematic_target(&self) -> Option<Transform> {
         self.cold.kinematic_target

@@ -72,7 +72,8 @@ use crate::query::{Triangle, convex_support};
 use crate::shape::{Capsule, Cuboid, Shape, Sphere};
 use crate::solver::integrate::omega_from_momentum;
 
-use super::{World, rotation_delta};
+use super::state::World;
+use crate::solver::integrate::rotation_delta;
 
 /// The gap continuous collision leaves between a stopped body and the
 /// obstacle: 2⁻⁸ m ≈ 3.9 mm. Well inside the default 2 cm contact margin

@@ -7,7 +7,7 @@ use crate::collision::contacts::{Candidate, ContactStats, PairKind};
 use crate::collision::reuse::{RelativePose, ReuseCache, shapes_reuse};
 use crate::collision::{Manifold, PairStats, ProxyKey, ProxyKind, narrow};
 
-use super::World;
+use super::state::World;
 
 /// A collider's broad-phase key: its handle index in the high 32 bits and
 /// generation in the low ones, so sorting by key sorts by handle.

@@ -3,13 +3,13 @@
 //!
 //! The hook sees nothing but the stage that just ended: it has no access to
 //! the world, its arithmetic faults are kept out of the step's (see
-//! [`World::step_observed`](super::World::step_observed)), and nothing about
+//! [`World::step_observed`](super::state::World::step_observed)), and nothing about
 //! it is in the state hash or the snapshot. An observed step and a plain step
 //! give the same state, bit for bit.
 
 use crate::math::FaultScope;
 
-/// One stage of [`World::step`](super::World::step), in the order the step
+/// One stage of [`World::step`](super::state::World::step), in the order the step
 /// runs them ([`Stage::ALL`]).
 ///
 /// Each stage runs in its own `#[inline(never)]` function of the core named
@@ -141,7 +141,7 @@ impl Stage {
 }
 
 /// Told when each stage of an observed step ends
-/// ([`World::step_observed`](super::World::step_observed)).
+/// ([`World::step_observed`](super::state::World::step_observed)).
 ///
 /// Why: a benchmark reads a clock in `finished` and attributes the time
 /// since the previous call to the stage; the core itself never reads a

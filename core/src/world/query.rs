@@ -30,7 +30,7 @@ use crate::query::{
 };
 use crate::shape::Shape;
 
-use super::World;
+use super::state::World;
 
 /// Refuses query shapes that are not convex, before any candidate is seen
 /// (so the error does not depend on what is nearby).

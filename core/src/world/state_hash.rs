@@ -5,7 +5,8 @@ use crate::body::{BodyCold, BodyHandle, BodyHot};
 use crate::collider::MassSpec;
 use crate::hash::{FieldKind, StateHasher};
 
-use super::{ContactOrder, ContactRows, World};
+use super::config::{ContactOrder, ContactRows, WorldError};
+use super::state::World;
 
 /// Version of the hashed layout; bumped whenever the list of hashed words
 /// changes, so hashes from different layouts never compare equal by
@@ -111,11 +112,11 @@ impl World {
     /// carries, as the world hash holds them.
     ///
     /// # Errors
-    /// [`WorldError::InvalidBody`](super::WorldError::InvalidBody) for a
+    /// [`WorldError::InvalidBody`](WorldError::InvalidBody) for a
     /// stale handle.
-    pub fn body_fields(&self, handle: BodyHandle) -> Result<Vec<BodyField>, super::WorldError> {
+    pub fn body_fields(&self, handle: BodyHandle) -> Result<Vec<BodyField>, WorldError> {
         let (Some(hot), Some(cold)) = (self.bodies.hot(handle), self.bodies.cold(handle)) else {
-            return Err(super::WorldError::InvalidBody(handle));
+            return Err(WorldError::InvalidBody(handle));
         };
         let mut out = FieldList(Vec::new());
         self.visit_body(hot, cold, &mut out);

@@ -14,8 +14,10 @@ use crate::solver::integrate::{self, VelocityCounters};
 use crate::solver::joint_solver::{JOINT_DAMPING_RATIO, JointParams, JointSolver};
 use crate::workers::Workers;
 
+use super::config::{ContactOrder, ContactRows, StepReport};
 use super::observe::{Guarded, Notify, Quiet, Stage, StepObserver};
-use super::{ContactOrder, ContactRows, StepReport, World, rotation_delta};
+use super::state::World;
+use crate::solver::integrate::rotation_delta;
 
 impl World {
     /// Advances the world by one tick (`1/tick_rate` seconds).

@@ -25,14 +25,12 @@ use thiserror::Error;
 
 use crate::math::{Aabb, Scalar, Vec3};
 
-mod ray;
+pub(crate) mod ray;
 // The SAH rebuild: not called by the step (the trees stay balanced by
 // rotations as proxies move); its tests compare tree quality against it.
 #[cfg(test)]
 mod rebuild;
 mod validate;
-
-pub(crate) use ray::{Frac, segment_box};
 
 #[cfg(test)]
 use rebuild::RebuildScratch;
