@@ -84,13 +84,16 @@
 //! in manifold order starting at point `k mod count` in substep `k` of the
 //! tick.
 
+mod arith;
 mod color;
+mod constraint;
 mod iterate;
 mod narrow;
 mod params;
 mod pass;
 mod patch;
 mod prepare;
+mod quanta;
 mod rows;
 mod shock;
 mod wide;
@@ -102,303 +105,17 @@ use pass::*;
 use prepare::*;
 
 use color::{COLORS, Coloring};
-use std::ops::Range;
-use std::sync::atomic::{AtomicU32, Ordering};
+use constraint::{BodyVel, Constraint, ConstraintPoint, NONE, SolverBody};
 
-use crate::workers::{ColorGate, SharedMut, Workers};
+use crate::workers::{SharedMut, Workers};
 
 use narrow::NarrowRows;
-use narrow::lanes::{Batch, Kernel, LANES};
-use patch::{Patch, prepare_patch, solve_patch};
-use rows::{
-    BodyArrays, along, angular_along, apply_linear, combine3, cross, effective, inverse_or_zero,
-    linear_basis, mul, prefetch, push_angular, round_wide, scale, tangent_of, vel_or_zero,
-};
+use narrow::lanes::{Batch, Kernel};
+use rows::{BodyArrays, angular_along, apply_linear, linear_basis, mul, push_angular};
 
-use crate::body::{BodyHot, BodyKind};
-use crate::collision::contacts::reserve_near;
-use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind, PatchFriction, PointImpulse};
-use crate::math::scalar::wide_sum;
-use crate::math::{Mat3, Quat, Scalar, SymMat3, Vec3};
-
-/// Marks "no solver body": a static or sleeping body.
-const NONE: u32 = u32::MAX;
-
-/// The solver's per-body velocity state, the only body data the iteration
-/// loops read and write (48 bytes).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct BodyVel {
-    /// Linear velocity.
-    v: Vec3,
-    /// Angular velocity, world axes.
-    w: Vec3,
-}
-
-/// The solver's per-body constants for the tick and its pose change since
-/// the start of the tick (read once per constraint and pass, never written
-/// by the iterations).
-#[derive(Clone, Copy, Debug, Default)]
-struct SolverBody {
-    /// The body's slot in the body set.
-    slot: u32,
-    /// Whether impulses move it (dynamic) or it only pushes (kinematic).
-    dynamic: bool,
-    /// 1/mass (0 for kinematic).
-    inv_mass: Scalar,
-    /// World inverse inertia `R I⁻¹ Rᵀ` at the start of the tick (zero for
-    /// kinematic).
-    inv_inertia: SymMat3,
-    /// Whether `inv_inertia` is a multiple of the identity (`xx`).
-    isotropic: bool,
-    /// Centre at the start of the tick.
-    center0: Vec3,
-    /// Conjugate of the rotation at the start of the tick.
-    rotation0_inv: Quat,
-    /// Displacement of the centre since the start of the tick.
-    dp: Vec3,
-    /// Rotation since the start of the tick, as a matrix.
-    dr: Mat3,
-}
-
-impl SolverBody {
-    /// `I⁻¹ v` in world axes (one scale for an isotropic body).
-    #[inline]
-    fn inv_inertia_mul(&self, v: Vec3) -> Vec3 {
-        if self.isotropic {
-            scale(v, self.inv_inertia.xx)
-        } else {
-            self.inv_inertia.mul_vec(v)
-        }
-    }
-}
-
-/// One contact point's constant terms and accumulated impulses.
-///
-/// The relative velocity of the anchors along a direction `d` is
-/// `d·(vB − vA) + (rB×d)·ωB − (rA×d)·ωA`, and an impulse `λ` along `d`
-/// changes `ω` by `λ·I⁻¹(r×d)`: both products are stored here, so an
-/// iteration neither forms a cross product nor multiplies by an inertia.
-#[derive(Clone, Copy, Debug, Default)]
-struct ConstraintPoint {
-    /// The point of A's core behind the contact (the contact point for a
-    /// flat-faced shape), relative to A's centre at the start of the tick:
-    /// what the separation is followed through. Zero for no body.
-    ra: Vec3,
-    /// The same on B.
-    rb: Vec3,
-    /// `ra × n`, `rb × n`.
-    ra_n: Vec3,
-    rb_n: Vec3,
-    /// `I⁻¹A (ra × n)`, `I⁻¹B (rb × n)`.
-    ia_n: Vec3,
-    ib_n: Vec3,
-    /// Separation at the start of the tick minus `n·(rb − ra)`: adding the
-    /// current anchor offset along `n` gives the current separation.
-    adjusted_separation: Scalar,
-    /// Normal velocity (B relative to A) at the start of the tick, or at
-    /// the first push if the approach was faster then: what restitution
-    /// reflects.
-    relative_velocity: Scalar,
-    /// `1/k` along the normal.
-    normal_mass: Scalar,
-    /// Accumulated normal impulse (per substep).
-    normal_impulse: Scalar,
-    /// The normal impulse at the last write-back of angular impulses (zero
-    /// after a warm start, which applies it all again).
-    mark: Scalar,
-    /// The largest normal impulse seen this tick (restitution only applies
-    /// to points that pushed).
-    max_normal_impulse: Scalar,
-    /// The current separation, as the constraint's cached frame gives it
-    /// (see [`Constraint::frame_poses`]).
-    separation: Scalar,
-}
-
-/// How a constraint follows its points' current separation through the
-/// substeps: a point's is its adjusted separation plus `n·(Δp_B − Δp_A) +
-/// n·(ΔR_B r_B) − n·(ΔR_A r_A)`, and `n·(ΔR r) = (ΔRᵀ n)·r`, so the two
-/// rotated normals and the displacement term are formed once per
-/// constraint and visit, not two rotated anchors per point.
-#[derive(Clone, Copy, Debug, Default)]
-struct SeparationFrame {
-    /// `ΔR_Aᵀ n` and `ΔR_Bᵀ n` (zero for no body).
-    na: Vec3,
-    nb: Vec3,
-    /// `n·(Δp_B − Δp_A)`, unrounded.
-    base: i128,
-}
-
-impl SeparationFrame {
-    /// The frame of `c` at its bodies' current pose changes.
-    #[inline(always)]
-    fn of(c: &Constraint, bodies: &[SolverBody]) -> SeparationFrame {
-        SeparationFrame::at(c.normal, c.a, c.b, bodies)
-    }
-
-    /// The frame of normal `n` between solver bodies `a` and `b` (or
-    /// `NONE`) at their current pose changes.
-    #[inline(always)]
-    fn at(n: Vec3, a: u32, b: u32, bodies: &[SolverBody]) -> SeparationFrame {
-        let (na, dpa) = if a == NONE {
-            (Vec3::ZERO, Vec3::ZERO)
-        } else {
-            let b = &bodies[a as usize];
-            (b.dr.transpose_mul_vec(n), b.dp)
-        };
-        let (nb, dpb) = if b == NONE {
-            (Vec3::ZERO, Vec3::ZERO)
-        } else {
-            let b = &bodies[b as usize];
-            (b.dr.transpose_mul_vec(n), b.dp)
-        };
-        SeparationFrame {
-            na,
-            nb,
-            base: n.dot_wide(dpb - dpa),
-        }
-    }
-
-    /// The current separation of point `cp` of the constraint.
-    #[inline(always)]
-    fn separation(&self, cp: &ConstraintPoint) -> Scalar {
-        self.separation_at(cp.ra, cp.rb, cp.adjusted_separation)
-    }
-
-    /// The current separation of a point with anchors `ra`, `rb` and
-    /// adjusted separation `adjusted` (see [`ConstraintPoint`]).
-    #[inline(always)]
-    fn separation_at(&self, ra: Vec3, rb: Vec3, adjusted: Scalar) -> Scalar {
-        round_wide(wide_sum([
-            self.base,
-            self.nb.dot_wide(rb),
-            -self.na.dot_wide(ra),
-        ])) + adjusted
-    }
-}
-
-/// One solid pair's constraint.
-#[derive(Clone, Copy, Debug, Default)]
-struct Constraint {
-    /// Index of the pair in the contact set.
-    pair: u32,
-    /// Solver body indices (or `NONE`).
-    a: u32,
-    b: u32,
-    /// The same for the bodies the passes write: `a` and `b` if dynamic,
-    /// `NONE` for a kinematic body (whose velocity no impulse changes, and
-    /// which two constraints of one colour may share).
-    wa: u32,
-    wb: u32,
-    normal: Vec3,
-    tangent: [Vec3; 2],
-    /// `1/mass` of A and of B (zero for none, static or kinematic).
-    inv_mass_a: Scalar,
-    inv_mass_b: Scalar,
-    /// Their sum: how fast the relative velocity along a unit direction
-    /// changes per unit impulse along it, linear part.
-    inv_mass_sum: Scalar,
-    /// The contact spring of this constraint's soft pass: the world's, or
-    /// a stiffer one for a high mass ratio (see [`RATIO_KEPT`]).
-    softness: Softness,
-    friction: Scalar,
-    restitution: Scalar,
-    /// How far A's and B's surfaces lie out from their cores (see
-    /// [`PairInfo::rounding`]); read by `prepare` only.
-    rounding: [Scalar; 2],
-    /// The manifold's total normal impulse at this substep's warm start
-    /// (the last substep's, or last tick's): what bounds friction through
-    /// the substep's passes.
-    warm_total: Scalar,
-    /// The friction rows, acting at the centre of the patch.
-    patch: Patch,
-    count: usize,
-    points: [ConstraintPoint; MAX_MANIFOLD_POINTS],
-    /// The separation frame at the bodies' poses numbered `frame_poses`
-    /// (see [`ContactSolver::poses`]), and each point's separation from it:
-    /// the poses change once per substep (before the relax pass), but the
-    /// next substep's solve pass, and every extra pass or visit at the same
-    /// poses, would compute the same frame again. Set by a visit's first
-    /// pass at new poses; 0 (never a pose number) after `prepare`.
-    frame: SeparationFrame,
-    frame_poses: u32,
-}
-
-impl Constraint {
-    /// Adds the angular impulse of every impulse change since its mark
-    /// (`r×n Δλ_n` per point; `ra×t_j Δλ_tj` and `n Δλ_twist` for the
-    /// patch, all from stored products) to the write-back sums `dls` of A
-    /// (negated) and B, and moves the marks.
-    #[inline(always)]
-    fn collect_angular(&mut self, arrays: &BodyArrays) {
-        let (a, b) = (self.wa, self.wb);
-        for cp in &mut self.points[..self.count] {
-            let dn = cp.normal_impulse - cp.mark;
-            if dn.is_zero() {
-                continue;
-            }
-            cp.mark = cp.normal_impulse;
-            if a != NONE {
-                arrays.add_dl(a, -scale(cp.ra_n, dn));
-            }
-            if b != NONE {
-                arrays.add_dl(b, scale(cp.rb_n, dn));
-            }
-        }
-        let f = &mut self.patch;
-        let now = [f.tangent_impulse[0], f.tangent_impulse[1], f.twist_impulse];
-        if now == f.mark {
-            return;
-        }
-        let [d0, d1, dw] = [now[0] - f.mark[0], now[1] - f.mark[1], now[2] - f.mark[2]];
-        f.mark = now;
-        let n = self.normal;
-        if a != NONE {
-            arrays.add_dl(a, -combine3(f.ra_t[0], d0, f.ra_t[1], d1, n, dw));
-        }
-        if b != NONE {
-            arrays.add_dl(b, combine3(f.rb_t[0], d0, f.rb_t[1], d1, n, dw));
-        }
-    }
-
-    /// Applies the accumulated impulses to the velocities `va`, `vb` of A
-    /// and B (the warm start), records their total normal impulse and
-    /// clears the marks (the angular write-back takes them all again).
-    ///
-    /// Every change is a rounded product of the impulses and this
-    /// constraint's constant terms, added to the velocity: none depends on
-    /// the velocities, so the changes may be summed apart (from zero) and
-    /// added later, to the same bits.
-    #[inline(always)]
-    fn warm_start(&mut self, va: &mut BodyVel, vb: &mut BodyVel) {
-        let (a, b) = (self.a, self.b);
-        // The linear change is the same direction for every point: sum the
-        // impulses (exactly) and scale once per constraint.
-        let mut total = Scalar::ZERO;
-        for cp in &mut self.points[..self.count] {
-            cp.mark = Scalar::ZERO;
-            let ni = cp.normal_impulse;
-            if ni.is_zero() {
-                continue;
-            }
-            total += ni;
-            push_angular(va, vb, a, b, ni, cp.ia_n, cp.ib_n);
-        }
-        self.warm_total = total;
-        let f = &mut self.patch;
-        f.mark = [Scalar::ZERO; 3];
-        let [i0, i1] = f.tangent_impulse;
-        let iw = f.twist_impulse;
-        if !(i0.is_zero() && i1.is_zero() && iw.is_zero()) {
-            if a != NONE {
-                va.w -= combine3(f.ia_t[0], i0, f.ia_t[1], i1, f.ia_w, iw);
-            }
-            if b != NONE {
-                vb.w += combine3(f.ib_t[0], i0, f.ib_t[1], i1, f.ib_w, iw);
-            }
-        }
-        apply_linear(self, va, vb, [total, i0, i1]);
-    }
-}
+use crate::body::BodyHot;
+use crate::collision::{ContactPair, PatchFriction, PointImpulse};
+use crate::math::{Mat3, Scalar, Vec3};
 
 /// The solver's buffers, kept by the world and reused every tick.
 #[derive(Clone, Debug, Default)]
@@ -415,9 +132,9 @@ pub(crate) struct ContactSolver {
     warm_ready: bool,
     /// In a world on the narrow rows, each solver body's velocity in
     /// quanta during a pass, and its value when taken (see
-    /// [`narrow::Quanta`]); empty otherwise.
-    quanta: Vec<narrow::Quanta>,
-    quanta0: Vec<narrow::Quanta>,
+    /// [`quanta::Quanta`]); empty otherwise.
+    quanta: Vec<quanta::Quanta>,
+    quanta0: Vec<quanta::Quanta>,
     /// In a world on the narrow rows, each solver body's pose change as
     /// the narrow separations read it (see [`narrow::PoseQ`]); empty
     /// otherwise.
@@ -732,7 +449,7 @@ impl ContactSolver {
         // On the narrow rows, the velocities are in quanta for the pass.
         let quanta = self.rows_len > 0;
         if quanta {
-            narrow::quantize(&self.vels, &mut self.quanta, &mut self.quanta0);
+            quanta::quantize(&self.vels, &mut self.quanta, &mut self.quanta0);
         }
         let mut arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         if quanta {
@@ -779,7 +496,7 @@ impl ContactSolver {
         for_each_colored(&mut self.constraints, rows, &self.starts, workers, run);
         self.warm_ready = fuse;
         if quanta {
-            narrow::flush(&mut self.vels, &self.quanta, &mut self.quanta0);
+            quanta::flush(&mut self.vels, &self.quanta, &mut self.quanta0);
         }
         for _ in 0..HIGH_RATIO_PASSES {
             for &i in &self.heavy {

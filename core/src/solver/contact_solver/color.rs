@@ -29,7 +29,7 @@
 //! exactly as the one it was saved from. Colouring costs one word per body
 //! of each constraint, far less than one solver pass.
 
-use super::NONE;
+use super::constraint::NONE;
 use crate::collision::contacts::reserve_near;
 
 /// Colours before the overflow. A box in a pyramid touches at most six

@@ -1,7 +1,12 @@
 //! How the passes walk the constraints: in order with prefetching, or
 //! colour by colour over the workers.
 
-use super::*;
+use super::color::COLORS;
+use super::constraint::Constraint;
+use super::narrow::NarrowRows;
+use super::rows::prefetch;
+use crate::workers::{ColorGate, SharedMut, Workers};
+use std::ops::Range;
 
 /// How many constraints ahead the passes ask the CPU to load. A constraint
 /// is about 1.9 KB and a pass spends a few hundred nanoseconds on it: on

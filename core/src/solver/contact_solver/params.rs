@@ -1,7 +1,7 @@
 //! The solver's settings for a tick: the soft constraint (`Softness`,
 //! shared with the joints), the mass-ratio springs, and the counts.
 
-use super::*;
+use crate::math::Scalar;
 
 /// Softness of the contact spring for a substep.
 #[derive(Clone, Copy, Debug, Default)]

@@ -1,7 +1,19 @@
 //! One pass over the constraints: a visit of each, on the Q32.32 rows, the
 //! narrow rows (scalar twin) or their lanes.
 
-use super::*;
+use super::constraint::{BodyVel, Constraint, NONE, SeparationFrame, SolverBody};
+use super::iterate::{PREFETCH_AHEAD, for_each_prefetched};
+use super::narrow::lanes::{Batch, Kernel, LANES};
+use super::narrow::{self, NarrowRows};
+use super::params::SolverParams;
+use super::patch::solve_patch;
+use super::rows::{
+    BodyArrays, angular_along, apply_linear, linear_basis, mul, prefetch, push_angular,
+};
+use super::wide;
+use crate::collision::MAX_MANIFOLD_POINTS;
+use crate::math::Scalar;
+use crate::workers::SharedMut;
 
 /// One solve or relax pass's settings and shared arrays (see
 /// [`ContactSolver::solve`]).

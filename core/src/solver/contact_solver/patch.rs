@@ -2,53 +2,15 @@
 //! constants of the two tangent rows and the twist row (the passes that
 //! solve them are in the parent module).
 
+use super::constraint::{BodyVel, Constraint, NONE, Patch, SolverBody};
 use super::rows::{
     angular_along, cross, effective, inverse_or_zero, mul, push_angular, round_wide, scale,
 };
-use super::{BodyVel, Constraint, NONE, SolverBody};
 use crate::collision::contacts::TOUCH_TOLERANCE;
 use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS};
 use crate::math::elem::isqrt_u128;
 use crate::math::scalar::wide_sum;
 use crate::math::{Scalar, Vec3};
-
-/// Friction of one manifold, solved at the centre of its contact patch
-/// (the mean of its points) rather than at every point: two tangent rows
-/// whose impulse is held in a disc of radius μ times the manifold's total
-/// normal impulse, and a twist row
-/// about the normal bounded by μ times that total times the points' mean
-/// distance from the centre. For a patch whose points share the load, the
-/// friction force and its moment about the centre are the same as
-/// per-point friction's, with three rows per manifold instead of two per
-/// point (eight for a box face).
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct Patch {
-    /// `ra × t_j`, `rb × t_j` for the anchor at the patch centre.
-    pub(super) ra_t: [Vec3; 2],
-    pub(super) rb_t: [Vec3; 2],
-    /// `I⁻¹A (ra × t_j)`, `I⁻¹B (rb × t_j)`.
-    pub(super) ia_t: [Vec3; 2],
-    pub(super) ib_t: [Vec3; 2],
-    /// `1/k` along each tangent.
-    pub(super) tangent_mass: [Scalar; 2],
-    /// `I⁻¹A n`, `I⁻¹B n`: the spin change per unit twist impulse.
-    pub(super) ia_w: Vec3,
-    pub(super) ib_w: Vec3,
-    /// `1/k` of the twist row.
-    pub(super) twist_mass: Scalar,
-    /// μ times the points' mean distance from the centre: the twist bound
-    /// per unit of total normal impulse.
-    pub(super) twist_reach: Scalar,
-    /// `1/m_eff` of the two tangent rows and of the twist row (what the
-    /// narrow rows' impulses are scaled by, see `narrow`).
-    pub(super) k: [Scalar; 3],
-    /// Accumulated tangent and twist impulses.
-    pub(super) tangent_impulse: [Scalar; 2],
-    pub(super) twist_impulse: Scalar,
-    /// The two tangent and the twist impulses at the last write-back of
-    /// angular impulses.
-    pub(super) mark: [Scalar; 3],
-}
 
 /// The friction rows of pair `p` for constraint `c` (its normal, tangents
 /// and friction already set) between solver bodies `ba` and `bb` (a body

@@ -1,7 +1,23 @@
 //! `prepare`: the solver bodies and constraints of a tick, from the
 //! contact pairs, in pair or colour order; and the lanes' batches.
 
-use super::*;
+use super::color::COLORS;
+use super::constraint::{BodyVel, Constraint, NONE, SolverBody};
+use super::iterate::{BLOCK, Both, PREFETCH_AHEAD};
+use super::narrow::lanes::{Batch, LANES};
+use super::narrow::{self, NarrowRows};
+use super::params::{Softness, SolverParams, SolverStats};
+use super::patch::prepare_patch;
+use super::rows::{
+    along, cross, effective, inverse_or_zero, prefetch, scale, tangent_of, vel_or_zero,
+};
+use super::{ContactSolver, PairInfo};
+use crate::body::{BodyHot, BodyKind};
+use crate::collision::contacts::reserve_near;
+use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind};
+use crate::math::{Mat3, Scalar, SymMat3, Vec3};
+use crate::workers::{SharedMut, Workers};
+use std::sync::atomic::{AtomicU32, Ordering};
 
 /// What `prepare`'s first scan found for one candidate pair, before its
 /// constraint's place in colour order is known.

@@ -3,37 +3,14 @@
 //! (ties toward +∞, see [`mul`]). Kept apart from the passes so the passes
 //! read as the algorithm.
 
-use super::narrow::{Quanta, flush_body};
-use super::{BodyVel, Constraint, NONE, SolverBody};
-use crate::math::lanes::narrow;
+use super::constraint::{BodyVel, Constraint, NONE, SolverBody};
+use super::quanta::{Quanta, flush_body};
 use crate::math::scalar::wide_sum;
 use crate::math::{Scalar, Vec3};
 
-/// A unit tangent for normal `n`, continuous for normals within about 54°
-/// of the y or z axis and of the x axis: the switch between the two
-/// formulas (at |n.x| = 0.577) is far from the axis-aligned normals of
-/// resting contacts, so the friction impulses carried from last tick keep
-/// their directions while a normal wobbles.
-pub(super) fn tangent_of(n: Vec3) -> Vec3 {
-    // 0.57735 ≈ 1/√3 (bits of 0.57735·2³²): every unit vector has a
-    // component at least this big.
-    const SWITCH: Scalar = Scalar::from_bits(2_479_700_526);
-    if n.x.abs() >= SWITCH {
-        Vec3::new(n.y, -n.x, Scalar::ZERO).normalize_or_zero()
-    } else {
-        Vec3::new(Scalar::ZERO, n.z, -n.y).normalize_or_zero()
-    }
-}
-
-/// `1/k`, or zero when `k` is zero (two infinite masses never reach here,
-/// but a degenerate inertia must not divide by zero).
-pub(super) fn inverse_or_zero(k: Scalar) -> Scalar {
-    if k.is_positive() {
-        k.recip()
-    } else {
-        Scalar::ZERO
-    }
-}
+pub(super) use super::arith::{
+    combine3, cross, inverse_or_zero, mul, prefetch, round_wide, scale, tangent_of,
+};
 
 /// `k = 1/mA + 1/mB + (rA×d)·I⁻¹A(rA×d) + (rB×d)·I⁻¹B(rB×d)`.
 /// `ia_d`, `ib_d` are `I⁻¹A (rA×d)` and `I⁻¹B (rB×d)`, already computed.
@@ -50,19 +27,6 @@ pub(super) fn effective(
         + ra_d.dot_wide(ia_d)
         + rb_d.dot_wide(ib_d);
     round_wide(wide)
-}
-
-/// `a·x + b·y + c·z`, each component rounded once.
-#[inline(always)]
-pub(super) fn combine3(a: Vec3, x: Scalar, b: Vec3, y: Scalar, c: Vec3, z: Scalar) -> Vec3 {
-    let e = |i: usize| {
-        round_wide(wide_sum([
-            a.get(i).wide_mul(x),
-            b.get(i).wide_mul(y),
-            c.get(i).wide_mul(z),
-        ]))
-    };
-    Vec3::new(e(0), e(1), e(2))
 }
 
 /// Velocity of B's anchor relative to A's along the unit direction `d`,
@@ -138,45 +102,6 @@ pub(super) fn angular_along(a: &BodyVel, b: &BodyVel, ra_d: Vec3, rb_d: Vec3) ->
     round_wide(wide_sum([rb_d.dot_wide(b.w), -ra_d.dot_wide(a.w)]))
 }
 
-/// `a·b` rounded to nearest, ties toward +∞ (one rounding per product, as
-/// `a * b`, which sends ties away from zero: a tie needs the low 32 bits
-/// of the product to be exactly one half, about one product in 2³²), and
-/// saturated with the overflow fault. Cheaper than `a * b` in the
-/// iterations: a product of two `i64` is at most 2¹²⁶ in size, so adding
-/// the half cannot overflow and only the final narrowing needs a check.
-#[inline(always)]
-pub(super) fn mul(a: Scalar, b: Scalar) -> Scalar {
-    crate::math::lanes::mul_round_up(a, b)
-}
-
-/// A Q64.64 accumulator rounded to Q32.32, to nearest with ties toward +∞
-/// (as [`mul`]), saturated with the overflow fault. Cheaper than
-/// `Scalar::from_wide` (one checked add for the half, one check of the
-/// narrowing).
-#[inline(always)]
-pub(super) fn round_wide(acc: i128) -> Scalar {
-    narrow(match acc.checked_add(1 << 31) {
-        Some(x) => x >> 32,
-        None => i128::MAX >> 32,
-    })
-}
-
-/// `a × b`, each component rounded once by [`round_wide`].
-#[inline(always)]
-pub(super) fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    Vec3::new(
-        round_wide(wide_sum([a.y.wide_mul(b.z), -a.z.wide_mul(b.y)])),
-        round_wide(wide_sum([a.z.wide_mul(b.x), -a.x.wide_mul(b.z)])),
-        round_wide(wide_sum([a.x.wide_mul(b.y), -a.y.wide_mul(b.x)])),
-    )
-}
-
-/// `v·s` per component with [`mul`].
-#[inline(always)]
-pub(super) fn scale(v: Vec3, s: Scalar) -> Vec3 {
-    Vec3::new(mul(v.x, s), mul(v.y, s), mul(v.z, s))
-}
-
 /// The velocity state of solver body `i`, or zero for `NONE`.
 #[inline(always)]
 pub(super) fn vel_or_zero(vels: &[BodyVel], i: u32) -> BodyVel {
@@ -200,26 +125,6 @@ pub(super) fn store(vels: &mut [BodyVel], a: u32, b: u32, va: BodyVel, vb: BodyV
     if b != NONE {
         vels[b as usize] = vb;
     }
-}
-
-/// Hints the CPU to start loading `x` into the cache (a hint only: it
-/// changes no value, so results do not depend on it).
-#[inline(always)]
-pub(super) fn prefetch<T>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let base = x as *const T as *const i8;
-        let mut off = 0;
-        while off < size_of::<T>() {
-            // SAFETY: a prefetch never faults and reads nothing into the
-            // program; the address lies inside `x`.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.add(off)) };
-            off += 64;
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
 }
 
 /// The solver bodies' velocities and angular write-back sums, shared by
@@ -391,5 +296,82 @@ impl BodyArrays {
         assert!((i as usize) < self.len);
         // SAFETY: as in `store`.
         unsafe { *self.dls.add(i as usize) += d };
+    }
+}
+
+impl Constraint {
+    /// Adds the angular impulse of every impulse change since its mark
+    /// (`r×n Δλ_n` per point; `ra×t_j Δλ_tj` and `n Δλ_twist` for the
+    /// patch, all from stored products) to the write-back sums `dls` of A
+    /// (negated) and B, and moves the marks.
+    #[inline(always)]
+    pub(super) fn collect_angular(&mut self, arrays: &BodyArrays) {
+        let (a, b) = (self.wa, self.wb);
+        for cp in &mut self.points[..self.count] {
+            let dn = cp.normal_impulse - cp.mark;
+            if dn.is_zero() {
+                continue;
+            }
+            cp.mark = cp.normal_impulse;
+            if a != NONE {
+                arrays.add_dl(a, -scale(cp.ra_n, dn));
+            }
+            if b != NONE {
+                arrays.add_dl(b, scale(cp.rb_n, dn));
+            }
+        }
+        let f = &mut self.patch;
+        let now = [f.tangent_impulse[0], f.tangent_impulse[1], f.twist_impulse];
+        if now == f.mark {
+            return;
+        }
+        let [d0, d1, dw] = [now[0] - f.mark[0], now[1] - f.mark[1], now[2] - f.mark[2]];
+        f.mark = now;
+        let n = self.normal;
+        if a != NONE {
+            arrays.add_dl(a, -combine3(f.ra_t[0], d0, f.ra_t[1], d1, n, dw));
+        }
+        if b != NONE {
+            arrays.add_dl(b, combine3(f.rb_t[0], d0, f.rb_t[1], d1, n, dw));
+        }
+    }
+
+    /// Applies the accumulated impulses to the velocities `va`, `vb` of A
+    /// and B (the warm start), records their total normal impulse and
+    /// clears the marks (the angular write-back takes them all again).
+    ///
+    /// Every change is a rounded product of the impulses and this
+    /// constraint's constant terms, added to the velocity: none depends on
+    /// the velocities, so the changes may be summed apart (from zero) and
+    /// added later, to the same bits.
+    #[inline(always)]
+    pub(super) fn warm_start(&mut self, va: &mut BodyVel, vb: &mut BodyVel) {
+        let (a, b) = (self.a, self.b);
+        // The linear change is the same direction for every point: sum the
+        // impulses (exactly) and scale once per constraint.
+        let mut total = Scalar::ZERO;
+        for cp in &mut self.points[..self.count] {
+            cp.mark = Scalar::ZERO;
+            let ni = cp.normal_impulse;
+            if ni.is_zero() {
+                continue;
+            }
+            total += ni;
+            push_angular(va, vb, a, b, ni, cp.ia_n, cp.ib_n);
+        }
+        self.warm_total = total;
+        let f = &mut self.patch;
+        f.mark = [Scalar::ZERO; 3];
+        let [i0, i1] = f.tangent_impulse;
+        let iw = f.twist_impulse;
+        if !(i0.is_zero() && i1.is_zero() && iw.is_zero()) {
+            if a != NONE {
+                va.w -= combine3(f.ia_t[0], i0, f.ia_t[1], i1, f.ia_w, iw);
+            }
+            if b != NONE {
+                vb.w += combine3(f.ib_t[0], i0, f.ib_t[1], i1, f.ib_w, iw);
+            }
+        }
+        apply_linear(self, va, vb, [total, i0, i1]);
     }
 }

@@ -40,8 +40,10 @@
 //! (constraint) order; the visit order sorted by (level, constraint index),
 //! a total key.
 
+use super::ContactSolver;
+use super::constraint::{NONE, SeparationFrame};
+use super::params::SolverParams;
 use super::rows::{angular_along, inverse_or_zero, load, mul, round_wide, scale, store};
-use super::{ContactSolver, NONE, SeparationFrame, SolverParams};
 use crate::collision::MAX_MANIFOLD_POINTS;
 use crate::math::Scalar;
 

@@ -26,8 +26,9 @@
 //! x86_64 CPUs with AVX-512 F and IFMA, found at run time, take the lanes;
 //! every other machine runs the scalar rows, to the same bits.
 
-use super::SolverParams;
-use super::{Constraint, Visit};
+use super::constraint::Constraint;
+use super::params::SolverParams;
+use super::pass::Visit;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Constraints per batch.
@@ -135,9 +136,12 @@ pub(super) fn points(
 
 #[cfg(target_arch = "x86_64")]
 mod ifma {
-    use super::super::{ConstraintPoint, MAX_MANIFOLD_POINTS, NONE};
-    use super::{Constraint, LANES, Visit};
+    use super::super::constraint::{ConstraintPoint, NONE};
+    use super::super::wide::LANES;
+    use crate::collision::MAX_MANIFOLD_POINTS;
     use crate::math::Vec3;
+    use crate::solver::contact_solver::constraint::Constraint;
+    use crate::solver::contact_solver::pass::Visit;
     use core::arch::x86_64::*;
     use std::mem::{offset_of, size_of};
 

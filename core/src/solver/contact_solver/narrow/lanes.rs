@@ -23,13 +23,13 @@
 // step over the eight lanes is what the compiler turns into vector code.
 #![allow(clippy::needless_range_loop)]
 
+use super::super::rows::BodyArrays;
 use super::{
     Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NarrowRows, PoseQ, ROW_LIMIT, ROWS, Row, T0, TW,
     VisitArgs, add_momenta, bias_of, clamp_to_disc, limits_for, limits_of, normal_total_of,
     separations,
 };
 use crate::math::Scalar;
-use crate::solver::contact_solver::rows::BodyArrays;
 
 /// Constraints per batch.
 pub(in crate::solver::contact_solver) const LANES: usize = 8;
@@ -712,11 +712,13 @@ struct Vels64 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{LIMIT, Quanta, ROWS, S, flush, quantize};
+    use super::super::{LIMIT, ROWS};
     use super::*;
     use crate::math::{Scalar, Vec3};
+    use crate::solver::contact_solver::constraint::NONE;
+    use crate::solver::contact_solver::params::{Softness, SolverParams};
+    use crate::solver::contact_solver::quanta::{Quanta, S, flush, quantize};
     use crate::solver::contact_solver::rows::BodyArrays;
-    use crate::solver::contact_solver::{NONE, Softness, SolverParams};
 
     /// SplitMix64.
     struct Rng(u64);

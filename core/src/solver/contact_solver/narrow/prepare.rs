@@ -3,9 +3,10 @@
 //! constraint's largest entry fits 31 bits), the entries, and the
 //! accumulated impulses in velocity units (see the parent module).
 
+use super::super::constraint::Constraint;
 use super::super::rows::{mul, round_wide};
-use super::super::{Constraint, MAX_MANIFOLD_POINTS};
 use super::{LIMIT, MAX_EXP, MIN_EXP, N_EXP, NarrowRows, R_EXP, ROWS, Row, S, SEP0_LIMIT, T0, TW};
+use crate::collision::manifold::MAX_MANIFOLD_POINTS;
 use crate::math::{Scalar, Vec3};
 
 /// A Q32.32 value at `2^e` (`e ≤ 62`), rounded as [`super::rsh`]; the caller
