@@ -95,8 +95,8 @@ pub(crate) fn rsqrt_q61(x: u64) -> i64 {
 /// takes a table seed, two Newton steps for 1/√n, one Newton step for √n using that
 /// reciprocal (landing within one unit of the root), and an exact integer
 /// fix-up against `n` itself, so the result is always the floor.
-/// Lengths and normalisation in [`Vec3`](super::Vec3) and
-/// [`Quat`](super::Quat) rest on it.
+/// Lengths and normalisation in [`Vec3`](super::vec3::Vec3) and
+/// [`Quat`](super::quat::Quat) rest on it.
 #[inline]
 pub fn isqrt_u128(n: u128) -> u64 {
     if n == 0 {

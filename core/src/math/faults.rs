@@ -3,7 +3,7 @@
 //! Fixed-point arithmetic can overflow, and a division by zero or the square
 //! root of a negative number has no answer. None of these may panic (a peer
 //! that panics has desynced) and none may pass silently. Every operation in
-//! [`crate::math`] that can fail returns a deterministic value (saturated, or
+//! the math module that can fail returns a deterministic value (saturated, or
 //! zero where documented) and raises a flag here.
 //!
 //! The flags live in a thread-local cell so that the arithmetic operators need

@@ -8,8 +8,8 @@
 //! * `*` and `/` round to nearest, ties away from zero, so `(-a) * b == -(a * b)`
 //!   bit for bit (no drift toward −∞);
 //! * every operation that can overflow saturates and raises
-//!   [`Faults::OVERFLOW`](super::Faults::OVERFLOW); division by zero saturates
-//!   and raises [`Faults::DIV_BY_ZERO`](super::Faults::DIV_BY_ZERO). Nothing
+//!   [`Faults::OVERFLOW`](super::faults::Faults::OVERFLOW); division by zero saturates
+//!   and raises [`Faults::DIV_BY_ZERO`](super::faults::Faults::DIV_BY_ZERO). Nothing
 //!   panics, whatever the build profile.
 //!
 //! Conversions to and from floats exist only for the edges (printing,

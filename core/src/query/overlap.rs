@@ -23,7 +23,7 @@ pub(crate) fn raw_box(b: &Aabb) -> RawBox {
 /// or height field whose box touches `local` (the shape's local frame), in a
 /// fixed order, until `f` returns `false`: mesh triangles by index; height
 /// field cells row by row, column by column, the two triangles of a cell in
-/// [`HeightField::cell_triangles`](crate::shape::HeightField::cell_triangles)
+/// [`HeightField::cell_triangles`](crate::shape::heightfield::HeightField::cell_triangles)
 /// order, numbered `2 · (row · (cols − 1) + col) + k`. Convex shapes have no
 /// triangles: nothing is called.
 ///

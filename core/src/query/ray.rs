@@ -8,7 +8,7 @@
 //! capsule, box, hull) or on its surface hits it at `t = 0` with the normal
 //! opposite the ray direction (as parry does for solid shapes): a shot fired
 //! from inside a wall is stopped by it, never let through. Exclude the
-//! shooter's own body with [`QueryFilter::exclude_bodies`](super::QueryFilter).
+//! shooter's own body with [`QueryFilter::exclude_bodies`](super::filter::QueryFilter).
 //! Meshes and height fields have no inside: their triangles are hit from
 //! either side, with the normal turned towards the ray's origin.
 //!
@@ -26,8 +26,9 @@
 //! 2¹⁵ m (the products of the triangle test fit Q32.32 there).
 
 use crate::collision::dynamic_tree::ray::{Frac, segment_box};
+use crate::collision::narrow::closest_point_on_segment;
 use crate::collision::narrow::gjk::{cross_wide, unit_from_wide};
-use crate::collision::narrow::{closest_point_on_segment, ratio01};
+use crate::collision::narrow::shared::ratio01;
 use crate::math::elem::isqrt_u128;
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::{Capsule, ConvexHull, Cuboid, HeightField, Shape, TriMesh};

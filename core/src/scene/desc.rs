@@ -1,7 +1,7 @@
 //! The scene description: plain data, fully validated, ready for a builder.
 //!
 //! Parsing and building are separate steps so that each can be tested alone:
-//! [`parse_scene`](super::parse_scene) turns text into these types and
+//! [`parse_scene`](super::parse::parse_scene) turns text into these types and
 //! checks everything that can be checked without building (ranges, names,
 //! references, index bounds), and the world builder turns them into bodies
 //! and shapes. Every number is already an exact [`Scalar`]; every rotation is

@@ -44,7 +44,7 @@ pub enum SceneErrorKind {
     Conflict,
 }
 
-/// A scene file rejected by [`parse_scene`](super::parse_scene).
+/// A scene file rejected by [`parse_scene`](super::parse::parse_scene).
 ///
 /// Displays as `file:line:column: message`, for example
 /// `arena.toml:14:8: body "crate_3", shape 1: unknown shape kind "cube" (expected one of: sphere, capsule, box, convex_hull, trimesh, heightfield)`.

@@ -71,7 +71,7 @@ impl Capsule {
     }
 
     /// `π r² · 2h + 4/3 π r³`, rounded once; saturates with
-    /// [`Faults::OVERFLOW`](crate::math::Faults) past the Q32.32 range. Zero
+    /// [`Faults::OVERFLOW`](crate::math::faults::Faults) past the Q32.32 range. Zero
     /// for invalid dimensions.
     pub fn volume(&self) -> Scalar {
         if Capsule::new(self.half_height, self.radius).is_err() {

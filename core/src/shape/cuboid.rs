@@ -62,7 +62,7 @@ impl Cuboid {
     }
 
     /// `8 hx hy hz`, rounded once; saturates with
-    /// [`Faults::OVERFLOW`](crate::math::Faults) past the Q32.32 range. Zero
+    /// [`Faults::OVERFLOW`](crate::math::faults::Faults) past the Q32.32 range. Zero
     /// for invalid half-extents.
     pub fn volume(&self) -> Scalar {
         if Cuboid::new(self.half_extents).is_err() {

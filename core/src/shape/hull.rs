@@ -333,7 +333,7 @@ impl ConvexHull {
     /// Everything is accumulated exactly (up to 768 bits) and each output
     /// number is rounded once, so each is within half an ulp of the exact
     /// value for the polytope of the (Q32.32) vertices. In particular the
-    /// hull of a box's corners gives the same bits as [`Cuboid`](super::Cuboid).
+    /// hull of a box's corners gives the same bits as [`Cuboid`](super::cuboid::Cuboid).
     /// With the centroid `c = s / 4d` and
     /// `C = (4 d q − 5 s sᵀ) / 480 d` (the covariance about `c`), the
     /// inertia is `ρ (tr C · 1 − C)`.

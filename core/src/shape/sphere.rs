@@ -52,7 +52,7 @@ impl Sphere {
     }
 
     /// `4/3 π r³`, rounded once from the exact product (π carried to 125
-    /// bits); saturates with [`Faults::OVERFLOW`](crate::math::Faults) past
+    /// bits); saturates with [`Faults::OVERFLOW`](crate::math::faults::Faults) past
     /// the Q32.32 range (radius above about 800 m). Zero for an invalid
     /// (non-positive) radius.
     pub fn volume(&self) -> Scalar {

@@ -102,10 +102,9 @@ use iterate::*;
 use params::*;
 pub(crate) use params::{Softness, SolverParams, SolverStats};
 use pass::*;
-use prepare::*;
 
 use color::{COLORS, Coloring};
-use constraint::{BodyVel, Constraint, ConstraintPoint, NONE, SolverBody};
+use constraint::{BodyVel, Constraint, NONE, Pending, ShockRow, SolverBody};
 
 use crate::workers::{SharedMut, Workers};
 
@@ -173,7 +172,7 @@ pub(crate) struct ContactSolver {
     /// [`shock`]).
     level: Vec<u32>,
     /// The shock pass's visits, in order (see [`shock`]).
-    shock: Vec<shock::ShockRow>,
+    shock: Vec<ShockRow>,
     /// Warm starts (substeps) since `prepare`: the point each manifold's
     /// solve starts from.
     substeps: u32,

@@ -62,9 +62,9 @@
 
 use crate::body::{BodyHandle, BodyHot, BodyKind};
 use crate::collider::Collider;
+use crate::collision::ProxyId;
 use crate::collision::narrow::gjk::{DistanceResult, SupportShape, distance};
 use crate::collision::toi::{Motion, Toi, ToiSettings, shape_pose, time_of_impact};
-use crate::collision::{ProxyId, ProxyKey};
 use crate::math::elem::isqrt_u128;
 use crate::math::{Aabb, Quat, Scalar, Transform, Vec3};
 use crate::query::overlap::{box_in_frame, for_each_triangle, raw_box};
@@ -95,18 +95,6 @@ pub const CCD_MAX_ITERATIONS: usize = 32;
 /// Bodies moving more than this fraction of their smallest extent in one
 /// tick are swept: ¼ (the speculative contacts handle slower ones).
 pub const CCD_MOTION_FRACTION: Scalar = Scalar::from_bits(1 << 30);
-
-/// Continuous collision's reusable buffers.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct CcdScratch {
-    /// Centre of mass and rotation of every body slot at the start of the
-    /// tick.
-    start: Vec<(Vec3, Quat)>,
-    /// This tick's candidate bodies.
-    movers: Vec<BodyHandle>,
-    /// The target colliders of one candidate, sorted.
-    keys: Vec<ProxyKey>,
-}
 
 /// What the CCD stage did.
 #[derive(Clone, Copy, Debug, Default)]

@@ -190,7 +190,7 @@ impl World {
     /// the shape moves towards it, and no hit when it slides along or away.
     ///
     /// The fraction is safe (the shape placed there does not overlap the
-    /// collider) and within [`SWEEP_TOLERANCE`](crate::query::SWEEP_TOLERANCE)
+    /// collider) and within [`SWEEP_TOLERANCE`](crate::query::sweep::SWEEP_TOLERANCE)
     /// of the exact contact along the normal; see [`crate::query::sweep`].
     ///
     /// # Errors

@@ -7,14 +7,13 @@ use crate::arena::Arena;
 use crate::body::{BodyHandle, BodySet};
 use crate::collider::{Collider, ColliderHandle};
 use crate::collision::{BroadPhase, ContactEvent, ContactPair, ContactSet, ProxyKey};
-use crate::math::{Faults, Scalar, Vec3};
+use crate::math::{Faults, Quat, Scalar, Vec3};
 use crate::solver::contact_solver::ContactSolver;
 use crate::solver::sleep::IslandScratch;
 
 use crate::workers::{MAX_WORKERS, Workers};
 
 use super::body_ref::BodyRef;
-use super::ccd::CcdScratch;
 use super::config::{WorldConfig, WorldError};
 use super::joint_set::JointSet;
 use super::poses::ColliderPoses;
@@ -322,4 +321,16 @@ impl World {
     pub fn game_state_mut(&mut self) -> &mut crate::game_state::GameState {
         &mut self.game
     }
+}
+
+/// Continuous collision's reusable buffers.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct CcdScratch {
+    /// Centre of mass and rotation of every body slot at the start of the
+    /// tick.
+    pub(super) start: Vec<(Vec3, Quat)>,
+    /// This tick's candidate bodies.
+    pub(super) movers: Vec<BodyHandle>,
+    /// The target colliders of one candidate, sorted.
+    pub(super) keys: Vec<ProxyKey>,
 }

@@ -5,7 +5,7 @@
 
 use super::clip::{ClipPolygon, ClipVertex, MAX_CLIP_VERTICES, clip_polygon};
 use super::segment::closest_points_segments;
-use super::{push_point, relative_pose, sat_tolerance};
+use super::shared::{push_point, relative_pose, sat_tolerance};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Mat3, Scalar, Transform, Vec3};
 use crate::shape::Cuboid;

@@ -5,9 +5,9 @@
 
 use super::clip::clip_segment_to_face;
 use super::segment::closest_points_segments;
+use super::shared::{push_point, relative_direction, relative_position, sat_tolerance};
 use super::sphere_box::box_region;
 use super::sphere_capsule::segment_feature;
-use super::{push_point, relative_direction, relative_position, sat_tolerance};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::{Capsule, Cuboid};

@@ -3,8 +3,8 @@
 //! rests on a line, not a single point.
 
 use super::segment::closest_points_segments;
+use super::shared::{perpendicular_fallback, push_point, relative_direction, relative_position};
 use super::sphere_capsule::segment_feature;
-use super::{perpendicular_fallback, push_point, relative_direction, relative_position};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::Capsule;

@@ -2,7 +2,7 @@
 //! a polygon against the side planes of a reference face, and a segment
 //! against a face's rectangle.
 
-use super::ratio01;
+use super::shared::ratio01;
 use crate::math::{Scalar, Vec3};
 
 /// The most vertices a clipped polygon can have: a quadrilateral clipped by

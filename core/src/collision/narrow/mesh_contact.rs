@@ -42,7 +42,7 @@
 //! points live in fixed arrays on the stack.
 
 use super::gjk::Rel;
-use super::relative_pose;
+use super::shared::relative_pose;
 use super::triangle::{Axis, Convex, TriPoint, TriSat, Triangle, triangle_points, triangle_sat};
 use crate::collision::manifold::{ContactPoint, FeatureId, Manifold};
 use crate::math::{Aabb, Scalar, Transform, Vec3};

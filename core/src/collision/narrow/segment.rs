@@ -7,7 +7,7 @@
 //! below about 2¹⁵ m); the pair functions guarantee it by rejecting far
 //! pairs before calling these and by working relative to one shape.
 
-use super::{ratio01, widen};
+use super::shared::{ratio01, widen};
 use crate::math::{Scalar, Vec3};
 
 /// The closest point to `p` on the segment `a`–`b`: its parameter `t` in

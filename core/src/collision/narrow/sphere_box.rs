@@ -1,7 +1,7 @@
 //! Sphere against box: the sphere's centre clamped to the box, or pushed out
 //! through the nearest face when it is inside.
 
-use super::{push_point, relative_position};
+use super::shared::{push_point, relative_position};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::{Cuboid, Sphere};

@@ -2,7 +2,7 @@
 //! segment.
 
 use super::segment::closest_point_on_segment;
-use super::{perpendicular_fallback, push_point, relative_direction, relative_position};
+use super::shared::{perpendicular_fallback, push_point, relative_direction, relative_position};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::{Capsule, Sphere};

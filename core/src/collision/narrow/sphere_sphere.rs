@@ -1,6 +1,6 @@
 //! Sphere against sphere: the centre line is the normal.
 
-use super::{push_point, relative_position};
+use super::shared::{push_point, relative_position};
 use crate::collision::manifold::{FeatureId, Manifold};
 use crate::math::{Scalar, Transform, Vec3};
 use crate::shape::Sphere;

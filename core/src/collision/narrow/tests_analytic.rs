@@ -3,8 +3,10 @@
 //! swapping, agreement with f64 closed forms, points on both surfaces),
 //! plus the helpers the box tests share.
 
+use super::super::manifold::FeatureId;
+use super::shared::sat_tolerance;
 use super::*;
-use crate::math::Quat;
+use crate::math::{Quat, Vec3};
 use crate::shape::{Capsule, Cuboid, Sphere};
 
 pub(super) use crate::testing::{s, v};

@@ -2,9 +2,13 @@
 //! configurations with exact numbers, agreement with f64 references over
 //! seeded random poses, a box resting on a ground box, and the timing figure.
 
+use super::super::manifold::FeatureId;
 use super::box_box::{BoxAxis, box_sat};
+use super::shared::relative_pose;
+use super::shared::sat_tolerance;
 use super::tests_analytic::*;
 use super::*;
+use crate::math::Vec3;
 use crate::math::{Mat3, Quat};
 use crate::shape::Cuboid;
 

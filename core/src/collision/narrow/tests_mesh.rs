@@ -3,6 +3,7 @@
 use super::tests_analytic::*;
 use super::*;
 use crate::math::Aabb;
+use crate::math::Vec3;
 use crate::shape::{ConvexHull, Cuboid, HeightField, TriMesh};
 
 /// A flat square floor at `y = 0` over `[−half, half]²`, split into

@@ -32,7 +32,7 @@
 //! is CCD's business), and a winning axis pointing into its back half-space
 //! is replaced by the face normal. A winning axis that comes from an
 //! inactive edge (shared with a coplanar or concave neighbour, see
-//! [`TriMesh::edge_active`](crate::shape::TriMesh::edge_active)) or from a
+//! [`TriMesh::edge_active`](crate::shape::trimesh::TriMesh::edge_active)) or from a
 //! corner both of whose edges in this triangle are inactive is also
 //! replaced by the face normal, so a box sliding over a flat mesh never
 //! sees a seam.
@@ -46,7 +46,7 @@
 //! (`triangle_points`), which reads the shape view's private parts.
 
 use super::segment::{closest_point_on_segment, closest_points_segments};
-use super::{BOX_FACE_LOOPS, sat_tolerance};
+use super::shared::{BOX_FACE_LOOPS, sat_tolerance};
 use crate::math::{Scalar, Vec3};
 use crate::shape::{Capsule, ConvexHull, Cuboid, Sphere};
 

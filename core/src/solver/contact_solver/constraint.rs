@@ -246,3 +246,35 @@ pub(super) struct Patch {
     /// angular impulses.
     pub(super) mark: [Scalar; 3],
 }
+
+/// What `prepare`'s first scan found for one candidate pair, before its
+/// constraint's place in colour order is known.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Pending {
+    /// Whether the pair makes a constraint this tick (solid, with points,
+    /// and a moving dynamic body); if not, the rest is unset.
+    pub(super) used: bool,
+    pub(super) pair: u32,
+    /// Slots of the moving bodies (`NONE` for a static or sleeping one).
+    pub(super) a: u32,
+    pub(super) b: u32,
+    /// Slots of the moving dynamic bodies, the ones a colour takes (`NONE`
+    /// for any other).
+    pub(super) dyn_a: u32,
+    pub(super) dyn_b: u32,
+    pub(super) friction: Scalar,
+    pub(super) restitution: Scalar,
+    pub(super) rounding: [Scalar; 2],
+}
+
+/// One visit of the shock pass: a constraint and which of its bodies is
+/// the upper one (the one that moves).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+pub(super) struct ShockRow {
+    /// The lower body's level (sort key first).
+    pub(super) level: u32,
+    /// Index of the constraint (second key: unique, so the order is total).
+    pub(super) constraint: u32,
+    /// Whether the upper body is B (else A).
+    pub(super) upper_is_b: bool,
+}

@@ -2,7 +2,7 @@
 //! contact pairs, in pair or colour order; and the lanes' batches.
 
 use super::color::COLORS;
-use super::constraint::{BodyVel, Constraint, NONE, SolverBody};
+use super::constraint::{BodyVel, Constraint, NONE, Pending, SolverBody};
 use super::iterate::{BLOCK, Both, PREFETCH_AHEAD};
 use super::narrow::lanes::{Batch, LANES};
 use super::narrow::{self, NarrowRows};
@@ -18,26 +18,6 @@ use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind};
 use crate::math::{Mat3, Scalar, SymMat3, Vec3};
 use crate::workers::{SharedMut, Workers};
 use std::sync::atomic::{AtomicU32, Ordering};
-
-/// What `prepare`'s first scan found for one candidate pair, before its
-/// constraint's place in colour order is known.
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct Pending {
-    /// Whether the pair makes a constraint this tick (solid, with points,
-    /// and a moving dynamic body); if not, the rest is unset.
-    pub(super) used: bool,
-    pub(super) pair: u32,
-    /// Slots of the moving bodies (`NONE` for a static or sleeping one).
-    pub(super) a: u32,
-    pub(super) b: u32,
-    /// Slots of the moving dynamic bodies, the ones a colour takes (`NONE`
-    /// for any other).
-    pub(super) dyn_a: u32,
-    pub(super) dyn_b: u32,
-    pub(super) friction: Scalar,
-    pub(super) restitution: Scalar,
-    pub(super) rounding: [Scalar; 2],
-}
 
 /// Candidate pairs a worker scans at a time in `prepare`.
 pub(super) const SCAN_BLOCK: usize = 64;

@@ -41,7 +41,7 @@
 //! a total key.
 
 use super::ContactSolver;
-use super::constraint::{NONE, SeparationFrame};
+use super::constraint::{NONE, SeparationFrame, ShockRow};
 use super::params::SolverParams;
 use super::rows::{angular_along, inverse_or_zero, load, mul, round_wide, scale, store};
 use crate::collision::MAX_MANIFOLD_POINTS;
@@ -55,18 +55,6 @@ const UNREACHED: u32 = u32::MAX;
 /// so the points of one manifold converge among themselves quickly, but one
 /// sweep from a fixed point left the body turning.
 const SWEEPS: usize = 3;
-
-/// One visit of the shock pass: a constraint and which of its bodies is
-/// the upper one (the one that moves).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
-pub(super) struct ShockRow {
-    /// The lower body's level (sort key first).
-    level: u32,
-    /// Index of the constraint (second key: unique, so the order is total).
-    constraint: u32,
-    /// Whether the upper body is B (else A).
-    upper_is_b: bool,
-}
 
 impl ContactSolver {
     /// Levels of the solver bodies through the high-ratio contacts and the

@@ -6,8 +6,8 @@
 
 use std::mem::MaybeUninit;
 
-use super::super::BOX_FACE_LOOPS;
 use super::super::gjk::Rel;
+use super::super::shared::BOX_FACE_LOOPS;
 use super::{MAX_SAT_EDGES, MAX_SAT_FACES, MAX_SAT_VERTICES};
 use crate::math::{Scalar, Vec3};
 use crate::shape::sat_features::{Balls, NO_FACE};

@@ -14,8 +14,8 @@
 //! 0 for the face, 1–3 for edges and 4–6 for corners.
 
 use super::{Axis, Convex, Kind, MAX_POLY, TriFeature, TriSat, Triangle, closest_on_triangle};
-use crate::collision::narrow::ratio01;
 use crate::collision::narrow::segment::closest_points_segments;
+use crate::collision::narrow::shared::ratio01;
 use crate::math::{Scalar, Vec3};
 
 /// A clipped polygon on a fixed buffer, each vertex with a 12-bit label.

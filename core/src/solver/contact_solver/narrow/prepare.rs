@@ -208,7 +208,7 @@ pub(in crate::solver::contact_solver) fn prepare(
             im,
         )
     });
-    let point = |cp: &super::super::ConstraintPoint| {
+    let point = |cp: &super::super::constraint::ConstraintPoint| {
         (n, cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n, cp.normal_mass)
     };
     // The exponents, from the largest entries of every row (the normal and
