@@ -100,8 +100,9 @@ impl World {
     }
 
     /// Sets the game's opaque value for a body (an entity id, a team, a
-    /// kind; also given at creation, [`BodyDesc::user_data`]). It is state
-    /// like the body's pose: in the body's hash (when not zero), in
+    /// kind; also given at creation,
+    /// [`BodyDesc::user_data`](crate::body::BodyDesc::user_data)). It is
+    /// state like the body's pose: in the body's hash (when not zero), in
     /// snapshots, and in a desync report's fields.
     ///
     /// # Errors
@@ -113,7 +114,8 @@ impl World {
     }
 
     /// Marks a dynamic body as a bullet or not (see
-    /// [`BodyDesc::bullet`]); ignored for static and kinematic bodies.
+    /// [`BodyDesc::bullet`](crate::body::BodyDesc::bullet)); ignored for
+    /// static and kinematic bodies.
     ///
     /// # Errors
     /// [`WorldError::InvalidBody`].

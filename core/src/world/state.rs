@@ -156,6 +156,8 @@ impl World {
     /// count is in neither the state hash nor snapshots: a restored world
     /// has one worker until this is called, a clone as many as the world
     /// it was cloned from.
+    ///
+    /// [`ContactOrder::Colors`]: super::config::ContactOrder::Colors
     pub fn set_workers(&mut self, count: usize) {
         if count.clamp(1, MAX_WORKERS) != self.workers.count() {
             self.workers = Workers::new(count);
@@ -180,6 +182,8 @@ impl World {
     ///
     /// Only with the `wide` cargo feature: an experiment, not a setting a
     /// game needs.
+    ///
+    /// [`ContactOrder::Colors`]: super::config::ContactOrder::Colors
     #[cfg(feature = "wide")]
     pub fn set_wide(&mut self, on: bool) {
         self.solver.set_wide(on);
@@ -207,6 +211,10 @@ impl World {
     /// Not simulation state: the lanes compute the scalar rows' bits, so
     /// the setting is in neither the state hash nor snapshots (a restored
     /// world has them off).
+    ///
+    /// [`ContactOrder::Colors`]: super::config::ContactOrder::Colors
+    /// [`ContactRows::Narrow`]: super::config::ContactRows::Narrow
+    /// [`StepReport::lane_batches`]: super::config::StepReport::lane_batches
     pub fn set_lanes(&mut self, on: bool) {
         self.solver.set_lanes(on);
     }
