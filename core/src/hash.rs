@@ -13,9 +13,9 @@
 //! finaliser so that nearby states give unrelated hashes.
 
 /// Initial value: the ASCII bytes of "lockstep", big-endian.
-pub const HASH_SEED: u64 = 0x6c6f_636b_7374_6570;
+pub(crate) const HASH_SEED: u64 = 0x6c6f_636b_7374_6570;
 /// The odd multiplier (2⁶⁴/φ).
-pub const HASH_MULTIPLIER: u64 = 0x9e37_79b9_7f4a_7c15;
+pub(crate) const HASH_MULTIPLIER: u64 = 0x9e37_79b9_7f4a_7c15;
 
 /// A word-at-a-time hasher with a fixed, documented algorithm.
 #[derive(Clone, Copy, Debug)]
@@ -107,7 +107,7 @@ impl StateHasher {
 /// A fingerprint of a shape's geometry, computed once when a collider is
 /// added (shapes never change afterwards). The words, per kind, are listed
 /// in `docs/determinism.md`.
-pub fn shape_hash(shape: &crate::shape::Shape) -> u64 {
+pub(crate) fn shape_hash(shape: &crate::shape::Shape) -> u64 {
     use crate::shape::Shape;
     let mut h = StateHasher::new();
     match shape {

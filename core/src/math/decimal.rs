@@ -6,7 +6,7 @@
 //! themselves, so `"0.1"` always becomes the Q32.32 value nearest to 1/10
 //! (ties away from zero), on every machine. Formatting is exact too: every
 //! Q32.32 value has a finite decimal expansion of at most 32 fraction digits,
-//! and [`format_exact`] prints all of them (minus trailing zeros), so printing
+//! and `format_exact` prints all of them (minus trailing zeros), so printing
 //! and parsing round-trip bit for bit.
 
 use std::fmt;
@@ -63,7 +63,7 @@ impl std::error::Error for ParseDecimalError {}
 ///
 /// # Errors
 /// See [`ParseDecimalError`].
-pub fn parse_exact(text: &str) -> Result<Scalar, ParseDecimalError> {
+pub(crate) fn parse_exact(text: &str) -> Result<Scalar, ParseDecimalError> {
     parse_exact_const(text)
 }
 
@@ -78,7 +78,7 @@ pub fn parse_exact(text: &str) -> Result<Scalar, ParseDecimalError> {
 ///
 /// # Errors
 /// See [`ParseDecimalError`].
-pub const fn parse_exact_const(text: &str) -> Result<Scalar, ParseDecimalError> {
+pub(crate) const fn parse_exact_const(text: &str) -> Result<Scalar, ParseDecimalError> {
     let bytes = text.as_bytes();
     if bytes.is_empty() {
         return Err(ParseDecimalError::Empty);
@@ -270,7 +270,7 @@ const fn parse_exponent_const(bytes: &[u8], start: usize) -> Result<i64, ParseDe
 /// The exact decimal value of `v`: an optional `-`, the integer part, and,
 /// when the value is not an integer, `.` and up to 32 fraction digits with
 /// trailing zeros removed.
-pub fn format_exact(v: Scalar) -> String {
+pub(crate) fn format_exact(v: Scalar) -> String {
     let bits = v.to_bits();
     let magnitude = bits.unsigned_abs();
     let int_part = magnitude >> 32;

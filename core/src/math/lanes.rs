@@ -1,7 +1,7 @@
 //! Eight Q32.32 products at once, with exactly the bits of one at a time.
 //!
 //! The contact solver rounds a product to nearest with ties toward +∞
-//! ([`mul_round_up`]): `(a·b + 2³¹) >> 32` on the 128-bit product, narrowed
+//! (`mul_round_up`): `(a·b + 2³¹) >> 32` on the 128-bit product, narrowed
 //! to 64 bits with the overflow fault. [`mul_slice`] computes a slice of
 //! them, eight at a time.
 //!
@@ -17,7 +17,7 @@
 //!   at 2⁴³ or more). The scalar twin also raises the overflow fault where
 //!   the product overflows; the lanes never see such a product.
 //! - Everywhere else (i686, aarch64, x86_64 without IFMA, or with the lanes
-//!   turned off) the scalar twin runs: [`mul_round_up`] eight times.
+//!   turned off) the scalar twin runs: `mul_round_up` eight times.
 //!
 //! It counts the batches each path computed ([`LaneCounts`]), so a caller
 //! can report those the guard sent to the scalar twin.
@@ -30,13 +30,13 @@
 use super::scalar::{self, Scalar};
 
 /// Lanes per batch.
-pub const LANES: usize = 8;
+pub(crate) const LANES: usize = 8;
 
 /// `a·b` rounded to nearest with ties toward +∞ and saturated with the
 /// overflow fault: the contact solver's product, and the scalar twin of
 /// one lane of [`mul_slice`].
 #[inline(always)]
-pub fn mul_round_up(a: Scalar, b: Scalar) -> Scalar {
+pub(crate) fn mul_round_up(a: Scalar, b: Scalar) -> Scalar {
     narrow((a.to_bits() as i128 * b.to_bits() as i128 + (1i128 << 31)) >> 32)
 }
 
@@ -74,7 +74,7 @@ pub struct LaneCounts {
 }
 
 /// `out[i] = a[i]·b[i]` over three slices of one length, each with the bits
-/// of [`mul_round_up`]: whole batches of eight on the IFMA lanes when
+/// of `mul_round_up`: whole batches of eight on the IFMA lanes when
 /// `lanes` is set and the CPU has them (a batch the guard refuses goes to
 /// the scalar twin), the rest on the twin. Counts the batches per path.
 ///

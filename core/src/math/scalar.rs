@@ -68,7 +68,7 @@ pub(crate) fn narrow(v: i128) -> i64 {
 /// such), saturating and raising the overflow fault if the sum leaves `i128`
 /// (only possible with operands near ±2³¹).
 #[inline(always)]
-pub fn wide_sum<const N: usize>(terms: [i128; N]) -> i128 {
+pub(crate) fn wide_sum<const N: usize>(terms: [i128; N]) -> i128 {
     let mut acc: i128 = 0;
     for t in terms {
         acc = match acc.checked_add(t) {
