@@ -18,6 +18,7 @@ pub mod joint;
 pub mod math;
 pub mod query;
 pub mod scene;
+mod scratch;
 pub mod shape;
 pub mod snapshot;
 pub(crate) mod solver;

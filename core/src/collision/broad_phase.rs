@@ -22,6 +22,7 @@ use thiserror::Error;
 
 use super::dynamic_tree::{DynamicTree, LeafId, TreeError};
 use crate::math::{Aabb, Scalar, Vec3};
+use crate::scratch::Capacities;
 
 /// The caller's name for a proxy (the world passes the collider handle).
 /// Pairs are ordered by it; keys must be unique among live proxies for the
@@ -528,12 +529,7 @@ impl BroadPhase {
     where
         F: FnMut(ProxyKey, ProxyKey) -> bool,
     {
-        let caps = [
-            self.new_pairs.capacity(),
-            self.merged.capacity(),
-            self.pairs.capacity(),
-            out.capacity(),
-        ];
+        let before = Capacities::of([&self.new_pairs, &self.merged, &self.pairs, &*out]);
         let mut stats = PairStats {
             moved_proxies: 0,
             reinsertions: std::mem::take(&mut self.reinsertions),
@@ -648,17 +644,8 @@ impl BroadPhase {
         out.extend(pairs.iter().map(|p| (p.a, p.b)));
         stats.pairs_total = pairs.len() as u32;
 
-        let caps_after = [
-            new_pairs.capacity(),
-            pairs.capacity(), // swapped with `merged`
-            merged.capacity(),
-            out.capacity(),
-        ];
-        let grew = caps
-            .iter()
-            .zip(caps_after.iter())
-            .filter(|(a, b)| a != b)
-            .count() as u32;
+        // `pairs` and `merged` swapped: each buffer against itself.
+        let grew = Capacities::of([&*new_pairs, &*pairs, &*merged, &*out]).growths_since(&before);
         stats.buffer_growths = std::mem::take(&mut self.growths) + grew;
         self.last = stats;
         stats

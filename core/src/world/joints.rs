@@ -5,6 +5,7 @@
 use crate::body::{BodyHandle, BodyKind};
 use crate::joint::{Joint, JointDesc, JointEvent, JointHandle, JointImpulses, JointKind, Motor};
 use crate::math::{Scalar, Transform};
+use crate::scratch::Capacities;
 
 use super::config::WorldError;
 use super::joint_set::validate;
@@ -211,7 +212,7 @@ impl World {
     /// list grew (an allocation).
     pub(crate) fn stage_break_joints(&mut self) -> (u32, bool) {
         self.joint_events.clear();
-        let cap = self.joint_events.capacity();
+        let before = Capacities::of([&self.joint_events]);
         let inv_h = Scalar::from_int((self.config.tick_rate * self.config.substeps) as i32);
         let World {
             joints,
@@ -239,6 +240,9 @@ impl World {
             let JointEvent::Broken { joint, .. } = self.joint_events[i];
             let _ = self.remove_joint(joint);
         }
-        (n as u32, self.joint_events.capacity() != cap)
+        (
+            n as u32,
+            Capacities::of([&self.joint_events]).grew_since(&before),
+        )
     }
 }

@@ -31,6 +31,7 @@
 
 use super::constraint::NONE;
 use crate::collision::contacts::reserve_near;
+use crate::scratch::Scratch;
 
 /// Colours before the overflow. A box in a pyramid touches at most six
 /// dynamic neighbours and greedy colouring needs at most twice that; a
@@ -152,13 +153,9 @@ impl Coloring {
         self.color[k] as usize
     }
 
-    /// Heap bytes reserved (for the capacity check of `prepare`).
-    pub(crate) fn capacities(&self) -> (usize, usize, usize) {
-        (
-            self.taken.capacity(),
-            self.color.capacity(),
-            self.slots.capacity(),
-        )
+    /// The buffers, for the growth check of `prepare`.
+    pub(crate) fn buffers(&self) -> [&dyn Scratch; 3] {
+        [&self.taken, &self.color, &self.slots]
     }
 }
 

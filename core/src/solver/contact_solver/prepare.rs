@@ -16,6 +16,7 @@ use crate::body::{BodyHot, BodyKind};
 use crate::collision::contacts::reserve_near;
 use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PairKind};
 use crate::math::{Mat3, Scalar, SymMat3, Vec3};
+use crate::scratch::Capacities;
 use crate::workers::{SharedMut, Workers};
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -391,7 +392,7 @@ impl ContactSolver {
         // 6. The lanes' batches: runs of eight constraints of one colour on
         //    the narrow rows with one point count, from each colour's start.
         self.batch_lanes(lanes);
-        let grew = self.capacities() != caps;
+        let grew = self.capacities().grew_since(&caps);
         let (colors, overflow) = self.coloring.report();
         SolverStats {
             constraints: self.constraints.len() as u32,
@@ -403,33 +404,33 @@ impl ContactSolver {
         }
     }
 
-    /// Every buffer's capacity: a tick whose `prepare` changed one grew a
-    /// buffer (`SolverStats::growths`).
-    fn capacities(&self) -> [usize; 21] {
-        let (c0, c1, c2) = self.coloring.capacities();
-        [
-            self.bodies.capacity(),
-            self.vels.capacity(),
-            self.dls.capacity(),
-            self.warm.capacity(),
-            self.quanta.capacity(),
-            self.quanta0.capacity(),
-            self.pq.capacity(),
-            self.body_of_slot.capacity(),
-            self.constraints.capacity(),
-            self.rows.capacity(),
-            self.batches.capacity(),
-            self.touched.capacity(),
-            self.heaviest.capacity(),
-            self.heavy.capacity(),
-            self.level.capacity(),
-            self.shock.capacity(),
-            self.pending.capacity(),
-            self.placed.capacity(),
+    /// The capacities of every buffer `prepare` fills: a tick that changed
+    /// one grew a buffer (`SolverStats::growths`).
+    fn capacities(&self) -> Capacities<21> {
+        let [c0, c1, c2] = self.coloring.buffers();
+        Capacities::of([
+            &self.bodies,
+            &self.vels,
+            &self.dls,
+            &self.warm,
+            &self.quanta,
+            &self.quanta0,
+            &self.pq,
+            &self.body_of_slot,
+            &self.constraints,
+            &self.rows,
+            &self.batches,
+            &self.touched,
+            &self.heaviest,
+            &self.heavy,
+            &self.level,
+            &self.shock,
+            &self.pending,
+            &self.placed,
             c0,
             c1,
             c2,
-        ]
+        ])
     }
 
     /// Step 6 of [`prepare`](Self::prepare): copies the constants of every
