@@ -1,6 +1,7 @@
 //! The solver's row arithmetic: relative velocities along a direction,
 //! impulse application, and the products and roundings the passes use
-//! (ties toward +∞, see [`mul`]). Kept apart from the passes so the passes
+//! (ties toward +∞, see [`mul`]; the ones on plain numbers and vectors are
+//! in `arith`, re-exported here). Kept apart from the passes so the passes
 //! read as the algorithm.
 
 use super::constraint::{BodyVel, Constraint, NONE, SolverBody};
