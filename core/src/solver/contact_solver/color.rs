@@ -163,24 +163,23 @@ impl Coloring {
 mod tests {
     use super::*;
 
-    /// A small LCG: the tests need varied graphs, not good randomness.
-    fn next(seed: &mut u64) -> u64 {
-        *seed = seed
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        *seed >> 33
+    use crate::testing::Rng;
+
+    /// The next draw of the workspace's test generator.
+    fn next(seed: &mut Rng) -> u64 {
+        seed.next_u64()
     }
 
     #[test]
     fn no_colour_holds_a_dynamic_body_twice() {
         let mut col = Coloring::default();
-        let mut seed = 7;
+        let mut seed = Rng::new(7);
         for round in 0..20 {
             let slots = 10 + (next(&mut seed) % 200) as u32;
             col.begin(slots as usize, true);
             let mut edges = Vec::new();
             for _ in 0..(slots * 3) {
-                let pick = |seed: &mut u64| {
+                let pick = |seed: &mut Rng| {
                     if next(seed).is_multiple_of(4) {
                         NONE
                     } else {

@@ -724,15 +724,12 @@ mod ifma {
             passed
         }
 
-        struct Draw(u64);
+        /// Draws from the workspace's test generator.
+        struct Draw(crate::testing::Rng);
 
         impl Draw {
             fn next(&mut self) -> u64 {
-                self.0 = self
-                    .0
-                    .wrapping_mul(6_364_136_223_846_793_005)
-                    .wrapping_add(1_442_695_040_888_963_407);
-                self.0
+                self.0.next_u64()
             }
 
             /// A signed value of 0 to `max_bits` bits.
@@ -756,7 +753,7 @@ mod ifma {
             if !lanes_here() {
                 return;
             }
-            let mut d = Draw(0x5EED);
+            let mut d = Draw(crate::testing::Rng::new(0x5EED));
             let (mut passed, mut refused) = (0, 0);
             for round in 0..40_000 {
                 let away = round % 2 == 0;
@@ -824,7 +821,7 @@ mod ifma {
             if !lanes_here() {
                 return;
             }
-            let mut d = Draw(0xD07);
+            let mut d = Draw(crate::testing::Rng::new(0xD07));
             let (mut passed, mut refused) = (0, 0);
             for round in 0..20_000 {
                 let bits = if round % 4 == 0 { 53 } else { 48 };
@@ -879,7 +876,7 @@ mod ifma {
             check([i64::MIN, 0, 0, 0, 0, 0, 0, 0], [1, 0, 0, 0, 0, 0, 0, 0]);
             check([0, 0, 0, i64::MIN, 0, 0, 0, 0], [0, 0, 0, -1, 0, 0, 0, 0]);
             check([-2, 0, 0, 0, 0, 0, 0, 0], [i64::MAX, 0, 0, 0, 0, 0, 0, 0]);
-            let mut d = Draw(0xADD);
+            let mut d = Draw(crate::testing::Rng::new(0xADD));
             for _ in 0..5_000 {
                 check(d.lanes(63), d.lanes(63));
             }

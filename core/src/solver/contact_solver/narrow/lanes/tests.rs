@@ -6,21 +6,23 @@ use crate::solver::contact_solver::params::{Softness, SolverParams};
 use crate::solver::contact_solver::quanta::{Quanta, S, flush, quantize};
 use crate::solver::contact_solver::rows::BodyArrays;
 
-/// SplitMix64.
-struct Rng(u64);
+use crate::testing::Rng;
 
-impl Rng {
+/// The draws these tests need, from the workspace's test generator.
+trait Draws {
+    fn next(&mut self) -> u64;
+    /// A value in `[-m, m]`.
+    fn within(&mut self, m: i64) -> i64;
+    fn i32s(&mut self, m: i64) -> [i32; 3];
+}
+
+impl Draws for Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        self.next_u64()
     }
 
-    /// A value in `[-m, m]`.
     fn within(&mut self, m: i64) -> i64 {
-        (self.next() % (2 * m as u64 + 1)) as i64 - m
+        (self.next_u64() % (2 * m as u64 + 1)) as i64 - m
     }
 
     fn i32s(&mut self, m: i64) -> [i32; 3] {
@@ -199,7 +201,7 @@ fn compare(
 
 #[test]
 fn every_lane_kernel_gives_the_twins_bits_and_refusals() {
-    let mut rng = Rng(17);
+    let mut rng = Rng::new(17);
     let (mut accepted, mut refused) = (0, 0);
     for round in 0..600 {
         let count = 1 + round % MAX_MANIFOLD_POINTS;
@@ -222,7 +224,7 @@ fn every_lane_kernel_gives_the_twins_bits_and_refusals() {
 
 #[test]
 fn the_lanes_warm_start_is_the_twins() {
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     for round in 0..200 {
         let (rows, _, _) = inputs(&mut rng, 1 + round % MAX_MANIFOLD_POINTS, 1 << 20, 1 << 30);
         let mut batch = Batch::default();
