@@ -2,7 +2,7 @@
 //! impulses, waking and sleeping.
 
 use crate::body::{BodyHandle, BodyHot, BodyKind};
-use crate::math::{FaultScope, Faults, Transform, Vec3};
+use crate::math::{FaultScope, Faults, Quat, Transform, Vec3};
 use crate::solver::integrate::{momentum_from_omega, omega_from_momentum};
 
 use super::awake::Toucher;
@@ -16,13 +16,15 @@ impl World {
 
     /// Teleports a body: its origin goes to `pose` (velocities kept, body
     /// woken). Use sparingly on dynamic bodies: it ignores everything in the
-    /// way.
+    /// way. A rotation that is already unit (as every pose the world reports
+    /// is) is kept bit for bit, so setting a body to its own pose changes
+    /// nothing it is hashed by; any other is normalized.
     ///
     /// # Errors
     /// [`WorldError::InvalidBody`].
     pub fn set_pose(&mut self, h: BodyHandle, pose: Transform) -> Result<(), WorldError> {
         let (hot, cold) = self.bodies.both_mut(h).ok_or(WorldError::InvalidBody(h))?;
-        let rotation = pose.rotation.normalize();
+        let rotation = unit_or_normalized(pose.rotation);
         hot.rotation = rotation;
         hot.center = pose.translation + rotation.rotate(cold.local_center);
         if hot.kind == BodyKind::Dynamic {
@@ -257,5 +259,20 @@ impl World {
         let faults = scope.finish();
         self.faults = self.faults.union(faults);
         (v, faults)
+    }
+}
+
+/// `q` itself if it is already a unit quaternion to within the rounding
+/// of [`Quat::normalize`] (`|‖q‖² − 1| ≤ 2⁻²⁸`, far wider than that
+/// rounding and far narrower than any rotation a game means), else `q`
+/// normalized. `normalize` is not idempotent to the last bit, so setting a
+/// body to the pose it reports would otherwise turn it by an ulp.
+fn unit_or_normalized(q: Quat) -> Quat {
+    const ONE: u128 = 1 << 64;
+    const TOLERANCE: u128 = 1 << 36;
+    if q.norm_squared_wide().abs_diff(ONE) <= TOLERANCE {
+        q
+    } else {
+        q.normalize()
     }
 }
