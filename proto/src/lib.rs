@@ -47,7 +47,8 @@ pub use replay::{
     ENGINE_VERSION, Replay, ReplayError, ReplayHeader, ReplayRecord, ReplayRecorder, RulesId,
 };
 pub use room::{
-    AlreadyStarted, ConfigError, JoinError, LeaveReason, MIN_PROBE_REPLY_BYTES, PlayerId,
-    PlayerStats, Rejection, Room, RoomConfig, RoomEvent, RoomStats, Transmit, Voting,
+    AlreadyStarted, ConfigError, JoinError, LeaveReason, MIN_PROBE_REPLY_BYTES, MatchLifecycle,
+    MatchPhase, PlayerId, PlayerStats, Rejection, Room, RoomConfig, RoomEvent, RoomStats, Transmit,
+    Voting,
 };
 pub use session::{Session, SessionError, SessionEvent, SessionStats};

@@ -675,7 +675,10 @@ impl ReplayRecorder {
             RoomEvent::LateInput { .. }
             | RoomEvent::DesyncSnapshot { .. }
             | RoomEvent::JoinSnapshot { .. }
-            | RoomEvent::JoinFromOwnState { .. } => {}
+            | RoomEvent::JoinFromOwnState { .. }
+            | RoomEvent::MatchStarted { .. }
+            | RoomEvent::MatchEnding { .. }
+            | RoomEvent::MatchOver { .. } => {}
         }
     }
 

@@ -14,15 +14,18 @@ mod config;
 mod errors;
 mod events;
 mod history;
+mod lifecycle;
 mod locate;
 mod player;
+mod timers;
 
 use std::collections::VecDeque;
 use std::time::Duration;
 
-pub use config::{ConfigError, MIN_PROBE_REPLY_BYTES, RoomConfig, Voting};
+pub use config::{ConfigError, MIN_PROBE_REPLY_BYTES, MatchLifecycle, RoomConfig, Voting};
 pub use errors::{AlreadyStarted, JoinError, Rejection};
 pub use events::{LeaveReason, PlayerId, RoomEvent, RoomStats, Transmit};
+pub use lifecycle::MatchPhase;
 pub use player::PlayerStats;
 
 use crate::codec::body_len;
@@ -30,12 +33,13 @@ use crate::limits::{
     MAX_BUNDLES_PER_DATAGRAM, MAX_DATAGRAM_BYTES, PROTOCOL_VERSION, VERSION_HEADER_BYTES,
 };
 use crate::message::{
-    BundleDatagram, ClientMessage, Close, CloseReason, HashReport, InputDatagram, Join, Ping,
+    BundleDatagram, ClientMessage, Close, CloseReason, HashReport, InputDatagram, Join,
     PlayerInput, ServerMessage, Slot, TickBundle, Welcome,
 };
 use arbiter::{Arbiter, Comparison, Recorded, SlotMask, bit};
 use errors::close;
 use history::{FellBehind, History};
+use lifecycle::Lifecycle;
 use locate::{Locator, Output};
 use player::Player;
 
@@ -112,6 +116,10 @@ pub struct Room {
     /// Per seat: the key of the token that first took it in this match
     /// (its owner, who may come back with its rejoin credential).
     owners: Vec<Option<u64>>,
+    /// The match's lifecycle: lobby, running, finishing, done.
+    lifecycle: Lifecycle,
+    /// Per seat: the last player that left it, with its final counters.
+    departed: Vec<Option<(PlayerId, PlayerStats)>>,
 }
 
 /// The snapshot a player joining a running match waits for.
@@ -149,6 +157,8 @@ impl Room {
         let mut locator = Locator::new(config.locate_timeout);
         locator.max_bodies = config.max_probe_bodies;
         Ok(Self {
+            lifecycle: Lifecycle::new(config.lifecycle),
+            departed: vec![None; seats],
             locator,
             last_agreed: None,
             reserved: vec![None; seats],
@@ -182,6 +192,7 @@ impl Room {
         }
         self.arbiter.verify(tick, hash);
         self.run_arbiter(now);
+        self.step_lifecycle(now);
     }
 
     /// Sets [`RoomConfig::max_probe_bodies`] from now on (e.g. the body
@@ -290,6 +301,20 @@ impl Room {
     /// [`JoinError::NoSuchSeat`], [`JoinError::TokenUsed`],
     /// [`JoinError::NotReserved`].
     pub fn join_with_ticket(
+        &mut self,
+        now: Duration,
+        join: &Join,
+        ticket: Option<&crate::token::Ticket>,
+    ) -> Result<PlayerId, JoinError> {
+        let joined = self.seat_player(now, join, ticket);
+        if joined.is_ok() {
+            self.joined(now);
+        }
+        self.step_lifecycle(now);
+        joined
+    }
+
+    fn seat_player(
         &mut self,
         now: Duration,
         join: &Join,
@@ -492,6 +517,7 @@ impl Room {
             return Err(AlreadyStarted);
         }
         self.epoch = Some(now);
+        self.started();
         Ok(())
     }
 
@@ -507,12 +533,30 @@ impl Room {
         from: PlayerId,
         message: ClientMessage,
     ) -> Result<(), Rejection> {
+        let handled = self.apply_message(now, from, message);
+        self.step_lifecycle(now);
+        handled
+    }
+
+    fn apply_message(
+        &mut self,
+        now: Duration,
+        from: PlayerId,
+        message: ClientMessage,
+    ) -> Result<(), Rejection> {
         let player = self.player_mut(from)?;
         player.last_heard = player.last_heard.max(now);
         match message {
             ClientMessage::Join(_) => Err(Rejection::UnexpectedMessage("join")),
             ClientMessage::Input(d) => self.on_input(from, d),
-            ClientMessage::HashReport(h) => self.on_hash(now, from, h),
+            ClientMessage::HashReport(h) => {
+                let tick = h.tick;
+                self.on_hash(now, from, h)?;
+                if let Ok(p) = self.player_mut(from) {
+                    p.last_hash_accepted = p.last_hash_accepted.max(Some(tick));
+                }
+                Ok(())
+            }
             ClientMessage::Pong(p) => {
                 if let Some((nonce, sent)) = player.ping
                     && nonce == p.nonce
@@ -553,6 +597,7 @@ impl Room {
     /// The caller lost the player's connection.
     pub fn disconnect(&mut self, now: Duration, id: PlayerId) {
         self.remove(now, id, LeaveReason::Disconnected, None);
+        self.step_lifecycle(now);
     }
 
     /// Removes a player, queuing a [`Close`] with `reason` and `detail`
@@ -565,81 +610,7 @@ impl Room {
         };
         let c = close(reason, detail.to_owned());
         self.remove(now, id, leave, Some(c));
-    }
-
-    /// Advances the room to `now`: drops silent players, closes every tick
-    /// whose deadline has passed and broadcasts bundles, compares hashes that
-    /// are complete or timed out, and sends due pings.
-    pub fn handle_timeout(&mut self, now: Duration) {
-        for index in 0..self.players.len() {
-            let Some(p) = &self.players[index] else {
-                continue;
-            };
-            if now.saturating_sub(p.last_heard) >= self.config.silence_timeout {
-                let id = self.id_of(index);
-                let c = close(
-                    CloseReason::TimedOut,
-                    "nothing heard from the client".into(),
-                );
-                self.remove(now, id, LeaveReason::TimedOut, Some(c));
-            }
-        }
-        if let Some(epoch) = self.epoch {
-            let mut closed = false;
-            while now >= epoch.saturating_add(self.config.deadline_offset(self.next_tick)) {
-                self.close_tick(now);
-                closed = true;
-            }
-            if closed {
-                self.send_bundles(now);
-            }
-        }
-        self.run_arbiter(now);
-        if let Some(j) = &self.joining
-            && now >= j.deadline
-        {
-            let id = j.id;
-            self.fail_join(now, id, "the agreed snapshot did not come in time");
-        }
-        let mut out = Vec::new();
-        self.locator.on_timeout(now, &mut out);
-        self.apply_search(out);
-        for index in 0..self.players.len() {
-            let nonce = self.ping_nonce;
-            let Some(p) = &mut self.players[index] else {
-                continue;
-            };
-            if now >= p.next_ping_at {
-                p.ping = Some((nonce, now));
-                p.next_ping_at = now.saturating_add(self.config.ping_interval);
-                self.ping_nonce += 1;
-                let to = self.id_of(index);
-                self.transmits.push_back(Transmit {
-                    to,
-                    message: ServerMessage::Ping(Ping { nonce }),
-                });
-            }
-        }
-    }
-
-    /// The next time [`Room::handle_timeout`] has work to do: a tick
-    /// deadline, a silence timeout, a ping, or a hash comparison timeout.
-    pub fn poll_timeout(&self) -> Option<Duration> {
-        let tick = self
-            .epoch
-            .map(|e| e.saturating_add(self.config.deadline_offset(self.next_tick)));
-        let players = self.players.iter().flatten().flat_map(|p| {
-            [
-                p.last_heard.saturating_add(self.config.silence_timeout),
-                p.next_ping_at,
-            ]
-        });
-        tick.into_iter()
-            .chain(players)
-            .chain(self.arbiter.next_deadline())
-            .chain(self.locator.deadline())
-            .chain(self.joining.as_ref().map(|j| j.deadline))
-            .min()
+        self.step_lifecycle(now);
     }
 
     /// Next message to send, in the order they were produced.
@@ -683,6 +654,15 @@ impl Room {
     /// Counters of a seated player.
     pub fn player_stats(&self, id: PlayerId) -> Option<&PlayerStats> {
         self.player(id).map(|p| &p.stats)
+    }
+
+    /// The final counters of a player that left (until another player
+    /// leaves its seat).
+    pub fn departed_stats(&self, id: PlayerId) -> Option<&PlayerStats> {
+        match self.departed.get(id.slot.index()) {
+            Some(Some((left, stats))) if *left == id => Some(stats),
+            _ => None,
+        }
     }
 
     /// Room-wide counters.
@@ -748,7 +728,9 @@ impl Room {
         {
             self.reserved[index] = Some((key, now.saturating_add(self.config.rejoin_grace)));
         }
-        self.players[index] = None;
+        if let Some(p) = self.players[index].take() {
+            self.departed[index] = Some((id, p.stats));
+        }
         self.generations[index] = self.generations[index].wrapping_add(1);
         if let Some(c) = close {
             self.transmits.push_back(Transmit {
@@ -1210,6 +1192,11 @@ impl Room {
     /// snapshot; the player catches up from the bundle after it and is in
     /// every bundle from the next open tick on.
     pub fn admit(&mut self, now: Duration, id: PlayerId, snapshot: Vec<u8>) {
+        self.admit_joiner(now, id, snapshot);
+        self.step_lifecycle(now);
+    }
+
+    fn admit_joiner(&mut self, now: Duration, id: PlayerId, snapshot: Vec<u8>) {
         let Some(j) = self.joining.take_if(|j| j.id == id) else {
             return;
         };
@@ -1263,6 +1250,7 @@ impl Room {
         if self.joining.as_ref().is_some_and(|j| j.id == id) {
             self.retry_join(now, why, true);
         }
+        self.step_lifecycle(now);
     }
 
     /// Sends the search's probes, and announces its report and snapshot.

@@ -120,6 +120,30 @@ pub struct RoomConfig {
     /// The match's seed, sent in the welcome: every peer's rules read the
     /// same value (a deterministic random source for the game). Default 0.
     pub seed: u64,
+    /// The match runs itself: the room starts, ends and closes on its own
+    /// ([`MatchLifecycle`]). Default `None`: the caller starts the match
+    /// with [`Room::start`](crate::Room::start) and ends it by dropping the
+    /// room.
+    pub lifecycle: Option<MatchLifecycle>,
+}
+
+/// How a room that runs its own match ([`RoomConfig::lifecycle`]) starts
+/// and ends it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MatchLifecycle {
+    /// The match starts once this many players are seated and every one
+    /// sent its first input.
+    pub start_players: u8,
+    /// How long the lobby waits after its first join: then the players
+    /// without their first input are dropped and the ready ones start. The
+    /// room closes if none is ready. `None` waits for ever.
+    pub lobby_timeout: Option<Duration>,
+    /// The match's length in ticks, `None` for no limit.
+    pub match_ticks: Option<u64>,
+    /// After the last tick, how long the room waits for the last hash
+    /// reports (repeating the bundles a player has not acknowledged once
+    /// per tick period) before it closes.
+    pub final_reports_timeout: Duration,
 }
 
 /// Who decides a tick's right hash in a room that does not verify
@@ -177,6 +201,7 @@ impl RoomConfig {
             rejoin_grace: Duration::from_secs(30),
             scene,
             scene_hash,
+            lifecycle: None,
         }
     }
 

@@ -152,6 +152,27 @@ pub enum RoomEvent {
         /// The engine's snapshot bytes.
         bytes: Vec<u8>,
     },
+    /// The room started its match ([`RoomConfig::lifecycle`](super::RoomConfig::lifecycle)):
+    /// tick 0 closes one tick period after [`Room::started_at`](super::Room::started_at).
+    MatchStarted {
+        /// Players seated at the start.
+        players: usize,
+    },
+    /// The last tick closed ([`RoomConfig::lifecycle`](super::RoomConfig::lifecycle)):
+    /// the room collects the last hash reports, then closes everyone.
+    MatchEnding {
+        /// Why the match ends.
+        reason: String,
+    },
+    /// The room closed everyone and has nothing more to do
+    /// ([`RoomConfig::lifecycle`](super::RoomConfig::lifecycle)).
+    MatchOver {
+        /// Why the match ended.
+        reason: String,
+        /// Whether every player still seated had reported its hash of the
+        /// last tick.
+        all_reported: bool,
+    },
 }
 
 /// Room-wide counters.

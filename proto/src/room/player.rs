@@ -54,6 +54,9 @@ pub(crate) struct Player {
     pub(crate) missing_in_window: u32,
     /// The newest tick it reported a hash for.
     pub(crate) last_report: Option<u64>,
+    /// The newest tick of a hash report the room accepted (stored, or
+    /// for a tick already compared).
+    pub(crate) last_hash_accepted: Option<u64>,
     /// Ticks in a row, among those it reported, where its hash was outside
     /// the majority.
     pub(crate) wrong_streak: u32,
@@ -83,6 +86,7 @@ impl Player {
             recent_missing: std::collections::VecDeque::new(),
             missing_in_window: 0,
             last_report: None,
+            last_hash_accepted: None,
             wrong_streak: 0,
             ticket: None,
             admitted: true,

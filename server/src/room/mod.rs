@@ -1108,7 +1108,11 @@ impl RoomTask {
                     }
                 }
             }
-            RoomEvent::LateInput { .. } | RoomEvent::TickAgreed { .. } => {}
+            RoomEvent::LateInput { .. }
+            | RoomEvent::TickAgreed { .. }
+            | RoomEvent::MatchStarted { .. }
+            | RoomEvent::MatchEnding { .. }
+            | RoomEvent::MatchOver { .. } => {}
             RoomEvent::Desync(notice) => {
                 let hashes: Vec<String> = notice
                     .hashes
