@@ -164,8 +164,10 @@ pub enum RoomEvent {
         /// Why the match ends.
         reason: String,
     },
-    /// The room closed everyone and has nothing more to do
-    /// ([`RoomConfig::lifecycle`](super::RoomConfig::lifecycle)).
+    /// The match is over and the room has nothing more to do
+    /// ([`RoomConfig::lifecycle`](super::RoomConfig::lifecycle)): the
+    /// players still seated were closed just before (or, in a lobby where
+    /// nobody was ready, are closed just after).
     MatchOver {
         /// Why the match ended.
         reason: String,

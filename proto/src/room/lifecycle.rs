@@ -160,16 +160,21 @@ impl Room {
         if self.lifecycle.lobby_deadline().is_some_and(|d| now >= d) {
             // Nobody may hold the match back: the players without their
             // first input go, and the ready ones start.
-            for id in self.unready_players() {
+            let unready = self.unready_players();
+            if unready.len() == self.player_count() {
+                // Nobody is ready: the match is over before its players
+                // are closed.
+                self.lifecycle.reason = "nobody was ready within the lobby timeout".into();
+                self.end_match(true);
+            }
+            for id in unready {
                 let c = close(
                     CloseReason::TimedOut,
                     "no first input within the lobby timeout".into(),
                 );
                 self.remove(now, id, LeaveReason::Kicked, Some(c));
             }
-            if self.player_count() == 0 {
-                self.lifecycle.reason = "nobody was ready within the lobby timeout".into();
-                self.end_match(true);
+            if self.lifecycle.phase == MatchPhase::Done {
                 return;
             }
             start = 1;
