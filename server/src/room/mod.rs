@@ -20,11 +20,12 @@ use std::time::{Duration, Instant, SystemTime};
 
 use bytes::Bytes;
 use lockstep_proto::{
-    BundleDatagram, Channel, ClientMessage, Close, CloseReason, DesyncNotice, ENGINE_VERSION, Join,
-    LeaveReason, MAX_DATAGRAM_BYTES, PROTOCOL_VERSION, PlayerId, Rejection, ReplayHeader,
+    Channel, ClientMessage, Close, CloseReason, DesyncNotice, ENGINE_VERSION, Join, LeaveReason,
+    MatchLifecycle, MatchPhase, PROTOCOL_VERSION, PlayerId, Rejection, ReplayHeader,
     ReplayRecorder, Room, RoomConfig, RoomEvent, ServerMessage, Verdict,
 };
 use tokio::sync::{mpsc, oneshot};
+use tokio::time::sleep_until;
 
 use crate::conn::{Peer, WriterCmd, close_cmd, close_of, send_close};
 use crate::{PlayerReport, ServerConfig, ServerError, ServerEvent, Shared};
@@ -85,6 +86,12 @@ fn room_config(config: &ServerConfig, name: &str, scene_hash: u64, bodies: u32) 
     };
     c.late_join = s.late_join;
     c.rejoin_grace = s.rejoin_grace;
+    c.lifecycle = Some(MatchLifecycle {
+        start_players: s.start_players,
+        lobby_timeout: s.lobby_timeout,
+        match_ticks: s.match_ticks,
+        final_reports_timeout: s.final_reports_timeout,
+    });
     c.rules = Some(config.rules.clone());
     c.seed = s.seed.unwrap_or_else(|| {
         // A fresh seed per room: std's hasher keys are random per process,
@@ -194,34 +201,12 @@ fn rejoin_key() -> Result<[u8; 32], Close> {
     Ok(key)
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Phase {
-    /// Seating players; the clock has not started.
-    Lobby,
-    /// The clock runs; `end` is the first tick not to close, if known.
-    Running { epoch: Duration, end: Option<u64> },
-    /// No more ticks; collecting the last hash reports until `until`,
-    /// repeating unacknowledged bundles at `resend_at` (then once per tick
-    /// period: a fixed schedule, which the players' datagrams arriving in
-    /// between do not postpone).
-    Finishing {
-        until: Duration,
-        resend_at: Duration,
-    },
-    /// Everyone closed; the replay is flushed.
-    Done,
-}
-
 /// A seated player's connection and counters.
 struct Seat {
     id: PlayerId,
     peer: Peer,
     report: usize,
     joined_at: Instant,
-    /// The bundle ack of the last accepted input datagram.
-    bundle_ack: Option<u64>,
-    /// Newest tick whose hash the room accepted from this player.
-    last_hash: Option<u64>,
     closing: bool,
     /// UDP counters at the last status line, for rates.
     last_udp: (u64, u64),
@@ -260,9 +245,10 @@ struct RoomTask {
     name: String,
     room: Room,
     base: Instant,
-    phase: Phase,
+    /// The match's phase as the room's events told it so far (the room
+    /// may be further on while its events are handled).
+    seen: MatchPhase,
     shutting_down: bool,
-    end_reason: String,
     seats: Vec<Option<Seat>>,
     players: Vec<PlayerReport>,
     desyncs: Vec<DesyncNotice>,
@@ -280,16 +266,13 @@ struct RoomTask {
     /// time spent.
     verifier: Option<Box<dyn lockstep_proto::verify::TickVerifier>>,
     verified: (u64, Duration),
-    /// What this room last added to the server's metrics: players seated,
-    /// mismatched ticks, and whether its match counts as running.
-    counted: (i64, u64, bool, u64),
+    /// What this room last added to the server's metrics.
+    counted: report::Counted,
     /// Tick lateness samples in microseconds (the first 131,072 ticks).
     lateness_us: Vec<u32>,
     replay: Option<Replay>,
     /// The viewer's feed of this room (`--view`): its closed bundles.
     feed: Option<Arc<crate::spectate::RoomFeed>>,
-    /// When the first player joined (the lobby timeout counts from it).
-    first_join: Option<Duration>,
 }
 
 impl RoomTask {
@@ -386,9 +369,8 @@ impl RoomTask {
             name,
             room,
             base: Instant::now(),
-            phase: Phase::Lobby,
+            seen: MatchPhase::Lobby,
             shutting_down: false,
-            end_reason: String::new(),
             seats,
             players: Vec::new(),
             desyncs: Vec::new(),
@@ -399,11 +381,10 @@ impl RoomTask {
             forensics_bytes: (0, 0),
             verifier,
             verified: (0, Duration::ZERO),
-            counted: (0, 0, false, 0),
+            counted: report::Counted::default(),
             lateness_us: Vec::new(),
             replay,
             feed,
-            first_join: None,
         }
     }
 
@@ -411,25 +392,24 @@ impl RoomTask {
         self.base.elapsed()
     }
 
-    fn settings(&self) -> &crate::RoomSettings {
-        &self.shared.config.room
-    }
-
     async fn run(mut self, mut rx: mpsc::Receiver<RoomCmd>) {
         let mut shutdown = self.shared.shutdown.clone();
         let mut status = tokio::time::interval(Duration::from_secs(1));
         status.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-        // The tick clock wakes through the precise clock thread; tokio's
+        // The room's timers wake through the precise clock thread; tokio's
         // timer (1 ms, rounded up) stays as a backstop a millisecond later.
         let alarm = std::sync::Arc::new(tokio::sync::Notify::new());
         let mut registered: Option<Instant> = None;
-        while self.phase != Phase::Done {
-            let wake_at = self.base + self.next_wake();
-            if registered != Some(wake_at) {
-                self.shared.clock.wake_at(wake_at, &alarm);
-                registered = Some(wake_at);
+        while self.room.phase() != MatchPhase::Done {
+            let wake_at = self.room.poll_timeout().map(|d| self.base + d);
+            if let Some(at) = wake_at
+                && registered != Some(at)
+            {
+                self.shared.clock.wake_at(at, &alarm);
+                registered = Some(at);
             }
-            let wake = tokio::time::Instant::from_std(wake_at + Duration::from_millis(1));
+            let backstop =
+                wake_at.map(|at| tokio::time::Instant::from_std(at + Duration::from_millis(1)));
             tokio::select! {
                 biased;
                 _ = shutdown.wait_for(|s| *s), if !self.shutting_down => self.begin_shutdown(),
@@ -439,20 +419,18 @@ impl RoomTask {
                 },
                 () = alarm.notified() => {
                     // A stale alarm (for an earlier wake-up) is harmless:
-                    // the timer work below finds nothing due.
-                    if Instant::now() >= wake_at {
+                    // the room finds nothing due.
+                    if wake_at.is_some_and(|at| Instant::now() >= at) {
                         registered = None;
                     }
                     self.on_timer();
                 }
-                () = tokio::time::sleep_until(wake) => {
+                () = sleep_until(backstop.unwrap_or_else(tokio::time::Instant::now)), if backstop.is_some() => {
                     registered = None;
                     self.on_timer();
                 }
                 _ = status.tick() => self.on_status(),
             }
-            self.pump();
-            self.advance();
             self.pump();
         }
         self.finish();
@@ -471,259 +449,62 @@ impl RoomTask {
         }
     }
 
-    /// When the task must wake up on its own.
-    fn next_wake(&self) -> Duration {
-        let now = self.now();
-        match self.phase {
-            Phase::Lobby => {
-                let room = self
-                    .room
-                    .poll_timeout()
-                    .unwrap_or(now + Duration::from_secs(1));
-                self.lobby_deadline().map_or(room, |d| room.min(d))
-            }
-            Phase::Running { .. } => self
-                .room
-                .poll_timeout()
-                .unwrap_or(now + Duration::from_secs(1)),
-            // Resend the last bundles once per tick while waiting.
-            Phase::Finishing { until, resend_at } => resend_at.min(until),
-            Phase::Done => now,
-        }
-    }
-
-    /// When the lobby stops waiting: `lobby_timeout` after the first join.
-    fn lobby_deadline(&self) -> Option<Duration> {
-        let first = self.first_join?;
-        Some(first + self.settings().lobby_timeout?)
-    }
-
-    fn lobby_expired(&self, now: Duration) -> bool {
-        self.lobby_deadline().is_some_and(|d| now >= d)
-    }
-
-    fn period(&self) -> Duration {
-        Duration::from_nanos(1_000_000_000 / u64::from(self.room.config().tick_rate.max(1)))
-    }
-
     fn begin_shutdown(&mut self) {
         self.shutting_down = true;
-        match self.phase {
-            Phase::Running { epoch, .. } => {
-                // Finish the tick in progress, then stop.
-                let end = self.room.next_tick() + 1;
-                crate::log!("room {}: shutting down after tick {}", self.name, end - 1);
-                self.end_reason = "server shutting down".into();
-                self.phase = Phase::Running {
-                    epoch,
-                    end: Some(end),
-                };
-            }
-            Phase::Lobby => {
-                self.end_reason = "server shutting down before the match started".into();
-                self.close_everyone("server shutting down");
-                self.phase = Phase::Done;
-            }
-            Phase::Finishing { .. } | Phase::Done => {}
+        if self.room.phase() == MatchPhase::Running {
+            crate::log!(
+                "room {}: shutting down after tick {}",
+                self.name,
+                self.room.next_tick()
+            );
         }
+        let now = self.now();
+        self.room.shut_down(now);
     }
 
+    /// Tells the room the time, and measures how late each tick it closed
+    /// was.
     fn on_timer(&mut self) {
         let now = self.now();
-        match self.phase {
-            Phase::Lobby => self.room.handle_timeout(now),
-            Phase::Running { epoch, end } => {
-                // Never close a tick at or past `end`, however late we woke.
-                let limit = end.map_or(now, |end| {
-                    epoch + self.room.config().deadline_offset(end.saturating_sub(1))
-                });
-                let first = self.room.next_tick();
-                self.room.handle_timeout(now.min(limit));
-                // Each tick closed now was due at its deadline: the
-                // difference is the lateness of the room's clock.
-                for t in first..self.room.next_tick() {
-                    let due = epoch + self.room.config().deadline_offset(t);
-                    let late = now.saturating_sub(due);
-                    self.shared.metrics.tick_closed(late);
-                    if self.lateness_us.len() < 1 << 17 {
-                        let us = u32::try_from(late.as_micros()).unwrap_or(u32::MAX);
-                        self.lateness_us.push(us);
-                    }
-                }
-            }
-            Phase::Finishing { until, resend_at } => {
-                if now >= resend_at {
-                    self.resend_final_bundles();
-                    // Never schedule in the past, however late we woke.
-                    let period = self.period();
-                    let mut next = resend_at + period;
-                    if next <= now {
-                        next = now + period;
-                    }
-                    self.phase = Phase::Finishing {
-                        until,
-                        resend_at: next,
-                    };
-                }
-            }
-            Phase::Done => {}
-        }
-    }
-
-    /// Moves between phases.
-    fn advance(&mut self) {
-        let now = self.now();
-        match self.phase {
-            Phase::Lobby => {
-                if self.shutting_down {
-                    return;
-                }
-                if self.room.player_count() == 0 && !self.players.is_empty() {
-                    // Everyone who joined left before the match: the room
-                    // closes instead of holding a slot of the server.
-                    self.end_reason = "every player left the lobby".into();
-                    self.phase = Phase::Done;
-                    return;
-                }
-                let mut start = usize::from(self.settings().start_players);
-                if self.lobby_expired(now) {
-                    // Nobody may hold the match back: the players without
-                    // their first input go, and the ready ones start.
-                    for id in self.room.unready_players() {
-                        self.room.kick(
-                            now,
-                            id,
-                            CloseReason::TimedOut,
-                            "no first input within the lobby timeout",
-                        );
-                    }
-                    if self.room.player_count() == 0 {
-                        self.end_reason = "nobody was ready within the lobby timeout".into();
-                        self.phase = Phase::Done;
-                        return;
-                    }
-                    start = 1;
-                }
-                if self.room.player_count() >= start && self.room.all_ready() {
-                    // all_ready() is true, so the room has not started.
-                    let _ = self.room.start(now);
-                    if let Some(r) = self.replay.as_mut() {
-                        r.start(&self.name);
-                    }
-                    let end = self.settings().match_ticks;
-                    self.phase = Phase::Running { epoch: now, end };
-                    self.counted.2 = true;
-                    self.shared
-                        .metrics
-                        .matches_running
-                        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let players = self.room.player_count();
-                    crate::log!(
-                        "room {}: match started with {players} players at {} Hz, input delay {}",
-                        self.name,
-                        self.room.config().tick_rate,
-                        self.room.config().input_delay
-                    );
-                    self.shared.emit(ServerEvent::MatchStarted {
-                        room: self.name.clone(),
-                        epoch: self.base + now,
-                        tick_rate: self.room.config().tick_rate,
-                        players,
-                    });
-                }
-            }
-            Phase::Running { end, .. } => {
-                let next = self.room.next_tick();
-                if end.is_some_and(|e| next >= e) {
-                    if self.end_reason.is_empty() {
-                        self.end_reason = format!("match over after {next} ticks");
-                    }
-                    self.begin_finishing(now);
-                } else if self.room.player_count() == 0 {
-                    self.end_reason = format!("every player left by tick {next}");
-                    self.begin_finishing(now);
-                }
-            }
-            Phase::Finishing { until, .. } => {
-                let last = self.room.next_tick().checked_sub(1);
-                let all_reported = self
-                    .seats
-                    .iter()
-                    .flatten()
-                    .all(|s| s.closing || s.last_hash >= last);
-                if all_reported || now >= until {
-                    if !all_reported {
-                        crate::log!(
-                            "room {}: closing without every final hash report",
-                            self.name
-                        );
-                    }
-                    let reason = self.end_reason.clone();
-                    self.close_everyone(&reason);
-                    self.phase = Phase::Done;
-                }
-            }
-            Phase::Done => {}
-        }
-    }
-
-    fn begin_finishing(&mut self, now: Duration) {
-        crate::log!(
-            "room {}: {}; collecting the last hash reports",
-            self.name,
-            self.end_reason
-        );
-        let until = now + self.settings().final_reports_timeout;
-        self.phase = Phase::Finishing {
-            until,
-            resend_at: now + self.period(),
-        };
-        self.resend_final_bundles();
-    }
-
-    /// No tick closes any more, so the room sends no more bundles; repeat
-    /// the ones a player has not acknowledged, as the room would have.
-    fn resend_final_bundles(&mut self) {
-        let Some(last) = self.room.next_tick().checked_sub(1) else {
+        let first = self.room.next_tick();
+        self.room.handle_timeout(now);
+        let Some(epoch) = self.room.started_at() else {
             return;
         };
-        for seat in self.seats.iter().flatten() {
-            if seat.closing || seat.bundle_ack >= Some(last) {
-                continue;
-            }
-            let from = seat.bundle_ack.map_or(0, |a| a + 1);
-            let mut bundles: Vec<_> = (from..=last)
-                .rev()
-                .take(lockstep_proto::MAX_BUNDLES_PER_DATAGRAM)
-                .filter_map(|t| self.room.bundle(t).cloned())
-                .collect();
-            bundles.reverse();
-            while !bundles.is_empty() {
-                let msg = ServerMessage::Bundles(BundleDatagram {
-                    ack_input: None,
-                    bundles: bundles.clone(),
-                });
-                match msg.encode() {
-                    Ok(bytes) if bytes.len() <= MAX_DATAGRAM_BYTES => {
-                        let _ = seat.peer.connection.send_datagram(Bytes::from(bytes));
-                        break;
-                    }
-                    _ => {
-                        bundles.remove(0);
-                    }
-                }
+        for t in first..self.room.next_tick() {
+            let due = epoch + self.room.config().deadline_offset(t);
+            let late = now.saturating_sub(due);
+            self.shared.metrics.tick_closed(late);
+            if self.lateness_us.len() < 1 << 17 {
+                let us = u32::try_from(late.as_micros()).unwrap_or(u32::MAX);
+                self.lateness_us.push(us);
             }
         }
     }
 
-    fn close_everyone(&mut self, detail: &str) {
-        self.snapshot_stats();
-        let now = self.now();
-        let ids: Vec<PlayerId> = self.room.players().map(|(id, _)| id).collect();
-        for id in ids {
-            self.room.kick(now, id, CloseReason::RoomClosed, detail);
+    /// The match started: the replay file is created and the start told.
+    fn on_match_started(&mut self, players: usize) {
+        if let Some(r) = self.replay.as_mut() {
+            r.start(&self.name);
         }
-        self.pump();
+        self.counted.running = true;
+        self.shared
+            .metrics
+            .matches_running
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        crate::log!(
+            "room {}: match started with {players} players at {} Hz, input delay {}",
+            self.name,
+            self.room.config().tick_rate,
+            self.room.config().input_delay
+        );
+        let epoch = self.room.started_at().unwrap_or_default();
+        self.shared.emit(ServerEvent::MatchStarted {
+            room: self.name.clone(),
+            epoch: self.base + epoch,
+            tick_rate: self.room.config().tick_rate,
+            players,
+        });
     }
 
     fn seat(&mut self, id: PlayerId) -> Option<&mut Seat> {
@@ -761,7 +542,7 @@ impl RoomTask {
                         CloseReason::RoomClosed,
                         "the server is shutting down",
                     ))
-                } else if matches!(self.phase, Phase::Finishing { .. } | Phase::Done) {
+                } else if matches!(self.room.phase(), MatchPhase::Finishing | MatchPhase::Done) {
                     Err(close_of(CloseReason::RoomClosed, "the match is over"))
                 } else if let Some(close) = token_refusal.filter(|_| !known) {
                     Err(close)
@@ -772,7 +553,6 @@ impl RoomTask {
                 };
                 match result {
                     Ok(id) => {
-                        self.first_join.get_or_insert(now);
                         self.players.push(PlayerReport {
                             slot: id.slot,
                             name: join.player_name.clone(),
@@ -796,8 +576,6 @@ impl RoomTask {
                             peer,
                             report: self.players.len() - 1,
                             joined_at: Instant::now(),
-                            bundle_ack: None,
-                            last_hash: None,
                             closing: false,
                             last_udp: (0, 0),
                         });
@@ -817,14 +595,13 @@ impl RoomTask {
             } => {
                 let Some(seat) = self.seat(id) else { return };
                 let report = seat.report;
-                let (ack, hash) = match &msg {
-                    ClientMessage::Input(d) => (d.ack_bundle, None),
+                let hash = match &msg {
                     ClientMessage::HashReport(h) => {
                         // Body hashes only matter to the replay.
                         let bodies = self.replay.as_ref().and(h.body_hashes.clone());
-                        (None, Some((h.tick, h.hash, bodies)))
+                        Some((h.tick, h.hash, bodies))
                     }
-                    _ => (None, None),
+                    _ => None,
                 };
                 if matches!(msg, ClientMessage::ProbeReply(_)) {
                     self.forensics_bytes.1 += len as u64;
@@ -840,12 +617,6 @@ impl RoomTask {
                 }
                 match self.room.handle_message(now, id, msg) {
                     Ok(()) => {
-                        if let Some(seat) = self.seat(id) {
-                            seat.bundle_ack = seat.bundle_ack.max(ack);
-                            if let Some((tick, _, _)) = &hash {
-                                seat.last_hash = seat.last_hash.max(Some(*tick));
-                            }
-                        }
                         if let (Some((tick, h, bodies)), Some(r)) = (hash, self.replay.as_mut()) {
                             r.recorder
                                 .on_hash_with_bodies(id.slot, tick, h, bodies.as_deref());
@@ -1069,6 +840,13 @@ impl RoomTask {
                     );
                 }
                 let index = id.slot.index();
+                if reason == LeaveReason::RoomClosed
+                    && let Some(stats) = self.room.departed_stats(id).copied()
+                    && let Some(report) = self.seat(id).map(|s| s.report)
+                {
+                    // The room's final counters of a player it closed.
+                    report::copy_stats(&mut self.players[report], &stats);
+                }
                 if let Some(seat) = self.seats[index].take() {
                     if !seat.closing {
                         // Left or lost: nothing more to tell it.
@@ -1077,8 +855,7 @@ impl RoomTask {
                             reason: format!("{reason:?}"),
                         });
                     }
-                    let ended = self.phase == Phase::Done
-                        || matches!(self.phase, Phase::Finishing { .. })
+                    let ended = matches!(self.seen, MatchPhase::Finishing | MatchPhase::Done)
                         || self.shutting_down && self.room.player_count() == 0;
                     let p = &mut self.players[seat.report];
                     fill_traffic(p, &seat);
@@ -1108,11 +885,30 @@ impl RoomTask {
                     }
                 }
             }
-            RoomEvent::LateInput { .. }
-            | RoomEvent::TickAgreed { .. }
-            | RoomEvent::MatchStarted { .. }
-            | RoomEvent::MatchEnding { .. }
-            | RoomEvent::MatchOver { .. } => {}
+            RoomEvent::LateInput { .. } | RoomEvent::TickAgreed { .. } => {}
+            RoomEvent::MatchStarted { players } => {
+                self.seen = MatchPhase::Running;
+                self.on_match_started(players);
+            }
+            RoomEvent::MatchEnding { reason } => {
+                self.seen = MatchPhase::Finishing;
+                crate::log!(
+                    "room {}: {reason}; collecting the last hash reports",
+                    self.name
+                );
+            }
+            RoomEvent::MatchOver {
+                reason: _,
+                all_reported,
+            } => {
+                if self.seen == MatchPhase::Finishing && !all_reported {
+                    crate::log!(
+                        "room {}: closing without every final hash report",
+                        self.name
+                    );
+                }
+                self.seen = MatchPhase::Done;
+            }
             RoomEvent::Desync(notice) => {
                 let hashes: Vec<String> = notice
                     .hashes

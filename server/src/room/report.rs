@@ -5,9 +5,9 @@ use std::io::Write;
 
 use std::time::Duration;
 
-use lockstep_proto::{CloseReason, PlayerId};
+use lockstep_proto::{CloseReason, MatchPhase, PlayerId, PlayerStats};
 
-use super::{Phase, RoomTask, Seat};
+use super::{RoomTask, Seat};
 use crate::conn::{close_of, send_close};
 use crate::{PlayerReport, RoomReport, RoomStatus, ServerEvent};
 
@@ -23,11 +23,7 @@ impl RoomTask {
             let Some(report) = self.seat(id).map(|s| s.report) else {
                 continue;
             };
-            let p = &mut self.players[report];
-            p.rtt = stats.rtt;
-            p.inputs_substituted = stats.inputs_substituted;
-            p.hash_reports = stats.hash_reports;
-            p.bad_snapshots = stats.bad_snapshots;
+            copy_stats(&mut self.players[report], &stats);
         }
     }
 
@@ -40,18 +36,19 @@ impl RoomTask {
         } else {
             self.room.player_count() as i64
         };
-        m.players.fetch_add(players - self.counted.0, Relaxed);
-        self.counted.0 = players;
+        let c = &mut self.counted;
+        m.players.fetch_add(players - c.players, Relaxed);
+        c.players = players;
         let mismatched = self.room.stats().mismatched_ticks;
         m.hash_mismatches
-            .fetch_add(mismatched.saturating_sub(self.counted.1), Relaxed);
-        self.counted.1 = mismatched;
+            .fetch_add(mismatched.saturating_sub(c.mismatched_ticks), Relaxed);
+        c.mismatched_ticks = mismatched;
         let bad = self.room.stats().bad_snapshots;
         m.bad_snapshots
-            .fetch_add(bad.saturating_sub(self.counted.3), Relaxed);
-        self.counted.3 = bad;
-        if ended && self.counted.2 {
-            self.counted.2 = false;
+            .fetch_add(bad.saturating_sub(c.bad_snapshots), Relaxed);
+        c.bad_snapshots = bad;
+        if ended && c.running {
+            c.running = false;
             m.matches_running.fetch_sub(1, Relaxed);
         }
     }
@@ -60,7 +57,7 @@ impl RoomTask {
         self.flush_replay(false);
         self.snapshot_stats();
         self.update_metrics(false);
-        if !matches!(self.phase, Phase::Running { .. }) {
+        if self.room.phase() != MatchPhase::Running {
             return;
         }
         let mut down = 0u64;
@@ -139,15 +136,15 @@ impl RoomTask {
                 let p = &mut self.players[seat.report];
                 fill_traffic(p, &seat);
                 if !seat.closing {
-                    let close = close_of(CloseReason::RoomClosed, self.end_reason.clone());
+                    let close = close_of(CloseReason::RoomClosed, self.room.end_reason());
                     send_close(&seat.peer.writer, &close);
                 }
             }
         }
-        if self.end_reason.is_empty() {
-            self.end_reason = "room closed".into();
-        }
-        let reason = self.end_reason.clone();
+        let reason = match self.room.end_reason() {
+            "" => "room closed".to_owned(),
+            r => r.to_owned(),
+        };
         if let Some(r) = self.replay.as_mut() {
             r.recorder.finish(&reason);
         }
@@ -161,8 +158,8 @@ impl RoomTask {
                 .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         let stats = *self.room.stats();
-        let duration = match self.phase {
-            Phase::Running { epoch, .. } => self.now().saturating_sub(epoch),
+        let duration = match (self.room.phase(), self.room.started_at()) {
+            (MatchPhase::Running, Some(epoch)) => self.now().saturating_sub(epoch),
             _ => self
                 .room
                 .config()
@@ -227,6 +224,27 @@ impl RoomTask {
             self.shared.match_ended.notify_one();
         }
     }
+}
+
+/// What a room last added to the server's metrics.
+#[derive(Debug, Default)]
+pub(super) struct Counted {
+    /// Players seated.
+    pub(super) players: i64,
+    /// Mismatched ticks.
+    pub(super) mismatched_ticks: u64,
+    /// Whether its match counts as running.
+    pub(super) running: bool,
+    /// Bad snapshots given to joiners.
+    pub(super) bad_snapshots: u64,
+}
+
+/// Copies the room's per-player counters into the player's report.
+pub(super) fn copy_stats(p: &mut PlayerReport, stats: &PlayerStats) {
+    p.rtt = stats.rtt;
+    p.inputs_substituted = stats.inputs_substituted;
+    p.hash_reports = stats.hash_reports;
+    p.bad_snapshots = stats.bad_snapshots;
 }
 
 pub(super) fn fill_traffic(p: &mut PlayerReport, seat: &Seat) {
