@@ -6,44 +6,22 @@
 //! use. Anything wrong is reported to the room, which removes the player
 //! with a logged reason; other players are never affected.
 
-use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
-use lockstep_net::{FrameError, close_code, close_code_for, read_frame, write_frame};
-use lockstep_proto::{Channel, ClientMessage, Close, CloseReason, PlayerId, ServerMessage};
+use lockstep_net::{FrameError, close_code, read_frame, write_frame};
+use lockstep_proto::{Channel, ClientMessage, Close, CloseReason, PlayerId};
 use tokio::sync::{mpsc, oneshot};
 
 use crate::Shared;
-use crate::room::{self, RoomCmd};
+use crate::peer::{Peer, RoomCmd, WriterCmd, close_of, send_close};
+use crate::room;
 
 /// How long a client has to complete the handshake and send its join.
 const JOIN_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// Frames queued for one client's stream before it counts as not reading.
 pub(crate) const WRITER_QUEUE: usize = 512;
-
-/// What the room asks a connection's writer to do.
-#[derive(Debug)]
-pub(crate) enum WriterCmd {
-    /// Write one encoded message as a frame.
-    Frame(Vec<u8>),
-    /// Finish the stream once written, then close the connection.
-    Close {
-        /// QUIC application close code.
-        code: u32,
-        /// Reason text.
-        reason: String,
-    },
-}
-
-/// The room's handle on a connection.
-#[derive(Debug, Clone)]
-pub(crate) struct Peer {
-    pub(crate) connection: quinn::Connection,
-    pub(crate) writer: mpsc::Sender<WriterCmd>,
-    pub(crate) remote: SocketAddr,
-}
 
 /// Serves one incoming connection to its end; logs instead of failing.
 pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
@@ -244,14 +222,6 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
     }
 }
 
-/// Queues a close message and the connection close on a writer.
-pub(crate) fn send_close(writer: &mpsc::Sender<WriterCmd>, close: &Close) {
-    if let Ok(bytes) = ServerMessage::Close(close.clone()).encode() {
-        let _ = writer.try_send(WriterCmd::Frame(bytes));
-    }
-    let _ = writer.try_send(close_cmd(close));
-}
-
 /// Forwards the client's frames and datagrams to the room until the
 /// connection ends or the client misbehaves.
 /// A token bucket over a connection's messages: `rate` a second, and as
@@ -443,28 +413,6 @@ fn truncate(s: &str) -> &str {
         end -= 1;
     }
     &s[..end]
-}
-
-/// The writer command that closes a client after `close` was queued.
-pub(crate) fn close_cmd(close: &Close) -> WriterCmd {
-    WriterCmd::Close {
-        code: close_code_for(close.reason),
-        reason: format!("{:?}: {}", close.reason, close.detail),
-    }
-}
-
-/// A close for a reason the room does not produce itself.
-pub(crate) fn close_of(reason: CloseReason, detail: impl Into<String>) -> Close {
-    let mut detail: String = detail.into();
-    let max = lockstep_proto::MAX_DETAIL_BYTES;
-    if detail.len() > max {
-        let mut cut = max;
-        while !detail.is_char_boundary(cut) {
-            cut -= 1;
-        }
-        detail.truncate(cut);
-    }
-    Close { reason, detail }
 }
 
 /// In Agones mode, joins wait for the allocation and name its room.

@@ -8,7 +8,7 @@ use std::time::Duration;
 use lockstep_proto::{CloseReason, MatchPhase, PlayerId, PlayerStats};
 
 use super::{RoomTask, Seat};
-use crate::conn::{close_of, send_close};
+use crate::peer::{close_of, send_close};
 use crate::{PlayerReport, RoomReport, RoomStatus, ServerEvent};
 
 impl RoomTask {
@@ -174,8 +174,8 @@ impl RoomTask {
             desyncs: self.desyncs.clone(),
             desync_notices: stats.desync_notices,
             located: self.located.clone(),
-            forensics_bytes_down: self.forensics_bytes.0,
-            forensics_bytes_up: self.forensics_bytes.1,
+            forensics_bytes_down: self.forensics_bytes_down,
+            forensics_bytes_up: self.forensics_bytes_up,
             verified: self.verifier.as_ref().map(|_| self.verified),
             lateness: crate::Lateness::of(&self.lateness_us),
             bundles: self.bundles.clone(),
