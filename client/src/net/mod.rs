@@ -19,17 +19,20 @@
 
 mod client;
 mod forensics;
+mod live;
+mod options;
 pub mod predict;
+mod report;
 mod tls;
 
-pub use client::{
-    AppliedTick, Client, ClientError, ClientEvent, ClientOptions, ClientReport, InputLatency,
-    Latency, LiveClient, Polled, RejoinStore, Traffic, TrustedCert,
-};
+pub use client::Client;
 pub use forensics::{dump_bodies, dump_game};
+pub use live::{AppliedTick, LiveClient, Polled};
 pub use lockstep_net::{
     ALPN, FrameError, MIN_CONGESTION_WINDOW, TlsError, close_code, close_code_for, load_certs,
     parse_certs, read_frame, transport_config, write_frame,
 };
+pub use options::{ClientOptions, RejoinStore, TrustedCert};
 pub use predict::{InputPredictor, PredictionStats, PredictionTally, Rollback, TallyCounts};
+pub use report::{ClientError, ClientEvent, ClientReport, InputLatency, Latency, Traffic};
 pub use tls::client_config;
