@@ -1,11 +1,14 @@
-//! One room's task: owns the `Room` state machine, its tick clock, every
-//! send to its players, and its replay.
+//! One room's task: the I/O around the `Room` state machine. It owns
+//! every send to the room's players and its replay file; the room decides
+//! everything in time (the ticks, the timeouts, the match's lifecycle from
+//! lobby to close) and this task only carries it out.
 //!
 //! The clock is drift-free: the room computes tick `t`'s deadline as
 //! `start + (t + 1)·dt` in integer nanoseconds, and this task sleeps until
-//! exactly that instant (`Room::poll_timeout`), never `sleep(dt)` in a loop,
-//! so a late wake-up delays one tick, not every tick after it. After every
-//! call into the room, its transmits and events are drained.
+//! exactly the room's next deadline (`Room::poll_timeout`), never
+//! `sleep(dt)` in a loop, so a late wake-up delays one tick, not every tick
+//! after it. After every call into the room, its transmits and events are
+//! drained.
 
 mod bundle;
 mod open;
@@ -39,8 +42,10 @@ struct Seat {
     report: usize,
     joined_at: Instant,
     closing: bool,
-    /// UDP counters at the last status line, for rates.
-    last_udp: (u64, u64),
+    /// UDP bytes sent at the last status line, for rates.
+    last_udp_tx: u64,
+    /// UDP bytes received at the last status line, for rates.
+    last_udp_rx: u64,
 }
 
 struct Replay {
@@ -95,10 +100,12 @@ struct RoomTask {
     forensics_bytes_down: u64,
     /// Bytes of probe replies received.
     forensics_bytes_up: u64,
-    /// The server's own re-simulation (`--verify`), ticks applied and the
-    /// time spent.
+    /// The server's own re-simulation (`--verify`).
     verifier: Option<Box<dyn lockstep_proto::verify::TickVerifier>>,
-    verified: (u64, Duration),
+    /// Ticks the re-simulation applied.
+    verified_ticks: u64,
+    /// The time the re-simulation took.
+    verify_time: Duration,
     /// What this room last added to the server's metrics.
     counted: report::Counted,
     /// Tick lateness samples in microseconds (the first 131,072 ticks).
@@ -214,7 +221,8 @@ impl RoomTask {
             forensics_bytes_down: 0,
             forensics_bytes_up: 0,
             verifier,
-            verified: (0, Duration::ZERO),
+            verified_ticks: 0,
+            verify_time: Duration::ZERO,
             counted: report::Counted::default(),
             lateness_us: Vec::new(),
             replay,
@@ -411,7 +419,8 @@ impl RoomTask {
                             report: self.players.len() - 1,
                             joined_at: Instant::now(),
                             closing: false,
-                            last_udp: (0, 0),
+                            last_udp_tx: 0,
+                            last_udp_rx: 0,
                         });
                         let _ = reply.send(Ok(id));
                     }
@@ -710,8 +719,8 @@ impl RoomTask {
                 if let Some(v) = self.verifier.as_mut() {
                     let started = Instant::now();
                     let hash = v.apply(&bundle);
-                    self.verified.0 += 1;
-                    self.verified.1 += started.elapsed();
+                    self.verified_ticks += 1;
+                    self.verify_time += started.elapsed();
                     let now = self.now();
                     self.room.verify_tick(now, bundle.tick, hash);
                     if let Some(r) = self.replay.as_mut() {

@@ -71,9 +71,10 @@ impl RoomTask {
             if let Some(seat) = self.seat(id) {
                 let s = seat.peer.connection.stats();
                 let (tx, rx) = (s.udp_tx.bytes, s.udp_rx.bytes);
-                down += tx.saturating_sub(seat.last_udp.0);
-                up += rx.saturating_sub(seat.last_udp.1);
-                seat.last_udp = (tx, rx);
+                down += tx.saturating_sub(seat.last_udp_tx);
+                up += rx.saturating_sub(seat.last_udp_rx);
+                seat.last_udp_tx = tx;
+                seat.last_udp_rx = rx;
                 n += 1;
             }
         }
@@ -176,7 +177,10 @@ impl RoomTask {
             located: self.located.clone(),
             forensics_bytes_down: self.forensics_bytes_down,
             forensics_bytes_up: self.forensics_bytes_up,
-            verified: self.verifier.as_ref().map(|_| self.verified),
+            verified: self
+                .verifier
+                .as_ref()
+                .map(|_| (self.verified_ticks, self.verify_time)),
             lateness: crate::Lateness::of(&self.lateness_us),
             bundles: self.bundles.clone(),
             players: self.players.clone(),
