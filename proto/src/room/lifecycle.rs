@@ -190,7 +190,7 @@ impl Room {
         self.lifecycle.first_join.get_or_insert(now);
     }
 
-    /// The match is started at `now` ([`Room::start`]).
+    /// The match just started ([`Room::start`]): the lifecycle runs it.
     pub(crate) fn started(&mut self) {
         self.lifecycle.phase = MatchPhase::Running;
         let Some(plan) = self.lifecycle.plan else {
