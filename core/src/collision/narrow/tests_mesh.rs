@@ -467,7 +467,10 @@ fn hull_on_a_flat_mesh_matches_its_lowest_vertex_over_seeded_poses() {
     }
     eprintln!("hull max depth error {worst:e}, {hits} contacts");
     assert!(hits >= 200, "{hits}");
-    assert!(worst <= 1e-6, "{worst}");
+    // The reduction to four points keeps, among the points within 2⁻¹² m
+    // of the deepest, the one farthest across the normal (module docs,
+    // step 4): the manifold's depth is the lowest vertex's to that slack.
+    assert!(worst <= 2f64.powi(-12) + 1e-6, "{worst}");
 }
 
 #[test]

@@ -153,10 +153,7 @@ pub(crate) fn triangle_points(
                 // hull (or a segment's lower end): add it when it lies over
                 // the triangle, so the manifold keeps the real depth.
                 let (k, &v) = deepest(verts, n);
-                let over = (0..3).all(|e| {
-                    let (a, b) = (tri.v[e], tri.v[(e + 1) % 3]);
-                    n.cross(b - a).dot_wide(v - a) >= 0
-                });
+                let over = lies_over(tri, n, v);
                 let known = poly.id[..poly.len].contains(&(k as u16 & 0xfff));
                 if over && !known {
                     poly.push(v, k as u16);
@@ -266,6 +263,34 @@ pub(crate) fn triangle_points(
             });
         }
     }
+}
+
+/// Whether `v` lies over `tri` seen along `n` (inside its three edge
+/// planes, as the clipping keeps).
+fn lies_over(tri: &Triangle, n: Vec3, v: Vec3) -> bool {
+    (0..3).all(|e| {
+        let (a, b) = (tri.v[e], tri.v[(e + 1) % 3]);
+        n.cross(b - a).dot_wide(v - a) >= 0
+    })
+}
+
+/// The shape's deepest point along `n` (its deepest core point, the radius
+/// below it) measured against `tri`'s plane across `n`, when it lies over
+/// `tri`: a flat region of a mesh acts as one plane for the corner that sank
+/// under a neighbour of the triangles that touch (see the mesh contact's
+/// step 3). Labelled as the face-axis points are.
+pub(crate) fn deepest_over(shape: &Convex, tri: &Triangle, n: Vec3) -> Option<TriPoint> {
+    let (k, &v) = deepest(shape.vertices(), n);
+    if !lies_over(tri, n, v) {
+        return None;
+    }
+    let s = v - n * shape.radius;
+    let depth = n.dot(tri.v[0]) - n.dot(s);
+    Some(TriPoint {
+        p: s + n * depth.half(),
+        depth,
+        id: 0x1000 | (k as u16 & 0xfff),
+    })
 }
 
 /// The point of `pts` with the smallest projection on `n` (the first on
