@@ -1,6 +1,6 @@
 //! Test support: the one seeded generator that the workspace's tests and
-//! benchmarks draw from, and the small helpers that turn test numbers into
-//! the core's types.
+//! benchmarks draw from (re-exported from `lockstep-test-rng`), and the
+//! small helpers that turn test numbers into the core's types.
 //!
 //! Built for the core's own unit tests, and with the `test-support` feature
 //! for everyone else (through the `lockstep-testsupport` crate). It is not
@@ -9,48 +9,7 @@
 
 use crate::math::{Scalar, Vec3};
 
-/// SplitMix64: a small seeded 64-bit generator. The same seed gives the
-/// same numbers on every machine, so a randomised test draws the same
-/// inputs on every run.
-#[derive(Clone, Debug)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// A generator whose state starts at `seed` (any value, zero too).
-    pub const fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// A number in `0..n` (`n > 0`): the remainder of the next draw. Its
-    /// small bias does not matter to a test.
-    pub fn below(&mut self, n: u64) -> u64 {
-        self.next_u64() % n
-    }
-
-    /// An integer in `lo..=hi`.
-    pub fn int(&mut self, lo: i64, hi: i64) -> i64 {
-        lo + self.below((hi - lo + 1) as u64) as i64
-    }
-
-    /// A float in `[0, 1)`: the top 53 bits of the next draw.
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// A float in `[lo, hi)`.
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-}
+pub use lockstep_test_rng::Rng;
 
 /// A test number as the nearest [`Scalar`].
 pub fn s(x: f64) -> Scalar {
@@ -60,30 +19,4 @@ pub fn s(x: f64) -> Scalar {
 /// A test vector from three floats, each the nearest [`Scalar`].
 pub fn v(x: f64, y: f64, z: f64) -> Vec3 {
     Vec3::new(s(x), s(y), s(z))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_first_draws_of_seed_zero_are_splitmix64s() {
-        // The reference values of SplitMix64 from state 0.
-        let mut r = Rng::new(0);
-        assert_eq!(r.next_u64(), 0xe220_a839_7b1d_cdaf);
-        assert_eq!(r.next_u64(), 0x6e78_9e6a_a1b9_65f4);
-    }
-
-    #[test]
-    fn draws_stay_in_their_ranges() {
-        let mut r = Rng::new(7);
-        for _ in 0..1000 {
-            assert!(r.below(10) < 10);
-            assert!((-3..=3).contains(&r.int(-3, 3)));
-            let u = r.unit();
-            assert!((0.0..1.0).contains(&u));
-            let x = r.uniform(-2.0, 5.0);
-            assert!((-2.0..5.0).contains(&x));
-        }
-    }
 }

@@ -3,10 +3,12 @@
 //! core's types ([`s`], [`v`], [`f`]), a counting global allocator
 //! ([`alloc`]) and the scenes several tests build ([`scenes`]).
 //!
-//! Dev-only: no product crate depends on it. The generator and the number
-//! helpers live in the core (`lockstep_core::testing`, behind its
-//! `test-support` feature) so that the core's own unit tests draw from the
-//! same generator; this crate turns the feature on and re-exports them.
+//! Dev-only: no product crate depends on it. The generator is the
+//! dependency-free `lockstep-test-rng` crate (the protocol's tests, which do
+//! not depend on the core, draw from it directly); the core re-exports it
+//! with the number helpers (`lockstep_core::testing`, behind its
+//! `test-support` feature) so that its own unit tests draw from the same
+//! generator; this crate turns the feature on and re-exports them.
 
 pub mod alloc;
 pub mod scenes;

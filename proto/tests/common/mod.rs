@@ -1,4 +1,4 @@
-//! Test harness: a seeded RNG, a lossy datagram link, a reliable pipe, and a
+//! Test harness: the workspace's seeded test generator, a lossy datagram link, a reliable pipe, and a
 //! simulation of one room and its clients on a virtual clock (1 ms steps).
 //! Everything crosses the codec as bytes, so the tests exercise encoding,
 //! framing and decoding as well as the state machines.
@@ -14,37 +14,7 @@ use lockstep_proto::{
     ServerMessage, Session, SessionEvent, TickBundle, encode_frame, frame_length,
 };
 
-/// SplitMix64: tiny, seeded, good enough to drive link models and fuzzing.
-#[derive(Clone, Debug)]
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Self {
-        Self(seed)
-    }
-
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `0..n` (n > 0), by 128-bit multiply.
-    pub fn below(&mut self, n: u64) -> u64 {
-        ((u128::from(self.next_u64()) * u128::from(n)) >> 64) as u64
-    }
-
-    /// True with probability `ppm` / 1 000 000.
-    pub fn chance(&mut self, ppm: u32) -> bool {
-        self.below(1_000_000) < u64::from(ppm)
-    }
-
-    pub fn bytes(&mut self, len: usize) -> Vec<u8> {
-        (0..len).map(|_| self.next_u64() as u8).collect()
-    }
-}
+pub use lockstep_test_rng::Rng;
 
 /// One direction of an unreliable datagram path.
 #[derive(Clone, Debug, Default)]
