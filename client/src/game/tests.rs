@@ -79,16 +79,10 @@ fn within_by(l: &PlayerLimits, p: Vec3, slack: Scalar) -> bool {
 /// settle it; 2 cm is the bound.
 const SQUEEZE_SLACK: Scalar = Scalar::from_bits(85_899_346);
 
-/// Byte strings for fuzzing, from the workspace's test generator.
-trait Bytes {
-    fn bytes(&mut self, max_len: usize) -> Vec<u8>;
-}
-
-impl Bytes for Rng {
-    fn bytes(&mut self, max_len: usize) -> Vec<u8> {
-        let len = self.below(max_len as u64 + 1) as usize;
-        (0..len).map(|_| self.next_u64() as u8).collect()
-    }
+/// A byte string of random length up to `max_len`, for fuzzing.
+fn bytes_up_to(rng: &mut Rng, max_len: usize) -> Vec<u8> {
+    let len = rng.below(max_len as u64 + 1) as usize;
+    rng.bytes(len)
 }
 
 // ---- input format ----------------------------------------------------------
@@ -148,7 +142,7 @@ fn random_bytes_never_panic_and_decode_only_when_well_formed() {
     let mut rng = Rng::new(0x1234_5678_9abc_def1);
     let mut decoded = 0;
     for _ in 0..100_000 {
-        let b = rng.bytes(4);
+        let b = bytes_up_to(&mut rng, 4);
         match DemoInput::decode(&b) {
             Some(i) => {
                 decoded += 1;
@@ -577,9 +571,9 @@ fn random_input_bytes_never_panic_or_fault() {
             if !rng.next_u64().is_multiple_of(3) {
                 // Mostly well-formed-length strings, sometimes anything ≤ 64.
                 let bytes = if rng.next_u64().is_multiple_of(2) {
-                    rng.bytes(64)
+                    bytes_up_to(&mut rng, 64)
                 } else {
-                    let mut b = rng.bytes(0);
+                    let mut b = bytes_up_to(&mut rng, 0);
                     b.extend([
                         rng.next_u64() as u8,
                         rng.next_u64() as u8,
