@@ -16,23 +16,38 @@
 //! The transport both sides share (ALPN, close codes, stream framing,
 //! transport and congestion settings, certificate files) is the crate
 //! `lockstep-net`; its items are re-exported here.
+//!
+//! Prediction ([`predict`]) and the forensics history ([`History`]) are
+//! I/O-free and stay without the feature `net`; everything else here needs
+//! it.
 
+#[cfg(feature = "net")]
 mod client;
 mod forensics;
+#[cfg(feature = "net")]
 mod live;
+#[cfg(feature = "net")]
 mod options;
 pub mod predict;
+#[cfg(feature = "net")]
 mod report;
+#[cfg(feature = "net")]
 mod tls;
 
+#[cfg(feature = "net")]
 pub use client::Client;
-pub use forensics::{dump_bodies, dump_game};
+pub use forensics::{History, dump_bodies, dump_game};
+#[cfg(feature = "net")]
 pub use live::{AppliedTick, LiveClient, Polled};
+#[cfg(feature = "net")]
 pub use lockstep_net::{
     ALPN, FrameError, MIN_CONGESTION_WINDOW, TlsError, close_code, close_code_for, load_certs,
     parse_certs, read_frame, transport_config, write_frame,
 };
+#[cfg(feature = "net")]
 pub use options::{ClientOptions, RejoinStore, TrustedCert};
 pub use predict::{InputPredictor, PredictionStats, PredictionTally, Rollback, TallyCounts};
+#[cfg(feature = "net")]
 pub use report::{ClientError, ClientEvent, ClientReport, InputLatency, Latency, Traffic};
+#[cfg(feature = "net")]
 pub use tls::client_config;
