@@ -1,0 +1,237 @@
+//! The WebTransport endpoint (issue 47): browsers' way in, over HTTP/3 on
+//! 127.0.0.1, into the same rooms as native QUIC, with the same messages,
+//! tokens and refusals. The clients here are what a browser does with the
+//! same certificate rules: WebTransport sessions on `/lockstep` that trust
+//! the server's generated certificate by its SHA-256 only
+//! (`serverCertificateHashes`).
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::{Duration, SystemTime};
+
+use lockstep_client::net::{client_config, load_certs, read_frame, write_frame};
+use lockstep_proto::{ClientMessage, CloseReason, Join, PROTOCOL_VERSION, ServerMessage};
+use lockstep_server::{ServerEvent, WEBTRANSPORT_PATH, issue_token};
+use lockstep_tests::harness::TestServer;
+
+/// The directory of a test's server (certificate, replays).
+fn tmp(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("webtransport-{name}"))
+}
+
+/// Starts a demo server with a WebTransport endpoint on a free port of
+/// 127.0.0.1; returns it with that endpoint's address and certificate
+/// hash (from [`ServerEvent::WebTransportListening`]).
+async fn start(
+    name: &str,
+    tweak: impl FnOnce(&mut lockstep_server::ServerConfig),
+) -> (TestServer, SocketAddr, [u8; 32]) {
+    let mut server = TestServer::start(tmp(name), |c| {
+        c.webtransport = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
+        tweak(c);
+    })
+    .await;
+    let (addr, hash) = server
+        .wait_for(Duration::from_secs(5), |e| match e {
+            ServerEvent::WebTransportListening { addr, cert_sha256 } => Some((*addr, *cert_sha256)),
+            _ => None,
+        })
+        .await;
+    assert_ne!(addr.port(), 0);
+    assert_ne!(addr, server.addr, "its own port, beside the QUIC one");
+    (server, addr, hash)
+}
+
+/// A WebTransport session to `path` on `server`, trusting only the
+/// certificate whose SHA-256 is `hash`, as a browser given
+/// `serverCertificateHashes`.
+async fn session(
+    server: SocketAddr,
+    hash: [u8; 32],
+    path: &str,
+) -> Result<web_transport_quinn::Session, web_transport_quinn::ClientError> {
+    let client = web_transport_quinn::ClientBuilder::new()
+        .with_server_certificate_hashes(vec![hash.to_vec()])?;
+    let url = url::Url::parse(&format!("https://{server}{path}")).expect("url");
+    client.connect(url).await
+}
+
+/// Sends `join` as the first frame of a WebTransport session's stream and
+/// returns the server's `Close` message (reason, detail) and the
+/// session's close code and reason.
+async fn refused_over_webtransport(
+    server: SocketAddr,
+    hash: [u8; 32],
+    join: &[u8],
+) -> (CloseReason, String, u32, String) {
+    let session = session(server, hash, WEBTRANSPORT_PATH)
+        .await
+        .expect("session");
+    let (mut send, mut recv) = session.open_bi().await.expect("stream");
+    write_frame(&mut send, join).await.expect("write join");
+    let frame = tokio::time::timeout(Duration::from_secs(10), read_frame(&mut recv))
+        .await
+        .expect("an answer within 10 s")
+        .expect("read")
+        .expect("a frame");
+    let ServerMessage::Close(close) = ServerMessage::decode(&frame).expect("decode") else {
+        panic!("expected a close message");
+    };
+    let ended = tokio::time::timeout(Duration::from_secs(10), session.closed())
+        .await
+        .expect("closed within 10 s");
+    let web_transport_quinn::SessionError::WebTransportError(
+        web_transport_quinn::WebTransportError::Closed(code, reason),
+    ) = ended
+    else {
+        panic!("the session ended without a WebTransport close: {ended}");
+    };
+    (close.reason, close.detail, code, reason)
+}
+
+/// The same over native QUIC: the `Close` message, and the connection's
+/// close code and reason.
+async fn refused_over_quic(
+    server: SocketAddr,
+    cert: &std::path::Path,
+    join: &[u8],
+) -> (CloseReason, String, u32, String) {
+    let config = client_config(&load_certs(cert).expect("cert")).expect("tls");
+    let mut endpoint = quinn::Endpoint::client("127.0.0.1:0".parse().unwrap()).expect("socket");
+    endpoint.set_default_client_config(config);
+    let connection = endpoint
+        .connect(server, "localhost")
+        .expect("connect")
+        .await
+        .expect("handshake");
+    let (mut send, mut recv) = connection.open_bi().await.expect("stream");
+    write_frame(&mut send, join).await.expect("write join");
+    let frame = read_frame(&mut recv).await.expect("read").expect("a frame");
+    let ServerMessage::Close(close) = ServerMessage::decode(&frame).expect("decode") else {
+        panic!("expected a close message");
+    };
+    let quinn::ConnectionError::ApplicationClosed(c) = connection.closed().await else {
+        panic!("closed without an application code");
+    };
+    let code = u32::try_from(c.error_code.into_inner()).expect("a u32 code");
+    let reason = String::from_utf8(c.reason.to_vec()).expect("UTF-8");
+    (close.reason, close.detail, code, reason)
+}
+
+fn join_with(token: String) -> Vec<u8> {
+    ClientMessage::Join(Join {
+        protocol_version: PROTOCOL_VERSION,
+        room: "tokens".into(),
+        player_name: "browser".into(),
+        token: Some(token),
+        rejoin: None,
+    })
+    .encode()
+    .expect("join")
+}
+
+/// A forged token (signed with another secret) and an expired one are
+/// refused over WebTransport exactly as over QUIC: the same `Close`
+/// message on the stream (`BadToken` and its detail), then the session
+/// closed with the same code (2, refused) and reason text as the QUIC
+/// connection. A session on another path is refused (404), and a good
+/// token still joins over WebTransport.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn forged_and_expired_tokens_are_refused_over_webtransport_as_over_quic() {
+    let secret = b"a webtransport test secret, 16+ bytes".to_vec();
+    let key = secret.clone();
+    let (server, wt, hash) = start("tokens", move |c| {
+        c.token_secret = Some(key);
+        c.require_tokens = true;
+    })
+    .await;
+    let now = SystemTime::now();
+    let ttl = Duration::from_secs(600);
+    let forged = issue_token(
+        b"not the server's secret at all!!",
+        "tokens",
+        None,
+        "browser",
+        ttl,
+        now,
+    )
+    .expect("token");
+    let an_hour_ago = now - Duration::from_secs(3600);
+    let expired = issue_token(
+        &secret,
+        "tokens",
+        None,
+        "browser",
+        Duration::from_secs(60),
+        an_hour_ago,
+    )
+    .expect("token");
+
+    let forged_wt = refused_over_webtransport(wt, hash, &join_with(forged.clone())).await;
+    let forged_quic = refused_over_quic(server.addr, &server.cert, &join_with(forged)).await;
+    assert_eq!(forged_wt, forged_quic);
+    assert_eq!(forged_wt.0, CloseReason::BadToken);
+    assert_eq!(forged_wt.1, "join token signature invalid");
+    assert_eq!(forged_wt.2, lockstep_client::net::close_code::REFUSED);
+    assert_eq!(forged_wt.3, "BadToken: join token signature invalid");
+
+    let expired_wt = refused_over_webtransport(wt, hash, &join_with(expired.clone())).await;
+    let expired_quic = refused_over_quic(server.addr, &server.cert, &join_with(expired)).await;
+    assert_eq!(expired_wt.0, CloseReason::BadToken);
+    assert_eq!(expired_wt.2, lockstep_client::net::close_code::REFUSED);
+    // The detail names the expiry and the server's clock, which may have
+    // ticked a second between the two joins.
+    let expiry = an_hour_ago
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .unwrap()
+        .as_secs()
+        + 60;
+    let prefix = format!("join token expired at {expiry} (now ");
+    for (reason, detail, code, text) in [&expired_wt, &expired_quic] {
+        assert_eq!(*reason, CloseReason::BadToken);
+        assert!(detail.starts_with(&prefix), "{detail}");
+        assert_eq!(*code, lockstep_client::net::close_code::REFUSED);
+        assert_eq!(*text, format!("BadToken: {detail}"));
+    }
+
+    // Another path: no session (HTTP 404).
+    let other = session(wt, hash, "/elsewhere").await;
+    assert!(other.is_err(), "a session on /elsewhere opened");
+    // A certificate of another hash is not trusted.
+    assert!(session(wt, [7; 32], WEBTRANSPORT_PATH).await.is_err());
+
+    // A valid token is seated over WebTransport: the welcome comes.
+    let good = issue_token(&secret, "tokens", None, "browser", ttl, now).expect("token");
+    let s = session(wt, hash, WEBTRANSPORT_PATH).await.expect("session");
+    let (mut send, mut recv) = s.open_bi().await.expect("stream");
+    write_frame(&mut send, &join_with(good))
+        .await
+        .expect("write");
+    let frame = read_frame(&mut recv).await.expect("read").expect("frame");
+    let ServerMessage::Welcome(w) = ServerMessage::decode(&frame).expect("decode") else {
+        panic!("expected a welcome");
+    };
+    assert_eq!(w.slot.0, 0);
+    assert!(
+        w.rejoin.is_some(),
+        "a token holder gets its rejoin credential"
+    );
+    drop((send, recv, s));
+
+    let report = server.shutdown().await;
+    let refusals: Vec<&str> = report.refused.iter().map(|(_, r)| r.as_str()).collect();
+    assert!(
+        refusals
+            .iter()
+            .filter(|r| r.contains("join token signature invalid"))
+            .count()
+            == 2,
+        "{refusals:?}"
+    );
+    assert!(
+        refusals
+            .iter()
+            .any(|r| r.contains("\"/elsewhere\" refused (404)")),
+        "{refusals:?}"
+    );
+}
