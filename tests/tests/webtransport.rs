@@ -7,12 +7,18 @@
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
-use lockstep_client::net::{client_config, load_certs, read_frame, write_frame};
+use lockstep_client::bot::{BotOptions, run_bot, run_bots};
+use lockstep_client::game::{Demo, RulesVerifier};
+use lockstep_client::net::{
+    ClientOptions, TrustedCert, client_config, load_certs, read_frame, write_frame,
+};
 use lockstep_proto::{ClientMessage, CloseReason, Join, PROTOCOL_VERSION, ServerMessage};
 use lockstep_server::{ServerEvent, WEBTRANSPORT_PATH, issue_token};
-use lockstep_tests::harness::TestServer;
+use lockstep_tests::harness::{TestServer, assert_same_hashes, bots_ok};
+use lockstep_tools::verify_replay_file;
 
 /// The directory of a test's server (certificate, replays).
 fn tmp(name: &str) -> PathBuf {
@@ -233,5 +239,153 @@ async fn forged_and_expired_tokens_are_refused_over_webtransport_as_over_quic() 
             .iter()
             .any(|r| r.contains("\"/elsewhere\" refused (404)")),
         "{refusals:?}"
+    );
+}
+
+/// A browser-like player (the client library joining over WebTransport,
+/// trusting the generated certificate by its hash) and two native bots
+/// play one 600-tick match of the demo: every one of them re-simulates and
+/// reports every tick, the verifying server compares all 600 ticks with no
+/// mismatch, and the replay re-verifies offline.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_webtransport_player_and_native_bots_agree_on_600_ticks_and_the_replay_reverifies() {
+    const TICKS: u64 = 600;
+    let (mut server, wt, hash) = start("match", |c| {
+        c.room.start_players = 3;
+        c.room.match_ticks = Some(TICKS);
+        c.verifier = Some(Arc::new(RulesVerifier {
+            game: Arc::new(Demo),
+        }));
+    })
+    .await;
+    let mut options = ClientOptions::new(wt, TrustedCert::Sha256(hash), "mixed", "browser");
+    options.webtransport = true;
+    let browser = tokio::spawn(run_bot(
+        options,
+        Arc::new(Demo),
+        7,
+        false,
+        std::future::pending(),
+    ));
+    let natives = run_bots(
+        &BotOptions::new(server.addr, &server.cert, "mixed", 2),
+        std::future::pending(),
+    )
+    .await;
+    let browser = browser
+        .await
+        .expect("task")
+        .expect("the WebTransport player");
+    let mut players = bots_ok(natives);
+    players.push(browser);
+    let ended = server.match_end(Duration::from_secs(30)).await;
+    let report = server.shutdown().await;
+
+    assert_same_hashes(&players, TICKS as usize);
+    for p in &players {
+        assert_eq!(p.desyncs().count(), 0);
+        let close = p.close.as_ref().expect("closed by the server");
+        assert_eq!(close.reason, CloseReason::RoomClosed);
+    }
+    assert_eq!(ended.ticks, TICKS);
+    assert_eq!(ended.ticks_compared, TICKS);
+    assert_eq!(ended.mismatched_ticks, 0);
+    assert!(ended.desyncs.is_empty());
+    assert_eq!(
+        ended.verified.map(|v| v.0),
+        Some(TICKS),
+        "the server re-simulated"
+    );
+    assert!(report.refused.is_empty(), "{:?}", report.refused);
+    assert_eq!(ended.players.len(), 3);
+    let web = ended
+        .players
+        .iter()
+        .find(|p| p.name == "browser")
+        .expect("the WebTransport player in the room's report");
+    assert_eq!(
+        web.hash_reports, TICKS,
+        "every tick's hash came over WebTransport"
+    );
+    assert!(
+        web.datagrams_up >= TICKS,
+        "inputs: {} datagrams",
+        web.datagrams_up
+    );
+    assert!(
+        web.datagrams_down >= TICKS,
+        "bundles: {} datagrams",
+        web.datagrams_down
+    );
+    assert!(web.left.is_none(), "played to the end: {:?}", web.left);
+
+    let path = ended.replay.expect("replay recorded");
+    let check = verify_replay_file(&path, &Demo).expect("replay verifies");
+    assert_eq!(
+        (check.ticks, check.checked, check.players),
+        (TICKS, TICKS, 3)
+    );
+    assert_eq!(check.final_hash, players[2].hashes[TICKS as usize - 1]);
+
+    // Figures (docs/protocol.md): what each player costs on the wire.
+    let secs = ended.duration.as_secs_f64();
+    for p in &ended.players {
+        println!(
+            "{} (slot {}): UDP down {:.0} B/s up {:.0} B/s; datagrams down {} (max {} B) up {} (max {} B); substituted {}",
+            p.name,
+            p.slot.0,
+            p.udp_bytes_down as f64 / secs,
+            p.udp_bytes_up as f64 / secs,
+            p.datagrams_down,
+            p.max_datagram_down,
+            p.datagrams_up,
+            p.max_datagram_up,
+            p.inputs_substituted
+        );
+    }
+}
+
+/// The connection limits count WebTransport sessions with QUIC
+/// connections: with one connection allowed per address, a session from
+/// the address of a seated native player is refused with the overloaded
+/// code (5) and the reason, in its WebTransport close.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn webtransport_sessions_count_against_the_per_address_limit() {
+    let (server, wt, hash) = start("limits", |c| {
+        c.max_connections_per_address = Some(1);
+    })
+    .await;
+    let config = client_config(&load_certs(&server.cert).expect("cert")).expect("tls");
+    let mut endpoint = quinn::Endpoint::client("127.0.0.1:0".parse().unwrap()).expect("socket");
+    endpoint.set_default_client_config(config);
+    let native = endpoint
+        .connect(server.addr, "localhost")
+        .expect("connect")
+        .await
+        .expect("handshake");
+    let refused = session(wt, hash, WEBTRANSPORT_PATH).await.expect("session");
+    let ended = tokio::time::timeout(Duration::from_secs(10), refused.closed())
+        .await
+        .expect("closed within 10 s");
+    let web_transport_quinn::SessionError::WebTransportError(
+        web_transport_quinn::WebTransportError::Closed(code, reason),
+    ) = ended
+    else {
+        panic!("the session ended without a WebTransport close: {ended}");
+    };
+    assert_eq!(code, lockstep_client::net::close_code::OVERLOADED);
+    assert_eq!(
+        reason,
+        "too many connections from 127.0.0.1 (at most 1 per address)"
+    );
+    native.close(0u32.into(), b"done");
+    let report = server.shutdown().await;
+    assert!(
+        report
+            .refused
+            .iter()
+            .any(|(_, r)| r.starts_with("too many connections from 127.0.0.1")),
+        "{:?}",
+        report.refused
     );
 }
