@@ -493,6 +493,28 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
+    /// `--webtransport ADDR` sets the WebTransport endpoint's address (none
+    /// by default), and an address that does not parse is refused naming
+    /// the flag.
+    #[test]
+    fn webtransport_takes_an_address() {
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/demo.toml");
+        let app = crate::App::demo();
+        let config = |extra: &[&str]| {
+            let args = ["lockstep-server", "--scene", scene]
+                .into_iter()
+                .chain(extra.iter().copied());
+            app.server_config(args)
+        };
+        assert_eq!(config(&[]).unwrap().webtransport, None);
+        let c = config(&["--webtransport", "127.0.0.1:4434"]).unwrap();
+        assert_eq!(c.webtransport, Some("127.0.0.1:4434".parse().unwrap()));
+        let c = config(&["--webtransport", "[::1]:0"]).unwrap();
+        assert_eq!(c.webtransport, Some("[::1]:0".parse().unwrap()));
+        let e = config(&["--webtransport", "localhost"]).unwrap_err();
+        assert!(e.contains("--webtransport <ADDR>"), "{e}");
+    }
+
     /// `--vote` needs `--no-verify` only where the server would verify: a
     /// server relaying another game's rules never verifies, so it votes
     /// with `--vote` alone.

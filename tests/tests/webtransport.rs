@@ -389,3 +389,31 @@ async fn webtransport_sessions_count_against_the_per_address_limit() {
         report.refused
     );
 }
+
+/// A WebTransport address that cannot be bound stops the server at start
+/// with an error naming the endpoint and the address.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_webtransport_address_in_use_is_a_clear_start_up_error() {
+    let taken = std::net::UdpSocket::bind("127.0.0.1:0").expect("a UDP socket");
+    let addr = taken.local_addr().expect("its address");
+    let dir = tmp("bind");
+    let mut config = lockstep_server::ServerConfig::for_game(
+        SocketAddr::from(([127, 0, 0, 1], 0)),
+        lockstep_client::game::DemoGame::SCENE,
+        "demo",
+        lockstep_client::game::RulesFactory::rules_id(&Demo),
+    );
+    config.tls = lockstep_server::TlsSource::dev(dir.join("cert.pem"));
+    config.replay_dir = None;
+    config.webtransport = Some(addr);
+    let e = lockstep_server::run(config, std::future::pending())
+        .await
+        .expect_err("the address is taken");
+    assert!(matches!(e, lockstep_server::ServerError::BindWebTransport(a, _) if a == addr));
+    let text = e.to_string();
+    assert!(
+        text.starts_with(&format!("bind the WebTransport endpoint on {addr}: ")),
+        "{text}"
+    );
+    drop(taken);
+}
