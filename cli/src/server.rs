@@ -45,6 +45,13 @@ pub struct ServerArgs {
     /// UDP address to listen on (the demo picks a free loopback port).
     #[arg(long, default_value = "127.0.0.1:4433", env = "LOCKSTEP_LISTEN")]
     listen: SocketAddr,
+    /// Also serve WebTransport (HTTP/3, for browsers) on this UDP address
+    /// (e.g. 127.0.0.1:4434): sessions on the path /lockstep join the same
+    /// rooms. Its certificate is --cert's, or without one a generated
+    /// ECDSA certificate valid 13 days whose SHA-256 is logged (browsers
+    /// take it through serverCertificateHashes).
+    #[arg(long, value_name = "ADDR", env = "LOCKSTEP_WEBTRANSPORT")]
+    webtransport: Option<SocketAddr>,
     /// Certificate chain (PEM) of a real certificate; needs --key.
     #[arg(long, requires = "key", env = "LOCKSTEP_CERT")]
     cert: Option<PathBuf>,
@@ -286,6 +293,7 @@ pub(crate) fn build_config(app: &App, cli: &ServerArgs) -> Result<ServerConfig, 
         app.scene_name.clone(),
         app.game.rules_id(),
     );
+    config.webtransport = cli.webtransport;
     config.tls = match (cli.cert.clone(), cli.key.clone()) {
         (Some(cert), Some(key)) => TlsSource::Files { cert, key },
         _ => TlsSource::dev(cli.cert_out.clone()),
@@ -483,6 +491,28 @@ mod tests {
             b" keep leading, inner  spaces".to_vec()
         );
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// `--webtransport ADDR` sets the WebTransport endpoint's address (none
+    /// by default), and an address that does not parse is refused naming
+    /// the flag.
+    #[test]
+    fn webtransport_takes_an_address() {
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/demo.toml");
+        let app = crate::App::demo();
+        let config = |extra: &[&str]| {
+            let args = ["lockstep-server", "--scene", scene]
+                .into_iter()
+                .chain(extra.iter().copied());
+            app.server_config(args)
+        };
+        assert_eq!(config(&[]).unwrap().webtransport, None);
+        let c = config(&["--webtransport", "127.0.0.1:4434"]).unwrap();
+        assert_eq!(c.webtransport, Some("127.0.0.1:4434".parse().unwrap()));
+        let c = config(&["--webtransport", "[::1]:0"]).unwrap();
+        assert_eq!(c.webtransport, Some("[::1]:0".parse().unwrap()));
+        let e = config(&["--webtransport", "localhost"]).unwrap_err();
+        assert!(e.contains("--webtransport <ADDR>"), "{e}");
     }
 
     /// `--vote` needs `--no-verify` only where the server would verify: a
