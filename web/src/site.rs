@@ -13,14 +13,16 @@ use lockstep_view::http::{Query, Response, Routes};
 
 /// The page.
 pub const INDEX_HTML: &str = include_str!("../page/index.html");
-/// The page's script: WebTransport, the page loop, keys, drawing.
+/// The page's script: the worker, keys, drawing, status.
 pub const CLIENT_JS: &str = include_str!("../page/client.js");
+/// The worker's script: the module, WebTransport, the loop.
+pub const WORKER_JS: &str = include_str!("../page/worker.js");
 /// The browser target.
 pub const WASM_TARGET: &str = "wasm32-unknown-unknown";
 
 /// The routes of the browser client's site: `/` (the page), `/client.js`,
-/// `/client.wasm` (the game's module); the viewer's server adds
-/// `/render.js`.
+/// `/worker.js`, `/client.wasm` (the game's module); the viewer's server
+/// adds `/render.js`.
 pub struct ClientRoutes {
     wasm: Arc<[u8]>,
 }
@@ -34,12 +36,11 @@ impl ClientRoutes {
 
 impl Routes for ClientRoutes {
     fn get(&self, path: &str, _query: Query<'_>) -> Option<Response> {
+        const JS: &str = "text/javascript; charset=utf-8";
         let (content_type, body): (&'static str, Arc<[u8]>) = match path {
             "/" | "/index.html" => ("text/html; charset=utf-8", INDEX_HTML.as_bytes().into()),
-            "/client.js" => (
-                "text/javascript; charset=utf-8",
-                CLIENT_JS.as_bytes().into(),
-            ),
+            "/client.js" => (JS, CLIENT_JS.as_bytes().into()),
+            "/worker.js" => (JS, WORKER_JS.as_bytes().into()),
             "/client.wasm" => ("application/wasm", self.wasm.clone()),
             _ => return None,
         };
@@ -238,12 +239,47 @@ mod tests {
         let get = |p| routes.get(p, Query(""));
         assert_eq!(&*get("/").unwrap().body, INDEX_HTML.as_bytes());
         assert_eq!(&*get("/client.js").unwrap().body, CLIENT_JS.as_bytes());
+        assert_eq!(&*get("/worker.js").unwrap().body, WORKER_JS.as_bytes());
         let wasm = get("/client.wasm").unwrap();
         assert_eq!(wasm.content_type, "application/wasm");
         assert_eq!(&*wasm.body, b"\0asm");
         // The renderer is the viewer's server's own route.
         assert!(get("/render.js").is_none());
         assert!(INDEX_HTML.contains("/render.js") && INDEX_HTML.contains("/client.js"));
+    }
+
+    /// Over HTTP, on the viewer's server: every file of the page, with the
+    /// headers that isolate it (the worker and the module load under them).
+    #[test]
+    fn the_site_answers_over_http_cross_origin_isolated() {
+        use std::io::{Read, Write};
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap();
+        std::thread::spawn(move || serve(listener, b"\0asm".to_vec()));
+        for (path, body) in [
+            ("/", INDEX_HTML.as_bytes()),
+            ("/client.js", CLIENT_JS.as_bytes()),
+            ("/worker.js", WORKER_JS.as_bytes()),
+            ("/render.js", lockstep_view::http::RENDER_JS.as_bytes()),
+            ("/client.wasm", b"\0asm"),
+        ] {
+            let mut s = std::net::TcpStream::connect(addr).unwrap();
+            write!(s, "GET {path} HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+            let mut raw = Vec::new();
+            s.read_to_end(&mut raw).unwrap();
+            let split = raw.windows(4).position(|w| w == b"\r\n\r\n").unwrap();
+            let head = String::from_utf8_lossy(&raw[..split]);
+            assert!(head.starts_with("HTTP/1.1 200"), "{path}: {head}");
+            assert!(
+                head.contains("Cross-Origin-Embedder-Policy: require-corp"),
+                "{head}"
+            );
+            assert!(
+                head.contains("Cross-Origin-Opener-Policy: same-origin"),
+                "{head}"
+            );
+            assert_eq!(&raw[split + 4..], body, "{path}");
+        }
     }
 
     #[test]
