@@ -25,9 +25,10 @@ pub struct ServerArgs {
     /// this program's game, a status line per second, a summary at the end.
     #[arg(long, env = "LOCKSTEP_DEMO")]
     demo: bool,
-    /// Demo: how many seconds the match lasts.
-    #[arg(long, default_value_t = 20.0, env = "LOCKSTEP_DURATION")]
-    duration: f64,
+    /// Demo: how many seconds the match lasts (default 20, or 120 with
+    /// --webtransport: time to play in the browser).
+    #[arg(long, env = "LOCKSTEP_DURATION")]
+    duration: Option<f64>,
     /// Demo: number of bots.
     #[arg(long, default_value_t = 4, env = "LOCKSTEP_BOTS")]
     bots: usize,
@@ -52,6 +53,19 @@ pub struct ServerArgs {
     /// take it through serverCertificateHashes).
     #[arg(long, value_name = "ADDR", env = "LOCKSTEP_WEBTRANSPORT")]
     webtransport: Option<SocketAddr>,
+    /// Demo with --webtransport: where the browser client's page is served
+    /// (HTTP; the demo prints its URL and waits for a player in a browser).
+    #[arg(
+        long,
+        value_name = "ADDR",
+        default_value = "127.0.0.1:8047",
+        env = "LOCKSTEP_WEB_LISTEN"
+    )]
+    web_listen: SocketAddr,
+    /// Demo with --webtransport: the browser module to serve, built
+    /// beforehand (default: built with cargo at start).
+    #[arg(long, value_name = "FILE", env = "LOCKSTEP_WEB_MODULE")]
+    web_module: Option<PathBuf>,
     /// Certificate chain (PEM) of a real certificate; needs --key.
     #[arg(long, requires = "key", env = "LOCKSTEP_CERT")]
     cert: Option<PathBuf>,
@@ -444,7 +458,21 @@ pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
         options.bots = cli.bots;
         options.seed = cli.seed;
         options.diverge_at = cli.diverge_at;
-        options.duration = Duration::from_secs_f64(cli.duration.clamp(0.1, 86_400.0));
+        let duration = cli.duration.unwrap_or(if cli.webtransport.is_some() {
+            120.0
+        } else {
+            20.0
+        });
+        options.duration = Duration::from_secs_f64(duration.clamp(0.1, 86_400.0));
+        let module = match &cli.web_module {
+            Some(file) => Some(crate::web::ModuleSource::File(file.clone())),
+            None => app.web_module.clone(),
+        };
+        options.web = module.map(|module| crate::web::WebDemo {
+            listen: cli.web_listen,
+            module,
+            players: 1,
+        });
         return match run_demo(options, terminate()).await {
             Ok(s) => {
                 let ok = s.report.as_ref().is_some_and(|r| r.desyncs.is_empty())

@@ -76,7 +76,7 @@ pub fn page_url(
 ) -> String {
     JoinLink {
         webtransport,
-        path: "/lockstep".into(),
+        path: lockstep_server::WEBTRANSPORT_PATH.into(),
         cert_sha256: cert_sha256.to_owned(),
         room: room.to_owned(),
         name: name.to_owned(),
