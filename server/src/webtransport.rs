@@ -110,15 +110,16 @@ pub(crate) fn bind(config: &ServerConfig) -> Result<Option<Bound>, ServerError> 
     let addr = endpoint
         .local_addr()
         .map_err(|e| ServerError::BindWebTransport(listen, e))?;
+    // One line in a fixed form, for scripts that read the hash from it.
     crate::log!(
-        "webtransport on {addr} (path {WEBTRANSPORT_PATH}), certificate sha-256 {}{}",
-        hex(&cert_sha256),
-        if generated {
-            " (generated: ECDSA P-256, valid 13 days; browsers take it through serverCertificateHashes)"
-        } else {
-            ""
-        }
+        "webtransport on {addr} (path {WEBTRANSPORT_PATH}), certificate sha-256 {}",
+        hex(&cert_sha256)
     );
+    if generated {
+        crate::log!(
+            "webtransport: that certificate was generated (ECDSA P-256, valid 13 days, for localhost, 127.0.0.1 and ::1); browsers accept it through serverCertificateHashes"
+        );
+    }
     Ok(Some(Bound {
         endpoint,
         addr,
