@@ -1,7 +1,10 @@
 //! The network client: QUIC (quinn) around `lockstep_proto::Session`.
 //!
 //! [`Client::connect`] opens a QUIC connection to a server (trusting the
-//! certificate file the server wrote, or a real one), joins a room, receives
+//! certificate file the server wrote, or a real one), or a WebTransport
+//! session to its `--webtransport` endpoint
+//! ([`ClientOptions::webtransport`], trusting the certificate by its hash
+//! with [`TrustedCert::Sha256`] as a browser does), joins a room, receives
 //! the welcome, and builds the world from the scene it carries, checking the
 //! scene hash. [`Client::play`] then runs the lockstep loop: submit the local
 //! input for tick `t + input_delay`, apply the bundles strictly in tick order
@@ -14,8 +17,9 @@
 //! with `lockstep_proto::encode_frame`.
 //!
 //! The transport both sides share (ALPN, close codes, stream framing,
-//! transport and congestion settings, certificate files) is the crate
-//! `lockstep-net`; its items are re-exported here.
+//! transport and congestion settings, certificate files, the
+//! [`Link`] over QUIC or WebTransport) is the crate `lockstep-net`; its
+//! items are re-exported here.
 
 mod client;
 mod forensics;
@@ -29,8 +33,9 @@ pub use client::Client;
 pub use forensics::{dump_bodies, dump_game};
 pub use live::{AppliedTick, LiveClient, Polled};
 pub use lockstep_net::{
-    ALPN, FrameError, MIN_CONGESTION_WINDOW, TlsError, close_code, close_code_for, load_certs,
-    parse_certs, read_frame, transport_config, write_frame,
+    ALPN, FrameError, Link, LinkError, LinkRecv, LinkSend, MIN_CONGESTION_WINDOW, TlsError,
+    WEBTRANSPORT_PATH, close_code, close_code_for, load_certs, parse_certs, read_frame,
+    transport_config, webtransport_transport_config, write_frame,
 };
 pub use options::{ClientOptions, RejoinStore, TrustedCert};
 pub use predict::{InputPredictor, PredictionStats, PredictionTally, Rollback, TallyCounts};
