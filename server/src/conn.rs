@@ -81,7 +81,7 @@ pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming, via: V
                 match r {
                     Ok(Ok(session)) => Ok(Link::WebTransport(Box::new(session))),
                     Ok(Err(reason)) => Err(reason),
-                    Err(_) => Err("no WebTransport session within 5 s".to_owned()),
+                    Err(_) => Err("no WebTransport handshake within 5 s".to_owned()),
                 }
             }
             _ = shutdown.wait_for(|s| *s) => Err("server shutting down".to_owned()),
