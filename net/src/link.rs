@@ -70,8 +70,9 @@ impl From<web_transport_quinn::SessionError> for LinkError {
 pub enum Link {
     /// Native QUIC.
     Quic(quinn::Connection),
-    /// A WebTransport session (HTTP/3), owning its QUIC connection.
-    WebTransport(web_transport_quinn::Session),
+    /// A WebTransport session (HTTP/3), owning its QUIC connection (boxed:
+    /// a session is some 800 bytes, a connection a pointer).
+    WebTransport(Box<web_transport_quinn::Session>),
 }
 
 impl Link {

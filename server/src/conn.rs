@@ -79,9 +79,9 @@ pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming, via: V
         Via::WebTransport => tokio::select! {
             r = tokio::time::timeout_at(deadline, webtransport::open_session(connection.clone())) => {
                 match r {
-                    Ok(Ok(session)) => Ok(Link::WebTransport(session)),
+                    Ok(Ok(session)) => Ok(Link::WebTransport(Box::new(session))),
                     Ok(Err(reason)) => Err(reason),
-                    Err(_) => Err("no WebTransport session within 5 s".to_owned()),
+                    Err(_) => Err("no WebTransport handshake within 5 s".to_owned()),
                 }
             }
             _ = shutdown.wait_for(|s| *s) => Err("server shutting down".to_owned()),
@@ -150,7 +150,9 @@ pub(crate) async fn refuse(incoming: quinn::Incoming, reason: &str, via: Via) {
         let c = connecting.await.ok()?;
         Some(match via {
             Via::Quic => Link::Quic(c),
-            Via::WebTransport => Link::WebTransport(webtransport::open_session(c).await.ok()?),
+            Via::WebTransport => {
+                Link::WebTransport(Box::new(webtransport::open_session(c).await.ok()?))
+            }
         })
     })
     .await;

@@ -110,15 +110,16 @@ pub(crate) fn bind(config: &ServerConfig) -> Result<Option<Bound>, ServerError> 
     let addr = endpoint
         .local_addr()
         .map_err(|e| ServerError::BindWebTransport(listen, e))?;
+    // One line in a fixed form, for scripts that read the hash from it.
     crate::log!(
-        "webtransport on {addr} (path {WEBTRANSPORT_PATH}), certificate sha-256 {}{}",
-        hex(&cert_sha256),
-        if generated {
-            " (generated: ECDSA P-256, valid 13 days; browsers take it through serverCertificateHashes)"
-        } else {
-            ""
-        }
+        "webtransport on {addr} (path {WEBTRANSPORT_PATH}), certificate sha-256 {}",
+        hex(&cert_sha256)
     );
+    if generated {
+        crate::log!(
+            "webtransport: that certificate was generated (ECDSA P-256, valid 13 days, for localhost, 127.0.0.1 and ::1); browsers accept it through serverCertificateHashes"
+        );
+    }
     Ok(Some(Bound {
         endpoint,
         addr,
@@ -131,26 +132,27 @@ pub(crate) fn bind(config: &ServerConfig) -> Result<Option<Bound>, ServerError> 
 /// [`WEBTRANSPORT_PATH`] and 404 on any other path.
 ///
 /// # Errors
-/// Why no session was opened, as a sentence for the log.
+/// Why no session was opened, as a sentence for the log (counted as a
+/// handshake refusal in the metrics, as a failed QUIC handshake is).
 pub(crate) async fn open_session(
     conn: quinn::Connection,
 ) -> Result<web_transport_quinn::Session, String> {
     let request = web_transport_quinn::Request::accept(conn.clone())
         .await
-        .map_err(|e| format!("no WebTransport session: {e}"))?;
+        .map_err(|e| format!("WebTransport handshake failed: {e}"))?;
     let path = request.url.path().to_owned();
     if path != WEBTRANSPORT_PATH {
         let _ = request.reject(StatusCode::NOT_FOUND).await;
         // Give the client a moment to read the answer and close itself.
         let _ = tokio::time::timeout(Duration::from_secs(1), conn.closed()).await;
         return Err(format!(
-            "WebTransport session for path {path:?} refused (404): the path is {WEBTRANSPORT_PATH}"
+            "WebTransport handshake: no session on path {path:?} (404; the path is {WEBTRANSPORT_PATH})"
         ));
     }
     request
         .ok()
         .await
-        .map_err(|e| format!("WebTransport session not opened: {e}"))
+        .map_err(|e| format!("WebTransport handshake: the session's answer failed: {e}"))
 }
 
 #[cfg(test)]

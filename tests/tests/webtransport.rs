@@ -237,7 +237,7 @@ async fn forged_and_expired_tokens_are_refused_over_webtransport_as_over_quic() 
     assert!(
         refusals
             .iter()
-            .any(|r| r.contains("\"/elsewhere\" refused (404)")),
+            .any(|r| r.contains("no session on path \"/elsewhere\" (404")),
         "{refusals:?}"
     );
 }
@@ -416,4 +416,76 @@ async fn a_webtransport_address_in_use_is_a_clear_start_up_error() {
         "{text}"
     );
     drop(taken);
+}
+
+/// Protocol violations close a WebTransport player as they close a QUIC
+/// one: a first frame that does not decode is refused with the same
+/// `Close` message, code (1) and reason over both; and a datagram that
+/// names another WebTransport session than the player's own closes it as a
+/// bad datagram.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn protocol_violations_close_a_webtransport_player_with_code_1() {
+    let (server, wt, hash) = start("violations", |_| {}).await;
+    // A version header, then a variant that does not exist.
+    let garbage = [PROTOCOL_VERSION.to_le_bytes().as_slice(), &[99, 1, 2]].concat();
+    let over_wt = refused_over_webtransport(wt, hash, &garbage).await;
+    let over_quic = refused_over_quic(server.addr, &server.cert, &garbage).await;
+    assert_eq!(over_wt, over_quic);
+    assert_eq!(over_wt.0, CloseReason::ProtocolViolation);
+    assert!(over_wt.1.starts_with("undecodable join: "), "{}", over_wt.1);
+    assert_eq!(
+        over_wt.2,
+        lockstep_client::net::close_code::PROTOCOL_VIOLATION
+    );
+
+    let s = session(wt, hash, WEBTRANSPORT_PATH).await.expect("session");
+    let (mut send, mut recv) = s.open_bi().await.expect("stream");
+    let join = ClientMessage::Join(Join {
+        protocol_version: PROTOCOL_VERSION,
+        room: "violations".into(),
+        player_name: "browser".into(),
+        token: None,
+        rejoin: None,
+    })
+    .encode()
+    .expect("join");
+    write_frame(&mut send, &join).await.expect("write");
+    let frame = read_frame(&mut recv).await.expect("read").expect("frame");
+    assert!(matches!(
+        ServerMessage::decode(&frame),
+        Ok(ServerMessage::Welcome(_))
+    ));
+    // A raw QUIC datagram under the session: its first byte is the
+    // session's quarter stream id, and 5 names a session there is not.
+    let pong = ClientMessage::Pong(lockstep_proto::Pong { nonce: 1 })
+        .encode()
+        .expect("pong");
+    let foreign = [[5u8].as_slice(), &pong].concat();
+    quinn::Connection::send_datagram(&s, foreign.into()).expect("datagram");
+    let close = tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            let frame = read_frame(&mut recv).await.expect("read").expect("frame");
+            if let Ok(ServerMessage::Close(c)) = ServerMessage::decode(&frame) {
+                return c;
+            }
+        }
+    })
+    .await
+    .expect("closed within 10 s");
+    assert_eq!(close.reason, CloseReason::ProtocolViolation);
+    assert_eq!(
+        close.detail,
+        "bad datagram: a datagram for another WebTransport session"
+    );
+    let ended = tokio::time::timeout(Duration::from_secs(10), s.closed())
+        .await
+        .expect("session closed within 10 s");
+    let web_transport_quinn::SessionError::WebTransportError(
+        web_transport_quinn::WebTransportError::Closed(code, _),
+    ) = ended
+    else {
+        panic!("the session ended without a WebTransport close: {ended}");
+    };
+    assert_eq!(code, lockstep_client::net::close_code::PROTOCOL_VIOLATION);
+    server.shutdown().await;
 }

@@ -87,7 +87,7 @@ impl Client {
                 )
                 .await
                 .map_err(|e| ClientError::Connect(format!("WebTransport: {e}")))?;
-                Link::WebTransport(session)
+                Link::WebTransport(Box::new(session))
             } else {
                 Link::Quic(connection)
             };
