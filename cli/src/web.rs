@@ -77,7 +77,7 @@ pub fn page_url(
     JoinLink {
         webtransport,
         path: lockstep_server::WEBTRANSPORT_PATH.into(),
-        cert_sha256: cert_sha256.to_owned(),
+        cert_sha256: Some(cert_sha256.to_owned()),
         room: room.to_owned(),
         name: name.to_owned(),
         token: None,

@@ -2,8 +2,9 @@
 // game's module and the WebTransport connection), sends it the keys held,
 // and draws the world it reports with the viewer's renderer (render.js).
 // The query string says where to join:
-//   ?server=https://HOST:PORT/lockstep&cert=SHA256HEX&room=R&name=N[&token=T][&bot=SEED]
-// (bot: the game's bot plays until a key is pressed).
+//   ?server=https://HOST:PORT/lockstep&room=R&name=N[&cert=SHA256HEX][&token=T][&bot=SEED]
+// (cert: the development certificate's hash; bot: the game's bot plays
+// until a key is pressed).
 'use strict';
 
 const $ = (id) => document.getElementById(id);
@@ -124,7 +125,7 @@ function bindKeys() {
 function main() {
   try {
     const server = query.get('server'), cert = query.get('cert');
-    if (!server || !cert) throw new Error('the page needs ?server=https://HOST:PORT/lockstep&cert=SHA256HEX&room=R');
+    if (!server) throw new Error('the page needs ?server=https://HOST:PORT/lockstep&room=R (and &cert=SHA256HEX for a development certificate)');
     P.R = createRenderer($('gl'));
     P.worker = new Worker('/worker.js');
     P.worker.onmessage = onReport;

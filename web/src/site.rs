@@ -81,8 +81,10 @@ pub struct JoinLink {
     pub webtransport: SocketAddr,
     /// The session path (`/lockstep`).
     pub path: String,
-    /// The SHA-256 of the server's certificate, hex.
-    pub cert_sha256: String,
+    /// The SHA-256 of the server's development certificate, hex, which
+    /// the page trusts by it (`serverCertificateHashes`); `None` for a
+    /// certificate the browser trusts on its own (a CA's).
+    pub cert_sha256: Option<String>,
     /// The room.
     pub room: String,
     /// The player's name.
@@ -97,12 +99,14 @@ impl JoinLink {
     /// The page's URL on the site at `http`.
     pub fn url(&self, http: SocketAddr) -> String {
         let mut url = format!(
-            "http://{http}/?server={}&cert={}&room={}&name={}",
+            "http://{http}/?server={}&room={}&name={}",
             encode_component(&format!("https://{}{}", self.webtransport, self.path)),
-            encode_component(&self.cert_sha256),
             encode_component(&self.room),
             encode_component(&self.name),
         );
+        if let Some(hash) = &self.cert_sha256 {
+            url.push_str(&format!("&cert={}", encode_component(hash)));
+        }
         if let Some(t) = &self.token {
             url.push_str(&format!("&token={}", encode_component(t)));
         }
@@ -220,7 +224,7 @@ mod tests {
         let link = JoinLink {
             webtransport: "127.0.0.1:4434".parse().unwrap(),
             path: "/lockstep".into(),
-            cert_sha256: "ab01".into(),
+            cert_sha256: Some("ab01".into()),
             room: "my room".into(),
             name: "browser".into(),
             token: Some("0a0b".into()),
@@ -229,7 +233,7 @@ mod tests {
         assert_eq!(
             link.url("127.0.0.1:8047".parse().unwrap()),
             "http://127.0.0.1:8047/?server=https%3A%2F%2F127.0.0.1%3A4434%2Flockstep\
-             &cert=ab01&room=my%20room&name=browser&token=0a0b&bot=3"
+             &room=my%20room&name=browser&cert=ab01&token=0a0b&bot=3"
         );
     }
 
