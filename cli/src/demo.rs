@@ -144,6 +144,11 @@ pub async fn run_demo(
         _ => None,
     };
     let browsers = web.as_ref().map_or(0, |(w, _)| usize::from(w.players));
+    if browsers > 0 {
+        // A person opens the page: the lobby waits for them (Ctrl-C ends
+        // the demo), instead of starting without them after its timeout.
+        options.server.room.lobby_timeout = None;
+    }
     options.server.room.start_players =
         u8::try_from((options.bots + browsers).max(1)).unwrap_or(u8::MAX);
     options.server.room.max_players = options

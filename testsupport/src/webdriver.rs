@@ -251,24 +251,9 @@ impl Browser {
         )
     }
 
-    /// Presses and releases the keys of `value` (WebDriver key codes, e.g.
-    /// `"\u{E014}"` for the right arrow) as a user's keyboard would.
-    pub fn press(&self, value: &str) {
-        let mut actions = Vec::new();
-        for c in value.chars() {
-            actions.push(json!({"type": "keyDown", "value": c.to_string()}));
-        }
-        for c in value.chars() {
-            actions.push(json!({"type": "keyUp", "value": c.to_string()}));
-        }
-        self.call(
-            "POST",
-            "/actions",
-            Some(&json!({"actions": [{"type": "key", "id": "keyboard", "actions": actions}]})),
-        );
-    }
-
-    /// Holds the keys of `value` down until [`Browser::release_keys`].
+    /// Holds the keys of `value` (WebDriver key codes, e.g. `"\u{E014}"`
+    /// for the right arrow) down, as a user's keyboard would, until
+    /// [`Browser::release_keys`].
     pub fn hold(&self, value: &str) {
         let actions: Vec<Value> = value
             .chars()

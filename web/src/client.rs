@@ -488,11 +488,6 @@ impl WebClient {
         self.session().map(|s| s.slot().0)
     }
 
-    /// The game.
-    pub fn game(&self) -> &dyn WebGame {
-        &*self.game
-    }
-
     /// What the client counted.
     pub fn counters(&self) -> &Counters {
         &self.counters
