@@ -3,6 +3,11 @@
 //! at the end. The game is a parameter ([`DemoOptions::game`], with the
 //! server's scene and rules id): the demo game by default (the README's
 //! main job), any other game likewise (`<game> server --demo`).
+//!
+//! With the server's WebTransport endpoint on (`--webtransport ADDR`) and
+//! the game's browser module ([`DemoOptions::web`]), the demo also serves
+//! the browser client's page, prints its URL, and the match waits for a
+//! player in a browser beside the bots (docs/browser.md).
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -45,6 +50,10 @@ pub struct DemoOptions {
     /// How to run the offline tool with this game, for the hints printed
     /// (`cargo run --release -p lockstep --bin lockstep --` for the demo).
     pub tool: String,
+    /// The browser client's page and module, served when the server has a
+    /// WebTransport endpoint (`server.webtransport`); the match then waits
+    /// for `players` players in browsers as well as the bots.
+    pub web: Option<crate::web::WebDemo>,
 }
 
 impl DemoOptions {
@@ -68,6 +77,7 @@ impl DemoOptions {
             room: "demo".into(),
             predict: false,
             tool: "cargo run --release -p lockstep --bin lockstep --".into(),
+            web: None,
         }
     }
 }
@@ -123,7 +133,24 @@ pub async fn run_demo(
     interrupt: impl Future<Output = ()>,
 ) -> Result<DemoSummary, ServerError> {
     let (events_tx, mut events) = mpsc::unbounded_channel();
-    options.server.room.start_players = u8::try_from(options.bots.max(1)).unwrap_or(u8::MAX);
+    // The browser module first: its first build takes minutes, and the
+    // match must not start without the browser players.
+    let web = match (&options.web, options.server.webtransport) {
+        (Some(web), Some(_)) => {
+            println!("demo: building the browser module (the first build takes a few minutes)");
+            let module = web.module.load().map_err(ServerError::Config)?;
+            Some((web.clone(), module))
+        }
+        _ => None,
+    };
+    let browsers = web.as_ref().map_or(0, |(w, _)| usize::from(w.players));
+    if browsers > 0 {
+        // A person opens the page: the lobby waits for them (Ctrl-C ends
+        // the demo), instead of starting without them after its timeout.
+        options.server.room.lobby_timeout = None;
+    }
+    options.server.room.start_players =
+        u8::try_from((options.bots + browsers).max(1)).unwrap_or(u8::MAX);
     options.server.room.max_players = options
         .server
         .room
@@ -156,6 +183,18 @@ pub async fn run_demo(
             }
         }
     };
+    let webtransport = match options.server.webtransport {
+        Some(_) => loop {
+            match events.recv().await {
+                Some(ServerEvent::WebTransportListening { addr, cert_sha256 }) => {
+                    break Some((addr, cert_sha256));
+                }
+                Some(_) => {}
+                None => return Err(ServerError::Config("the server stopped at start-up".into())),
+            }
+        },
+        None => None,
+    };
     let cert: PathBuf = match (cert, &options.server.tls) {
         (Some(c), _) => c,
         (None, TlsSource::Files { cert, .. }) => cert.clone(),
@@ -167,6 +206,21 @@ pub async fn run_demo(
         ticks,
         options.duration.as_secs_f64()
     );
+    match (web, webtransport) {
+        (Some((web, module)), Some((addr, hash))) => {
+            let site = crate::web::start_site(web.listen, module).map_err(ServerError::Config)?;
+            let hash: String = hash.iter().map(|b| format!("{b:02x}")).collect();
+            let url = crate::web::page_url(site, addr, &hash, &options.room, "browser");
+            println!(
+                "demo: the match starts when {browsers} player(s) join from a browser \
+                 (Chromium or Chrome: WebTransport with serverCertificateHashes); open\n  {url}"
+            );
+        }
+        (None, Some((addr, _))) => println!(
+            "demo: WebTransport on {addr}; this game has no browser module, so no page is served"
+        ),
+        _ => {}
+    }
     let mut bot_options = BotOptions::for_game(
         addr,
         cert,

@@ -30,6 +30,7 @@ pub mod bots;
 pub mod demo;
 pub mod server;
 pub mod tool;
+pub mod web;
 
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -53,6 +54,11 @@ pub struct App {
     /// How a user runs this program's offline commands, for the hints it
     /// prints (`replay FILE` is appended): the name by default.
     pub tool: String,
+    /// The game's browser module, for `server --demo --webtransport ADDR`
+    /// to serve beside the page (docs/browser.md): the demo's
+    /// `lockstep-web-demo` for [`App::demo`], none by default
+    /// ([`App::web_module`]).
+    pub web_module: Option<web::ModuleSource>,
 }
 
 impl std::fmt::Debug for App {
@@ -96,6 +102,7 @@ impl App {
             room: "game".into(),
             name: id.clone(),
             tool: id,
+            web_module: None,
         }
     }
 
@@ -106,7 +113,19 @@ impl App {
             .room("demo")
             .name("lockstep");
         app.tool = "cargo run --release -p lockstep --bin lockstep --".into();
+        app.web_module = Some(web::ModuleSource::Build(
+            lockstep_web::site::ModuleBuild::demo(),
+        ));
         app
+    }
+
+    /// The game's browser module (a `cdylib` crate whose source is
+    /// `lockstep_web::export_client!(MyGame);`, docs/browser.md), built
+    /// with cargo when `server --demo --webtransport ADDR` starts and
+    /// served with the page.
+    pub fn web_module(mut self, build: lockstep_web::site::ModuleBuild) -> App {
+        self.web_module = Some(web::ModuleSource::Build(build));
+        self
     }
 
     /// The scene's name in messages and replays.

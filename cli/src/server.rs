@@ -25,9 +25,10 @@ pub struct ServerArgs {
     /// this program's game, a status line per second, a summary at the end.
     #[arg(long, env = "LOCKSTEP_DEMO")]
     demo: bool,
-    /// Demo: how many seconds the match lasts.
-    #[arg(long, default_value_t = 20.0, env = "LOCKSTEP_DURATION")]
-    duration: f64,
+    /// Demo: how many seconds the match lasts (default 20, or 120 with
+    /// --webtransport: time to play in the browser).
+    #[arg(long, env = "LOCKSTEP_DURATION")]
+    duration: Option<f64>,
     /// Demo: number of bots.
     #[arg(long, default_value_t = 4, env = "LOCKSTEP_BOTS")]
     bots: usize,
@@ -45,6 +46,26 @@ pub struct ServerArgs {
     /// UDP address to listen on (the demo picks a free loopback port).
     #[arg(long, default_value = "127.0.0.1:4433", env = "LOCKSTEP_LISTEN")]
     listen: SocketAddr,
+    /// Also serve WebTransport (HTTP/3, for browsers) on this UDP address
+    /// (e.g. 127.0.0.1:4434): sessions on the path /lockstep join the same
+    /// rooms. Its certificate is --cert's, or without one a generated
+    /// ECDSA certificate valid 13 days whose SHA-256 is logged (browsers
+    /// take it through serverCertificateHashes).
+    #[arg(long, value_name = "ADDR", env = "LOCKSTEP_WEBTRANSPORT")]
+    webtransport: Option<SocketAddr>,
+    /// Demo with --webtransport: where the browser client's page is served
+    /// (HTTP; the demo prints its URL and waits for a player in a browser).
+    #[arg(
+        long,
+        value_name = "ADDR",
+        default_value = "127.0.0.1:8047",
+        env = "LOCKSTEP_WEB_LISTEN"
+    )]
+    web_listen: SocketAddr,
+    /// Demo with --webtransport: the browser module to serve, built
+    /// beforehand (default: built with cargo at start).
+    #[arg(long, value_name = "FILE", env = "LOCKSTEP_WEB_MODULE")]
+    web_module: Option<PathBuf>,
     /// Certificate chain (PEM) of a real certificate; needs --key.
     #[arg(long, requires = "key", env = "LOCKSTEP_CERT")]
     cert: Option<PathBuf>,
@@ -286,6 +307,7 @@ pub(crate) fn build_config(app: &App, cli: &ServerArgs) -> Result<ServerConfig, 
         app.scene_name.clone(),
         app.game.rules_id(),
     );
+    config.webtransport = cli.webtransport;
     config.tls = match (cli.cert.clone(), cli.key.clone()) {
         (Some(cert), Some(key)) => TlsSource::Files { cert, key },
         _ => TlsSource::dev(cli.cert_out.clone()),
@@ -436,7 +458,21 @@ pub async fn run_server(app: &App, cli: ServerArgs) -> ExitCode {
         options.bots = cli.bots;
         options.seed = cli.seed;
         options.diverge_at = cli.diverge_at;
-        options.duration = Duration::from_secs_f64(cli.duration.clamp(0.1, 86_400.0));
+        let duration = cli.duration.unwrap_or(if cli.webtransport.is_some() {
+            120.0
+        } else {
+            20.0
+        });
+        options.duration = Duration::from_secs_f64(duration.clamp(0.1, 86_400.0));
+        let module = match &cli.web_module {
+            Some(file) => Some(crate::web::ModuleSource::File(file.clone())),
+            None => app.web_module.clone(),
+        };
+        options.web = module.map(|module| crate::web::WebDemo {
+            listen: cli.web_listen,
+            module,
+            players: 1,
+        });
         return match run_demo(options, terminate()).await {
             Ok(s) => {
                 let ok = s.report.as_ref().is_some_and(|r| r.desyncs.is_empty())
@@ -483,6 +519,28 @@ mod tests {
             b" keep leading, inner  spaces".to_vec()
         );
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// `--webtransport ADDR` sets the WebTransport endpoint's address (none
+    /// by default), and an address that does not parse is refused naming
+    /// the flag.
+    #[test]
+    fn webtransport_takes_an_address() {
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/demo.toml");
+        let app = crate::App::demo();
+        let config = |extra: &[&str]| {
+            let args = ["lockstep-server", "--scene", scene]
+                .into_iter()
+                .chain(extra.iter().copied());
+            app.server_config(args)
+        };
+        assert_eq!(config(&[]).unwrap().webtransport, None);
+        let c = config(&["--webtransport", "127.0.0.1:4434"]).unwrap();
+        assert_eq!(c.webtransport, Some("127.0.0.1:4434".parse().unwrap()));
+        let c = config(&["--webtransport", "[::1]:0"]).unwrap();
+        assert_eq!(c.webtransport, Some("[::1]:0".parse().unwrap()));
+        let e = config(&["--webtransport", "localhost"]).unwrap_err();
+        assert!(e.contains("--webtransport <ADDR>"), "{e}");
     }
 
     /// `--vote` needs `--no-verify` only where the server would verify: a

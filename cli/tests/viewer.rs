@@ -5,207 +5,45 @@
 //! tick slider and checks that the world moved to the exact state the
 //! viewer serves for that tick.
 //!
-//! Needs Debian's `chromium` and `chromium-driver` (or LOCKSTEP_CHROMIUM
-//! and LOCKSTEP_CHROMEDRIVER). Where they are missing the tests say so and
-//! pass, unless LOCKSTEP_BROWSER_TESTS=require (as `.ci/run` sets), which
-//! makes a missing browser a failure. LOCKSTEP_SCREENSHOT_DIR keeps the
-//! screenshots (docs/img/viewer-*.png came from here).
+//! The WebDriver helpers are `lockstep_testsupport::webdriver`, shared
+//! with the browser client's test (`tests/tests/browser.rs`): it says
+//! what is needed and when a missing browser fails the test.
+//! LOCKSTEP_SCREENSHOT_DIR keeps the screenshots (docs/img/viewer-*.png
+//! came from here).
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::io::{BufRead, BufReader};
+use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use serde_json::{Value, json};
+use lockstep_testsupport::webdriver::{self, Guard, free_port, http};
+use serde_json::Value;
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// Kills a child process when dropped.
-struct Guard(Child);
+/// The shared WebDriver session, with what the viewer's page offers.
+struct Browser(webdriver::Browser);
 
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
+impl std::ops::Deref for Browser {
+    type Target = webdriver::Browser;
+    fn deref(&self) -> &webdriver::Browser {
+        &self.0
     }
-}
-
-/// The browser and its driver, or None (with the reason printed) when they
-/// are not installed and not required.
-fn browser() -> Option<(PathBuf, PathBuf)> {
-    let path = |var: &str, default: &str| {
-        PathBuf::from(std::env::var_os(var).unwrap_or_else(|| default.into()))
-    };
-    let chromium = path("LOCKSTEP_CHROMIUM", "/usr/bin/chromium");
-    let driver = path("LOCKSTEP_CHROMEDRIVER", "/usr/bin/chromedriver");
-    if chromium.exists() && driver.exists() {
-        return Some((chromium, driver));
-    }
-    let required = std::env::var("LOCKSTEP_BROWSER_TESTS").is_ok_and(|v| v == "require");
-    assert!(
-        !required,
-        "LOCKSTEP_BROWSER_TESTS=require, but {} or {} is missing",
-        chromium.display(),
-        driver.display()
-    );
-    eprintln!(
-        "skipping the browser test: {} or {} is missing (apt-get install chromium chromium-driver)",
-        chromium.display(),
-        driver.display()
-    );
-    None
-}
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-/// One HTTP/1.1 request with `Connection: close`; returns the status and
-/// the body.
-fn http(addr: SocketAddr, method: &str, path: &str, body: Option<&Value>) -> (u16, Vec<u8>) {
-    let mut s = TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
-    let body = body.map(|b| b.to_string()).unwrap_or_default();
-    write!(
-        s,
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nContent-Type: application/json\r\n\
-         Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
-    // Read the head, then exactly the body its Content-Length gives (a
-    // driver may keep the connection open), or to the end of a chunked
-    // body, or to EOF.
-    let mut raw = Vec::new();
-    let mut buf = [0u8; 65536];
-    let split = loop {
-        if let Some(p) = raw.windows(4).position(|w| w == b"\r\n\r\n") {
-            break p;
-        }
-        let n = s.read(&mut buf).unwrap();
-        assert!(n > 0, "the connection closed before the response head");
-        raw.extend_from_slice(&buf[..n]);
-    };
-    let head = String::from_utf8_lossy(&raw[..split]).to_ascii_lowercase();
-    let status = head
-        .split_whitespace()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap();
-    let length = head.lines().find_map(|l| {
-        l.strip_prefix("content-length:")
-            .and_then(|v| v.trim().parse::<usize>().ok())
-    });
-    let chunked = head.contains("transfer-encoding: chunked");
-    let mut payload = raw[split + 4..].to_vec();
-    loop {
-        let done = match length {
-            Some(n) => payload.len() >= n,
-            None => chunked && payload.ends_with(b"0\r\n\r\n"),
-        };
-        if done {
-            break;
-        }
-        let n = s.read(&mut buf).unwrap();
-        if n == 0 {
-            break;
-        }
-        payload.extend_from_slice(&buf[..n]);
-    }
-    if chunked {
-        payload = unchunk(&payload);
-    }
-    (status, payload)
-}
-
-fn unchunk(mut b: &[u8]) -> Vec<u8> {
-    let mut out = Vec::new();
-    loop {
-        let line_end = b.windows(2).position(|w| w == b"\r\n").unwrap();
-        let size =
-            usize::from_str_radix(std::str::from_utf8(&b[..line_end]).unwrap().trim(), 16).unwrap();
-        if size == 0 {
-            return out;
-        }
-        out.extend_from_slice(&b[line_end + 2..line_end + 2 + size]);
-        b = &b[line_end + 2 + size + 2..];
-    }
-}
-
-/// A WebDriver session on headless Chromium.
-struct Browser {
-    driver: SocketAddr,
-    session: String,
-    _driver: Guard,
 }
 
 impl Browser {
     fn start(chromium: &Path, chromedriver: &Path, profile: &Path) -> Browser {
-        let port = free_port();
-        let child = Command::new(chromedriver)
-            .arg(format!("--port={port}"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let guard = Guard(child);
-        let driver: SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
-        let deadline = Instant::now() + Duration::from_secs(30);
-        while TcpStream::connect(driver).is_err() {
-            assert!(Instant::now() < deadline, "chromedriver did not start");
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        let _ = std::fs::remove_dir_all(profile);
-        let caps = json!({"capabilities": {"alwaysMatch": {
-            "browserName": "chrome",
-            "goog:chromeOptions": {
-                "binary": chromium.to_str().unwrap(),
-                "args": [
-                    "--headless=new", "--no-sandbox", "--disable-gpu",
-                    "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                    "--disable-quic", "--no-first-run", "--disable-background-networking",
-                    "--disable-component-update", "--disable-sync",
-                    "--window-size=1280,720",
-                    format!("--user-data-dir={}", profile.display()),
-                ]
-            }
-        }}});
-        let (status, body) = http(driver, "POST", "/session", Some(&caps));
-        let v: Value = serde_json::from_slice(&body).unwrap();
-        assert_eq!(status, 200, "new session: {v}");
-        let session = v["value"]["sessionId"].as_str().unwrap().to_owned();
-        Browser {
-            driver,
-            session,
-            _driver: guard,
-        }
-    }
-
-    fn call(&self, method: &str, path: &str, body: Option<&Value>) -> Value {
-        let path = format!("/session/{}{path}", self.session);
-        let (status, b) = http(self.driver, method, &path, body);
-        let v: Value = serde_json::from_slice(&b).unwrap();
-        assert_eq!(status, 200, "{method} {path}: {v}");
-        v["value"].clone()
-    }
-
-    fn open(&self, url: &str) {
-        self.call("POST", "/url", Some(&json!({ "url": url })));
-    }
-
-    fn run(&self, script: &str) -> Value {
-        self.call(
-            "POST",
-            "/execute/sync",
-            Some(&json!({ "script": script, "args": [] })),
-        )
+        // The viewer needs no QUIC (only the browser client's WebTransport
+        // does): keep Chromium from trying it.
+        Browser(webdriver::Browser::start(
+            chromium,
+            chromedriver,
+            profile,
+            &["--disable-quic"],
+        ))
     }
 
     fn status(&self) -> Value {
@@ -259,44 +97,11 @@ impl Browser {
     }
 
     fn screenshot(&self, name: &str) {
-        let b64 = self.call("GET", "/screenshot", None);
-        let png = base64(b64.as_str().unwrap());
-        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "a PNG");
-        let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("viewer-{name}.png"));
-        std::fs::write(&out, &png).unwrap();
-        if let Some(dir) = std::env::var_os("LOCKSTEP_SCREENSHOT_DIR") {
-            std::fs::write(Path::new(&dir).join(format!("viewer-{name}.png")), &png).unwrap();
-        }
+        self.save_screenshot(
+            Path::new(env!("CARGO_TARGET_TMPDIR")),
+            &format!("viewer-{name}.png"),
+        );
     }
-}
-
-impl Drop for Browser {
-    fn drop(&mut self) {
-        let path = format!("/session/{}", self.session);
-        let _ = std::panic::catch_unwind(|| http(self.driver, "DELETE", &path, None));
-    }
-}
-
-fn base64(s: &str) -> Vec<u8> {
-    let val = |c: u8| match c {
-        b'A'..=b'Z' => c - b'A',
-        b'a'..=b'z' => c - b'a' + 26,
-        b'0'..=b'9' => c - b'0' + 52,
-        b'+' => 62,
-        b'/' => 63,
-        _ => panic!("not base64: {c}"),
-    };
-    let bytes: Vec<u8> = s.bytes().filter(|&c| c != b'=').collect();
-    let mut out = Vec::with_capacity(bytes.len() * 3 / 4);
-    for chunk in bytes.chunks(4) {
-        let v: Vec<u32> = chunk.iter().map(|&c| val(c) as u32).collect();
-        let n = v
-            .iter()
-            .enumerate()
-            .fold(0, |acc, (i, &x)| acc | x << (18 - 6 * i));
-        out.extend_from_slice(&n.to_be_bytes()[1..chunk.len()]);
-    }
-    out
 }
 
 /// A running `lockstep view` and its URL.
@@ -389,7 +194,7 @@ fn check_slider_moves(b: &Browser, v: &Viewer, body: i64, from: usize, to: usize
 
 #[test]
 fn the_viewer_draws_a_scene_and_its_slider_moves_the_world() {
-    let Some((chromium, driver)) = browser() else {
+    let Some((chromium, driver)) = webdriver::browser() else {
         return;
     };
     let tmp = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
@@ -523,7 +328,7 @@ fn view_shows_a_window_of_a_replay_and_a_bundle_ends_at_its_desync() {
 
 #[test]
 fn the_viewer_plays_a_replay_and_shows_a_bundles_diverging_bodies() {
-    let Some((chromium, driver)) = browser() else {
+    let Some((chromium, driver)) = webdriver::browser() else {
         return;
     };
     let dir = fresh_dir("viewer-match");
@@ -602,7 +407,7 @@ fn metric(addr: SocketAddr, name: &str) -> Option<u64> {
 
 #[test]
 fn the_viewer_follows_a_live_room_that_pays_nothing_until_watched() {
-    let Some((chromium, driver)) = browser() else {
+    let Some((chromium, driver)) = webdriver::browser() else {
         return;
     };
     let dir = fresh_dir("viewer-live");

@@ -1,7 +1,11 @@
-//! Reading and writing length-prefixed protocol messages on a QUIC stream.
+//! Reading and writing length-prefixed protocol messages on a stream: a
+//! QUIC stream, a WebTransport stream ([`LinkRecv`](crate::LinkRecv),
+//! [`LinkSend`](crate::LinkSend)), or anything else that reads and writes
+//! bytes in order.
 
 use lockstep_proto::{DecodeError, EncodeError, FRAME_HEADER_BYTES, encode_frame, frame_length};
 use thiserror::Error;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 
 /// Why a frame could not be read or written.
 #[derive(Debug, Error)]
@@ -15,20 +19,30 @@ pub enum FrameError {
     Truncated,
     /// The stream failed (connection lost, reset by the peer).
     #[error("stream read failed: {0}")]
-    Read(#[source] quinn::ReadError),
+    Read(#[source] std::io::Error),
     /// Writing failed.
     #[error("stream write failed: {0}")]
-    Write(#[source] quinn::WriteError),
+    Write(#[source] std::io::Error),
     /// The message could not be framed.
     #[error("cannot frame message: {0}")]
     Encode(#[source] EncodeError),
 }
 
-fn map_read(e: quinn::ReadExactError) -> FrameError {
-    match e {
-        quinn::ReadExactError::FinishedEarly(_) => FrameError::Truncated,
-        quinn::ReadExactError::ReadError(e) => FrameError::Read(e),
+/// Fills `buf` from `recv`; returns how many bytes came before the stream
+/// ended (`buf.len()` when it did not).
+async fn read_full<R: AsyncRead + Unpin + ?Sized>(
+    recv: &mut R,
+    buf: &mut [u8],
+) -> Result<usize, FrameError> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match recv.read(&mut buf[filled..]).await {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) => return Err(FrameError::Read(e)),
+        }
     }
+    Ok(filled)
 }
 
 /// Reads one frame's payload (an encoded message). `Ok(None)` when the peer
@@ -39,16 +53,20 @@ fn map_read(e: quinn::ReadExactError) -> FrameError {
 ///
 /// # Errors
 /// [`FrameError`]; the caller closes the connection.
-pub async fn read_frame(recv: &mut quinn::RecvStream) -> Result<Option<Vec<u8>>, FrameError> {
+pub async fn read_frame<R: AsyncRead + Unpin + ?Sized>(
+    recv: &mut R,
+) -> Result<Option<Vec<u8>>, FrameError> {
     let mut header = [0u8; FRAME_HEADER_BYTES];
-    match recv.read_exact(&mut header).await {
-        Ok(()) => {}
-        Err(quinn::ReadExactError::FinishedEarly(0)) => return Ok(None),
-        Err(e) => return Err(map_read(e)),
+    match read_full(recv, &mut header).await? {
+        0 => return Ok(None),
+        FRAME_HEADER_BYTES => {}
+        _ => return Err(FrameError::Truncated),
     }
     let len = frame_length(header).map_err(FrameError::Length)?;
     let mut payload = vec![0u8; len];
-    recv.read_exact(&mut payload).await.map_err(map_read)?;
+    if read_full(recv, &mut payload).await? < len {
+        return Err(FrameError::Truncated);
+    }
     Ok(Some(payload))
 }
 
@@ -57,7 +75,10 @@ pub async fn read_frame(recv: &mut quinn::RecvStream) -> Result<Option<Vec<u8>>,
 /// # Errors
 /// [`FrameError::Encode`] if it is too large, [`FrameError::Write`] if the
 /// stream failed.
-pub async fn write_frame(send: &mut quinn::SendStream, message: &[u8]) -> Result<(), FrameError> {
+pub async fn write_frame<W: AsyncWrite + Unpin + ?Sized>(
+    send: &mut W,
+    message: &[u8],
+) -> Result<(), FrameError> {
     let framed = encode_frame(message).map_err(FrameError::Encode)?;
     send.write_all(&framed).await.map_err(FrameError::Write)
 }

@@ -25,3 +25,18 @@ pub fn transport_config() -> quinn::TransportConfig {
     t.datagram_send_buffer_size(512 * 1024);
     t
 }
+
+/// [`transport_config`] for a WebTransport endpoint or client: HTTP/3
+/// needs more streams under the one the protocol uses. A client opens the
+/// session's CONNECT request (a bidirectional stream) before the
+/// protocol's own stream, and its HTTP/3 control and QPACK streams
+/// (unidirectional); the server opens its control stream. So two
+/// bidirectional streams and a few unidirectional ones (8: browsers may
+/// add reserved "grease" streams); the server reads only the first
+/// WebTransport stream, as over QUIC.
+pub fn webtransport_transport_config() -> quinn::TransportConfig {
+    let mut t = transport_config();
+    t.max_concurrent_bidi_streams(2u8.into());
+    t.max_concurrent_uni_streams(8u8.into());
+    t
+}

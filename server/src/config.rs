@@ -94,6 +94,14 @@ pub struct ServerConfig {
     pub listen: SocketAddr,
     /// The certificate.
     pub tls: TlsSource,
+    /// UDP address of the WebTransport (HTTP/3) endpoint for browsers, if
+    /// any (`--webtransport`; port 0 picks one, see
+    /// [`ServerEvent::WebTransportListening`]). Sessions on the path
+    /// `/lockstep` join the same rooms as native QUIC connections, with the
+    /// same messages, limits and tokens. Its certificate is `tls`'s files,
+    /// or with a self-signed `tls` one generated at start that browsers
+    /// accept through `serverCertificateHashes` (ECDSA P-256, 13 days).
+    pub webtransport: Option<SocketAddr>,
     /// Scene text sent to every player in the welcome.
     pub scene: String,
     /// Its name, for messages.
@@ -184,6 +192,7 @@ impl ServerConfig {
         Self {
             listen,
             tls: TlsSource::dev("out/dev-cert.pem"),
+            webtransport: None,
             scene: scene.into(),
             scene_name: scene_name.into(),
             rules,

@@ -1,6 +1,11 @@
 //! One connection: handshake, join, then forwarding the client's stream
 //! frames and datagrams to its room, and writing what the room sends.
 //!
+//! A native QUIC connection and a WebTransport session are served by the
+//! same code: after the handshake (and, for WebTransport, the HTTP/3
+//! session's CONNECT, `webtransport::open_session`) both are a
+//! [`Link`], and everything from the join on is the same.
+//!
 //! The task validates everything before the room sees it: frame lengths
 //! (before reading the payload), decoding, and the channel each message must
 //! use. Anything wrong is reported to the room, which removes the player
@@ -9,13 +14,34 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use lockstep_net::{FrameError, close_code, read_frame, write_frame};
+use lockstep_net::{
+    FrameError, Link, LinkError, LinkRecv, LinkSend, close_code, read_frame, write_frame,
+};
 use lockstep_proto::{Channel, ClientMessage, Close, CloseReason, PlayerId};
 use tokio::sync::{mpsc, oneshot};
 
 use crate::Shared;
 use crate::peer::{Peer, RoomCmd, WriterCmd, close_of, send_close};
-use crate::room;
+use crate::{room, webtransport};
+
+/// Which endpoint a connection came in on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Via {
+    /// The native QUIC endpoint (ALPN `lockstep/1`).
+    Quic,
+    /// The WebTransport endpoint (HTTP/3).
+    WebTransport,
+}
+
+impl Via {
+    /// For logs.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Via::Quic => "quic",
+            Via::WebTransport => "webtransport",
+        }
+    }
+}
 
 /// How long a client has to complete the handshake and send its join.
 const JOIN_TIMEOUT: Duration = Duration::from_secs(5);
@@ -24,7 +50,7 @@ const JOIN_TIMEOUT: Duration = Duration::from_secs(5);
 pub(crate) const WRITER_QUEUE: usize = 512;
 
 /// Serves one incoming connection to its end; logs instead of failing.
-pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
+pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming, via: Via) {
     let remote = incoming.remote_address();
     let mut shutdown = shared.shutdown.clone();
     let deadline = tokio::time::Instant::now() + JOIN_TIMEOUT;
@@ -42,6 +68,29 @@ pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
     let connection = match handshake {
         Ok(c) => c,
         Err(reason) => {
+            shared.refused(remote, reason);
+            return;
+        }
+    };
+    // A WebTransport session is opened (its CONNECT answered) within the
+    // same deadline.
+    let link = match via {
+        Via::Quic => Ok(Link::Quic(connection.clone())),
+        Via::WebTransport => tokio::select! {
+            r = tokio::time::timeout_at(deadline, webtransport::open_session(connection.clone())) => {
+                match r {
+                    Ok(Ok(session)) => Ok(Link::WebTransport(Box::new(session))),
+                    Ok(Err(reason)) => Err(reason),
+                    Err(_) => Err("no WebTransport handshake within 5 s".to_owned()),
+                }
+            }
+            _ = shutdown.wait_for(|s| *s) => Err("server shutting down".to_owned()),
+        },
+    };
+    let connection = match link {
+        Ok(l) => l,
+        Err(reason) => {
+            connection.close(close_code::REFUSED.into(), truncate(&reason).as_bytes());
             shared.refused(remote, reason);
             return;
         }
@@ -66,7 +115,7 @@ pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
                 }
                 None => {
                     if let Some(c) = connection {
-                        c.close(close_code::REFUSED.into(), truncate(&reason).as_bytes());
+                        c.close(close_code::REFUSED, truncate(&reason).as_bytes());
                     }
                 }
             }
@@ -81,32 +130,39 @@ pub(crate) async fn serve(shared: Arc<Shared>, incoming: quinn::Incoming) {
 }
 
 type Joined = (
-    quinn::Connection,
-    quinn::RecvStream,
+    Link,
+    LinkRecv,
     PlayerId,
     mpsc::Sender<RoomCmd>,
     tokio::task::JoinHandle<()>,
 );
 
-type Refusal = (
-    String,
-    Option<quinn::Connection>,
-    Option<tokio::task::JoinHandle<()>>,
-);
+type Refusal = (String, Option<Link>, Option<tokio::task::JoinHandle<()>>);
 
-/// Completes the handshake of a connection over a limit only to close it
-/// with the overloaded code and `reason` (within 2 s, or not at all).
-pub(crate) async fn refuse(incoming: quinn::Incoming, reason: &str) {
+/// Completes the handshake of a connection over a limit (and opens its
+/// WebTransport session) only to close it with the overloaded code and
+/// `reason` (within 2 s, or not at all).
+pub(crate) async fn refuse(incoming: quinn::Incoming, reason: &str, via: Via) {
     let Ok(connecting) = incoming.accept() else {
         return;
     };
-    if let Ok(Ok(c)) = tokio::time::timeout(Duration::from_secs(2), connecting).await {
-        c.close(close_code::OVERLOADED.into(), truncate(reason).as_bytes());
+    let opened = tokio::time::timeout(Duration::from_secs(2), async {
+        let c = connecting.await.ok()?;
+        Some(match via {
+            Via::Quic => Link::Quic(c),
+            Via::WebTransport => {
+                Link::WebTransport(Box::new(webtransport::open_session(c).await.ok()?))
+            }
+        })
+    })
+    .await;
+    if let Ok(Some(link)) = opened {
+        link.close(close_code::OVERLOADED, truncate(reason).as_bytes());
     }
 }
 
 /// The first stream, the join frame, and a seat.
-async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joined, Refusal> {
+async fn join(shared: &Arc<Shared>, connection: Link) -> Result<Joined, Refusal> {
     let fail = |reason: String| (reason, Some(connection.clone()), None);
     let (send, mut recv) = connection
         .accept_bi()
@@ -222,8 +278,6 @@ async fn join(shared: &Arc<Shared>, connection: quinn::Connection) -> Result<Joi
     }
 }
 
-/// Forwards the client's frames and datagrams to the room until the
-/// connection ends or the client misbehaves.
 /// A token bucket over a connection's messages: `rate` a second, and as
 /// many in a burst. Past it, datagrams are dropped and counted and stream
 /// frames wait (the stream's flow control then slows the sender).
@@ -284,9 +338,11 @@ impl RateLimit {
     }
 }
 
+/// Forwards the client's frames and datagrams to the room until the
+/// connection ends or the client misbehaves.
 async fn read_loop(
-    connection: &quinn::Connection,
-    mut recv: quinn::RecvStream,
+    connection: &Link,
+    mut recv: LinkRecv,
     id: PlayerId,
     room_tx: &mpsc::Sender<RoomCmd>,
     rate: u32,
@@ -330,6 +386,10 @@ async fn read_loop(
                     }
                 }
                 Ok(bytes) => checked(id, &bytes, Channel::Datagram),
+                Err(e @ LinkError::ForeignDatagram) => RoomCmd::Misbehaved {
+                    id,
+                    detail: format!("bad datagram: {e}"),
+                },
                 Err(e) => RoomCmd::Gone { id, why: e.to_string() },
             },
         };
@@ -381,11 +441,7 @@ fn checked(id: PlayerId, bytes: &[u8], channel: Channel) -> RoomCmd {
 
 /// Writes the room's frames in order; on a close command, finishes the
 /// stream, gives the client a moment to read it, and closes the connection.
-async fn write_loop(
-    connection: quinn::Connection,
-    mut send: quinn::SendStream,
-    mut rx: mpsc::Receiver<WriterCmd>,
-) {
+async fn write_loop(connection: Link, mut send: LinkSend, mut rx: mpsc::Receiver<WriterCmd>) {
     while let Some(cmd) = rx.recv().await {
         match cmd {
             WriterCmd::Frame(bytes) => {
@@ -398,15 +454,16 @@ async fn write_loop(
                 // Resolves once the client has every byte of the stream (or
                 // stopped it): the close message is then delivered.
                 let _ = tokio::time::timeout(Duration::from_millis(500), send.stopped()).await;
-                connection.close(code.into(), truncate(&reason).as_bytes());
+                connection.close(code, truncate(&reason).as_bytes());
                 return;
             }
         }
     }
-    connection.close(close_code::NORMAL.into(), b"");
+    connection.close(close_code::NORMAL, b"");
 }
 
-/// Close reasons go into one QUIC packet; keep them short.
+/// Close reasons go into one QUIC packet; keep them short (a WebTransport
+/// session's, at most 1024 bytes, gets the same text).
 fn truncate(s: &str) -> &str {
     let mut end = s.len().min(200);
     while !s.is_char_boundary(end) {

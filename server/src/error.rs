@@ -33,6 +33,9 @@ pub enum ServerError {
     /// The UDP socket could not be bound.
     #[error("bind {0}: {1}")]
     Bind(SocketAddr, #[source] std::io::Error),
+    /// The WebTransport endpoint's UDP socket could not be bound.
+    #[error("bind the WebTransport endpoint on {0}: {1}")]
+    BindWebTransport(SocketAddr, #[source] std::io::Error),
     /// The clock's or the rooms' threads could not be started.
     #[error("start the tick clock's threads: {0}")]
     Thread(#[source] std::io::Error),

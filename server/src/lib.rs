@@ -9,6 +9,10 @@
 //!   name), drives each room's tick clock, records every match as a replay,
 //!   and on `shutdown` finishes the current tick, closes every connection
 //!   with a reason, flushes the replays and waits for its tasks.
+//! - With [`ServerConfig::webtransport`], a WebTransport (HTTP/3) endpoint
+//!   beside the QUIC one lets browsers join the same rooms: a session on
+//!   [`WEBTRANSPORT_PATH`] is served by the same connection code as a
+//!   native connection (`lockstep_net::Link`).
 //! - Each connection has a task that reads its stream frames and datagrams
 //!   and forwards decoded messages to its room (`conn`); each room has a task
 //!   that owns the [`Room`](lockstep_proto::Room) state machine and all
@@ -39,11 +43,13 @@ mod server;
 mod shared;
 pub mod spectate;
 mod tls;
+mod webtransport;
 
 use std::time::Duration;
 
 pub use config::{RoomSettings, ServerConfig, ViewSettings};
 pub use error::ServerError;
+pub use lockstep_net::WEBTRANSPORT_PATH;
 pub use lockstep_proto::RulesId;
 pub use report::{
     Lateness, PlayerReport, RECENT_MATCHES, RECENT_REFUSALS, RoomReport, RoomStatus, ServerEvent,
@@ -52,6 +58,7 @@ pub use report::{
 pub use server::run;
 pub(crate) use shared::Shared;
 pub use tls::TlsSource;
+pub use webtransport::{DEV_CERT_VALIDITY, cert_sha256};
 
 /// A join token for a seat (or any seat, `seat: None`) of `room`, for
 /// `player`, valid for `ttl` from `now`: what a matchmaker hands a player

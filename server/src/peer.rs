@@ -15,17 +15,17 @@ pub(crate) enum WriterCmd {
     Frame(Vec<u8>),
     /// Finish the stream once written, then close the connection.
     Close {
-        /// QUIC application close code.
+        /// Application close code (QUIC's, or the WebTransport session's).
         code: u32,
         /// Reason text.
         reason: String,
     },
 }
 
-/// The room's handle on a connection.
+/// The room's handle on a connection (native QUIC or WebTransport).
 #[derive(Debug, Clone)]
 pub(crate) struct Peer {
-    pub(crate) connection: quinn::Connection,
+    pub(crate) connection: lockstep_net::Link,
     pub(crate) writer: mpsc::Sender<WriterCmd>,
     pub(crate) remote: SocketAddr,
 }

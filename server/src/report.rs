@@ -20,6 +20,16 @@ pub enum ServerEvent {
         /// The dev certificate file, if one was generated.
         cert: Option<PathBuf>,
     },
+    /// The WebTransport endpoint listens (`ServerConfig::webtransport`);
+    /// told right after [`Listening`](ServerEvent::Listening).
+    WebTransportListening {
+        /// The bound UDP address (sessions on the path `/lockstep`).
+        addr: SocketAddr,
+        /// The SHA-256 of its certificate's DER: what a browser passes in
+        /// `serverCertificateHashes` to accept the generated development
+        /// certificate.
+        cert_sha256: [u8; 32],
+    },
     /// A match started: tick `t` closes at `epoch + (t + 1) / tick_rate`.
     MatchStarted {
         /// The room.

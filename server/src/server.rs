@@ -14,7 +14,7 @@ use tokio::task::JoinSet;
 
 use crate::{
     ServerConfig, ServerError, ServerEvent, ServerReport, Shared, agones, clock, conn, metrics,
-    room, spectate, tls,
+    room, spectate, tls, webtransport,
 };
 
 /// Runs the server until `shutdown` completes, then shuts down gracefully:
@@ -58,7 +58,8 @@ use crate::{
 ///
 /// # Errors
 /// [`ServerError`] if the scene does not build, the settings are incoherent,
-/// the certificate cannot be made, or the socket cannot be bound. Errors of
+/// the certificate cannot be made, or a socket (QUIC's, WebTransport's)
+/// cannot be bound. Errors of
 /// single connections are logged, never returned.
 pub async fn run(
     config: ServerConfig,
@@ -70,6 +71,7 @@ pub async fn run(
         std::fs::create_dir_all(dir).map_err(|e| ServerError::Io(dir.clone(), e))?;
     }
     let (endpoint, addr, cert) = listen(&config, scene.hash)?;
+    let webtransport = webtransport::bind(&config)?;
     let view_listener = bind_viewer(&config)?;
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
     let shared = start_shared(config, scene, shutdown_rx)?;
@@ -83,9 +85,19 @@ pub async fn run(
     };
     shared.metrics.ready.store(true, Ordering::Relaxed);
     shared.emit(ServerEvent::Listening { addr, cert });
+    if let Some(w) = &webtransport {
+        shared.emit(w.event());
+    }
     // An Agones game server hosts one match.
     let exit_after_match = shared.config.exit_after_match || sdk.is_some();
-    let connections = accept(&shared, &endpoint, shutdown, exit_after_match).await;
+    let connections = accept(
+        &shared,
+        &endpoint,
+        webtransport.as_ref().map(|w| &w.endpoint),
+        shutdown,
+        exit_after_match,
+    )
+    .await;
     crate::log!("shutting down: finishing every room's tick");
     let _ = shutdown_tx.send(true);
     close_rooms_then_connections(&shared, connections).await;
@@ -93,7 +105,21 @@ pub async fn run(
         lockstep_net::close_code::SHUTDOWN.into(),
         b"server shutting down",
     );
-    let _ = tokio::time::timeout(Duration::from_secs(2), endpoint.wait_idle()).await;
+    if let Some(w) = &webtransport {
+        w.endpoint.close(
+            web_transport_quinn::proto::error_to_http3(lockstep_net::close_code::SHUTDOWN)
+                .try_into()
+                .unwrap_or_default(),
+            b"server shutting down",
+        );
+    }
+    let idle = async {
+        endpoint.wait_idle().await;
+        if let Some(w) = &webtransport {
+            w.endpoint.wait_idle().await;
+        }
+    };
+    let _ = tokio::time::timeout(Duration::from_secs(2), idle).await;
     if let Some(t) = metrics_task {
         let _ = t.await;
     }
@@ -270,19 +296,25 @@ async fn serve_metrics(
     Ok(Some(tokio::spawn(metrics::serve(shared.clone(), listener))))
 }
 
-/// Accepts connections, each served by its own task, until `shutdown`
-/// completes (or the match ended, with `exit_after_match`); returns the
-/// connection tasks.
+/// Accepts connections on the QUIC endpoint and the WebTransport one (if
+/// any), each served by its own task, until `shutdown` completes (or the
+/// match ended, with `exit_after_match`); returns the connection tasks.
+/// Both endpoints share the connection limits.
 async fn accept(
     shared: &Arc<Shared>,
     endpoint: &quinn::Endpoint,
+    webtransport: Option<&quinn::Endpoint>,
     shutdown: impl Future<Output = ()>,
     exit_after_match: bool,
 ) -> JoinSet<()> {
-    let limit = Arc::new(Semaphore::new(shared.config.max_connections));
-    // Handshakes spent on telling refused connections why, at once.
-    let refusals = Arc::new(Semaphore::new(32));
-    let mut connections = JoinSet::new();
+    let mut admit = Admission {
+        shared: shared.clone(),
+        limit: Arc::new(Semaphore::new(shared.config.max_connections)),
+        // Handshakes spent on telling refused connections why, at once.
+        refusals: Arc::new(Semaphore::new(32)),
+        connections: JoinSet::new(),
+    };
+    let mut webtransport = webtransport;
     tokio::pin!(shutdown);
     loop {
         tokio::select! {
@@ -293,57 +325,86 @@ async fn accept(
             }
             incoming = endpoint.accept() => {
                 let Some(incoming) = incoming else { break };
-                let remote = incoming.remote_address();
-                let admitted = match (shared.address_slot(remote.ip()), limit.clone().try_acquire_owned()) {
-                    (Some(slot), Ok(permit)) => Ok((slot, permit)),
-                    (None, _) => Err(format!(
-                        "too many connections from {} (at most {} per address)",
-                        remote.ip(),
-                        shared.config.max_connections_per_address.unwrap_or_default()
-                    )),
-                    (Some(_), Err(_)) => Err(format!(
-                        "too many connections (at most {} on this server)",
-                        shared.config.max_connections
-                    )),
-                };
-                match admitted {
-                    Ok((slot, permit)) => {
-                        let shared = shared.clone();
-                        let span = tracing::info_span!(
-                            "conn",
-                            remote = %remote,
-                            slot = tracing::field::Empty
-                        );
-                        connections.spawn(tracing::Instrument::instrument(
-                            async move {
-                                conn::serve(shared, incoming).await;
-                                drop(permit);
-                                drop(slot);
-                            },
-                            span,
-                        ));
-                    }
-                    Err(reason) => {
-                        shared.refused(remote, reason.clone());
-                        // Told why (QUIC code 5 and the reason) when a
-                        // handshake can be spared; a flood past that gets
-                        // a bare refusal.
-                        match refusals.clone().try_acquire_owned() {
-                            Ok(permit) => {
-                                connections.spawn(async move {
-                                    conn::refuse(incoming, &reason).await;
-                                    drop(permit);
-                                });
-                            }
-                            Err(_) => incoming.refuse(),
-                        }
-                    }
+                admit.admit(incoming, conn::Via::Quic);
+            }
+            incoming = async move { webtransport?.accept().await }, if webtransport.is_some() => {
+                match incoming {
+                    Some(incoming) => admit.admit(incoming, conn::Via::WebTransport),
+                    None => webtransport = None,
                 }
             }
-            Some(_) = connections.join_next(), if !connections.is_empty() => {}
+            Some(_) = admit.connections.join_next(), if !admit.connections.is_empty() => {}
         }
     }
-    connections
+    admit.connections
+}
+
+/// The accept loop's limits and connection tasks.
+struct Admission {
+    shared: Arc<Shared>,
+    limit: Arc<Semaphore>,
+    refusals: Arc<Semaphore>,
+    connections: JoinSet<()>,
+}
+
+impl Admission {
+    /// Serves an incoming connection if the limits allow it, or refuses it
+    /// with the reason.
+    fn admit(&mut self, incoming: quinn::Incoming, via: conn::Via) {
+        let shared = &self.shared;
+        let remote = incoming.remote_address();
+        let admitted = match (
+            shared.address_slot(remote.ip()),
+            self.limit.clone().try_acquire_owned(),
+        ) {
+            (Some(slot), Ok(permit)) => Ok((slot, permit)),
+            (None, _) => Err(format!(
+                "too many connections from {} (at most {} per address)",
+                remote.ip(),
+                shared
+                    .config
+                    .max_connections_per_address
+                    .unwrap_or_default()
+            )),
+            (Some(_), Err(_)) => Err(format!(
+                "too many connections (at most {} on this server)",
+                shared.config.max_connections
+            )),
+        };
+        match admitted {
+            Ok((slot, permit)) => {
+                let shared = shared.clone();
+                let span = tracing::info_span!(
+                    "conn",
+                    remote = %remote,
+                    via = via.name(),
+                    slot = tracing::field::Empty
+                );
+                self.connections.spawn(tracing::Instrument::instrument(
+                    async move {
+                        conn::serve(shared, incoming, via).await;
+                        drop(permit);
+                        drop(slot);
+                    },
+                    span,
+                ));
+            }
+            Err(reason) => {
+                shared.refused(remote, reason.clone());
+                // Told why (code 5 and the reason) when a handshake can be
+                // spared; a flood past that gets a bare refusal.
+                match self.refusals.clone().try_acquire_owned() {
+                    Ok(permit) => {
+                        self.connections.spawn(async move {
+                            conn::refuse(incoming, &reason, via).await;
+                            drop(permit);
+                        });
+                    }
+                    Err(_) => incoming.refuse(),
+                }
+            }
+        }
+    }
 }
 
 /// Waits for the rooms (they finish their tick, close their players with

@@ -2,11 +2,20 @@
 //! and its script embedded in the binary (no JavaScript toolchain is needed
 //! to build or run it).
 //!
-//! The page (`/`) and its script (`/viewer.js`) are served here; every other
-//! route is answered by a [`Routes`]: [`FileRoutes`] for a file loaded up
-//! front, the server's live rooms for `lockstep-server --view`. The routes
+//! The page (`/`), its script (`/viewer.js`) and the renderer it shares
+//! with the browser client (`/render.js`) are served here unless the
+//! [`Routes`] answer the path themselves; every other route is answered by
+//! the [`Routes`]: [`FileRoutes`] for a file loaded up front, the server's
+//! live rooms for `lockstep-server --view`, the browser client's page and
+//! module for `--demo --webtransport` (crate `lockstep-web`). The routes
 //! and formats are documented in docs/viewer.md. Nothing a browser sends
 //! can change anything: only GET and HEAD are answered.
+//!
+//! Every answer is sent cross-origin isolated (`Cross-Origin-Opener-Policy:
+//! same-origin`, `Cross-Origin-Embedder-Policy: require-corp`): the pages
+//! load only from their own origin, and an isolated page's
+//! `performance.now()` has its fine resolution (the browser client times
+//! each step with it).
 
 use std::io::{self, Read, Write};
 use std::net::{TcpListener, TcpStream};
@@ -19,6 +28,8 @@ use super::{ViewData, encode_frames, state_json, world_json};
 pub const INDEX_HTML: &str = include_str!("page/index.html");
 /// The page's script.
 pub const VIEWER_JS: &str = include_str!("page/viewer.js");
+/// The WebGL2 renderer the viewer and the browser client share.
+pub const RENDER_JS: &str = include_str!("page/render.js");
 
 /// The largest request head read (a browser's GET is well under it).
 pub const MAX_REQUEST: usize = 16 * 1024;
@@ -108,8 +119,8 @@ fn percent_decode(s: &str) -> String {
 
 /// What answers the data routes.
 pub trait Routes: Send + Sync + 'static {
-    /// The answer to a GET of `path` (not `/` or `/viewer.js`), or None
-    /// for "not found".
+    /// The answer to a GET of `path`, or None: then the viewer's own
+    /// files (`/`, `/viewer.js`, `/render.js`) or "not found".
     fn get(&self, path: &str, query: Query<'_>) -> Option<Response>;
 }
 
@@ -204,22 +215,26 @@ fn handle(mut stream: TcpStream, routes: &dyn Routes) -> io::Result<()> {
         );
     }
     let (path, query) = target.split_once('?').unwrap_or((target, ""));
-    let response = match path {
-        "/" | "/index.html" => Response {
-            status: 200,
-            content_type: "text/html; charset=utf-8",
-            body: INDEX_HTML.as_bytes().into(),
-        },
-        "/viewer.js" => Response {
-            status: 200,
-            content_type: "text/javascript; charset=utf-8",
-            body: VIEWER_JS.as_bytes().into(),
-        },
-        _ => routes
-            .get(path, Query(query))
-            .unwrap_or_else(|| Response::error(404, "not found")),
-    };
+    let response = routes
+        .get(path, Query(query))
+        .or_else(|| builtin(path))
+        .unwrap_or_else(|| Response::error(404, "not found"));
     respond(&mut stream, &response, method == "HEAD")
+}
+
+/// The viewer's own files.
+fn builtin(path: &str) -> Option<Response> {
+    let (content_type, body) = match path {
+        "/" | "/index.html" => ("text/html; charset=utf-8", INDEX_HTML),
+        "/viewer.js" => ("text/javascript; charset=utf-8", VIEWER_JS),
+        "/render.js" => ("text/javascript; charset=utf-8", RENDER_JS),
+        _ => return None,
+    };
+    Some(Response {
+        status: 200,
+        content_type,
+        body: body.as_bytes().into(),
+    })
 }
 
 fn respond(stream: &mut TcpStream, r: &Response, head_only: bool) -> io::Result<()> {
@@ -234,7 +249,8 @@ fn respond(stream: &mut TcpStream, r: &Response, head_only: bool) -> io::Result<
     };
     let head = format!(
         "HTTP/1.1 {} {reason}\r\nContent-Type: {}\r\nContent-Length: {}\r\n\
-         Cache-Control: no-store\r\nConnection: close\r\n\r\n",
+         Cache-Control: no-store\r\nCross-Origin-Opener-Policy: same-origin\r\n\
+         Cross-Origin-Embedder-Policy: require-corp\r\nConnection: close\r\n\r\n",
         r.status,
         r.content_type,
         r.body.len()
@@ -289,6 +305,12 @@ mod tests {
         assert_eq!(body, INDEX_HTML.as_bytes());
         let (_, body) = req("GET /viewer.js");
         assert_eq!(body, VIEWER_JS.as_bytes());
+        let (head, body) = req("GET /render.js");
+        assert!(
+            head.contains("Cross-Origin-Embedder-Policy: require-corp"),
+            "{head}"
+        );
+        assert_eq!(body, RENDER_JS.as_bytes());
         let (head, body) = req("GET /world");
         assert!(head.contains("application/json"));
         let w: serde_json::Value = serde_json::from_slice(&body).unwrap();

@@ -9,10 +9,12 @@ use lockstep_core::World;
 use lockstep_proto::{ServerMessage, Session, Slot, Welcome};
 use tokio::sync::mpsc;
 
-use lockstep_net::{close_code, read_frame, write_frame};
+use lockstep_net::{
+    Link, LinkRecv, LinkSend, WEBTRANSPORT_PATH, close_code, read_frame, write_frame,
+};
 
 use super::live::{Incoming, Outgoing};
-use super::tls::client_config;
+use super::tls::config_for_options;
 use super::{
     ClientError, ClientEvent, ClientOptions, ClientReport, InputLatency, LiveClient, Polled,
     Traffic,
@@ -25,9 +27,9 @@ use crate::game::{BotView, GameRules, RulesFactory, RulesId, start_match};
 /// polls.
 pub struct Client {
     endpoint: quinn::Endpoint,
-    connection: quinn::Connection,
-    send: quinn::SendStream,
-    recv: quinn::RecvStream,
+    connection: Link,
+    send: LinkSend,
+    recv: LinkRecv,
     session: Session,
     world: World,
     rules: Box<dyn GameRules>,
@@ -50,9 +52,10 @@ impl std::fmt::Debug for Client {
 }
 
 impl Client {
-    /// Connects, joins `options.room`, waits for the welcome, builds the
-    /// world from its scene (checking the scene hash), and makes the game's
-    /// rules for that world with `game`.
+    /// Connects (over native QUIC, or WebTransport with
+    /// [`ClientOptions::webtransport`]), joins `options.room`, waits for the
+    /// welcome, builds the world from its scene (checking the scene hash),
+    /// and makes the game's rules for that world with `game`.
     ///
     /// # Errors
     /// [`ClientError`]: certificate, connection, refusal, timeout, a scene
@@ -61,8 +64,7 @@ impl Client {
         options: ClientOptions,
         game: &dyn RulesFactory,
     ) -> Result<Client, ClientError> {
-        let roots = options.cert.load()?;
-        let config = client_config(&roots)?;
+        let config = config_for_options(&options.cert, options.webtransport)?;
         let bind: SocketAddr = if options.server.is_ipv6() {
             "[::]:0".parse().expect("literal address")
         } else {
@@ -78,6 +80,17 @@ impl Client {
             let connection = connecting
                 .await
                 .map_err(|e| ClientError::Connect(e.to_string()))?;
+            let connection = if options.webtransport {
+                let session = web_transport_quinn::Session::connect(
+                    connection,
+                    webtransport_url(&options.server_name, options.server.port())?,
+                )
+                .await
+                .map_err(|e| ClientError::Connect(format!("WebTransport: {e}")))?;
+                Link::WebTransport(Box::new(session))
+            } else {
+                Link::Quic(connection)
+            };
             let (mut send, mut recv) = connection
                 .open_bi()
                 .await
@@ -113,7 +126,7 @@ impl Client {
         if let Some(server) = &welcome.rules
             && *server != game.rules_id()
         {
-            connection.close(close_code::REFUSED.into(), b"other game rules");
+            connection.close(close_code::REFUSED, b"other game rules");
             return Err(ClientError::WrongRules {
                 server: server.clone(),
                 ours: game.rules_id(),
@@ -137,7 +150,7 @@ impl Client {
         };
         let got = world.state_hash();
         if got != expected {
-            connection.close(close_code::REFUSED.into(), b"scene hash mismatch");
+            connection.close(close_code::REFUSED, b"scene hash mismatch");
             return Err(ClientError::SceneHashMismatch { expected, got });
         }
         if welcome.resume.is_none() {
@@ -146,7 +159,7 @@ impl Client {
         let rules = match game.rules_for(&world) {
             Ok(r) => r,
             Err(e) => {
-                connection.close(close_code::NORMAL.into(), b"rules refused the scene");
+                connection.close(close_code::NORMAL, b"rules refused the scene");
                 return Err(ClientError::Game(e.to_string()));
             }
         };
@@ -420,7 +433,19 @@ fn record(report: &mut ClientReport, p: &Polled, on_event: &mut impl FnMut(&Clie
     }
 }
 
-async fn read_welcome(recv: &mut quinn::RecvStream) -> Result<Welcome, ClientError> {
+/// The URL of the server's WebTransport sessions: `server_name` (the name
+/// its certificate is checked against, as the URL's host) and `port`.
+fn webtransport_url(server_name: &str, port: u16) -> Result<url::Url, ClientError> {
+    let host = if server_name.contains(':') {
+        format!("[{server_name}]")
+    } else {
+        server_name.to_owned()
+    };
+    url::Url::parse(&format!("https://{host}:{port}{WEBTRANSPORT_PATH}"))
+        .map_err(|e| ClientError::Connect(format!("WebTransport URL for {server_name:?}: {e}")))
+}
+
+async fn read_welcome(recv: &mut LinkRecv) -> Result<Welcome, ClientError> {
     let Some(bytes) = read_frame(recv).await? else {
         return Err(ClientError::ConnectionLost(
             "the server ended the stream before welcoming".into(),

@@ -18,15 +18,20 @@ use lockstep_proto::{
 };
 
 /// The last `depth` ticks' states, and the world restored from one of them
-/// while a probe reads it.
-pub(crate) struct History {
+/// while a probe reads it: what a client keeps to answer the room's probes
+/// after a desync ([`SessionEvent::Probe`](lockstep_proto::SessionEvent)).
+/// Record the world after every applied tick; answer each probe with
+/// [`History::answer`] and hand the reply to `Session::reply_probe`.
+pub struct History {
     depth: usize,
     states: VecDeque<(u64, Vec<u8>)>,
     restored: Option<(u64, World)>,
 }
 
 impl History {
-    pub(crate) fn new(depth: usize) -> Self {
+    /// Keeps the states of the last `depth` ticks (0: none; every probe is
+    /// then answered "unavailable").
+    pub fn new(depth: usize) -> Self {
         Self {
             depth,
             states: VecDeque::with_capacity(depth),
@@ -35,7 +40,7 @@ impl History {
     }
 
     /// Keeps the state after `tick`.
-    pub(crate) fn record(&mut self, tick: u64, world: &World) {
+    pub fn record(&mut self, tick: u64, world: &World) {
         if self.depth == 0 {
             return;
         }
@@ -61,7 +66,7 @@ impl History {
     }
 
     /// The answer to `probe`, from the recorded state of its tick.
-    pub(crate) fn answer(&mut self, probe: &Probe) -> ProbeReply {
+    pub fn answer(&mut self, probe: &Probe) -> ProbeReply {
         let answer = self.try_answer(probe).unwrap_or(ProbeAnswer::Unavailable);
         ProbeReply {
             tick: probe.tick,

@@ -8,7 +8,7 @@ use lockstep_core::{Faults, World};
 use lockstep_proto::{Channel, ClientMessage, ServerMessage, Session, SessionEvent, Slot};
 use tokio::sync::mpsc;
 
-use lockstep_net::{FrameError, close_code};
+use lockstep_net::{FrameError, Link, close_code};
 
 use super::{ClientError, ClientEvent, ClientOptions, InputLatency, Traffic};
 use crate::game::{BotView, GameRules, apply_tick};
@@ -65,7 +65,7 @@ pub struct Polled {
 /// render. Network I/O runs on tokio tasks started by [`Client::start`](super::Client::start).
 pub struct LiveClient {
     pub(super) endpoint: quinn::Endpoint,
-    pub(super) connection: quinn::Connection,
+    pub(super) connection: Link,
     pub(super) session: Session,
     pub(super) world: World,
     pub(super) rules: Box<dyn GameRules>,
@@ -246,7 +246,7 @@ impl LiveClient {
                 Incoming::Datagram(bytes) => self.on_bytes(&bytes, Channel::Datagram)?,
                 Incoming::StreamEnded(e) => {
                     self.stream_ended = Some(match (e, self.connection.close_reason()) {
-                        (_, Some(r)) => r.to_string(),
+                        (_, Some(r)) => r,
                         (Some(e), None) => e.to_string(),
                         (None, None) => "the server ended the stream".into(),
                     });
@@ -479,8 +479,7 @@ impl LiveClient {
 
 impl Drop for LiveClient {
     fn drop(&mut self) {
-        self.connection
-            .close(close_code::NORMAL.into(), b"client done");
+        self.connection.close(close_code::NORMAL, b"client done");
         for t in &self.tasks {
             t.abort();
         }

@@ -11,13 +11,20 @@ use lockstep_proto::RejoinCredential;
 use lockstep_net::{TlsError, load_certs, parse_certs};
 
 /// The certificate (or CA) a client trusts: a PEM file, or PEM text held in
-/// memory (a game that ships its server's certificate inside the binary).
+/// memory (a game that ships its server's certificate inside the binary),
+/// or exactly one certificate named by its SHA-256.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum TrustedCert {
     /// A PEM file: the dev certificate the server wrote, or a real one.
     File(PathBuf),
     /// PEM text.
     Pem(Vec<u8>),
+    /// Exactly the certificate whose DER has this SHA-256, whatever its
+    /// names and issuer: what a browser's `serverCertificateHashes` does,
+    /// for the WebTransport endpoint's generated certificate
+    /// (`ServerEvent::WebTransportListening`'s `cert_sha256`, or the hash
+    /// in the server's log).
+    Sha256([u8; 32]),
 }
 
 impl TrustedCert {
@@ -25,11 +32,16 @@ impl TrustedCert {
     ///
     /// # Errors
     /// [`TlsError::CertFile`] if the file cannot be read or no PEM
-    /// certificate is in it.
+    /// certificate is in it, or for [`TrustedCert::Sha256`] (a hash names a
+    /// certificate it does not hold).
     pub fn load(&self) -> Result<Vec<rustls::pki_types::CertificateDer<'static>>, TlsError> {
         match self {
             TrustedCert::File(path) => load_certs(path),
             TrustedCert::Pem(bytes) => parse_certs(bytes, "PEM bytes"),
+            TrustedCert::Sha256(_) => Err(TlsError::CertFile {
+                path: "a SHA-256".into(),
+                detail: "a certificate hash holds no certificate".into(),
+            }),
         }
     }
 }
@@ -55,8 +67,13 @@ impl From<&Path> for TrustedCert {
 /// How to reach the server and what to do there.
 #[derive(Clone, Debug)]
 pub struct ClientOptions {
-    /// The server's UDP address.
+    /// The server's UDP address (with [`webtransport`](Self::webtransport),
+    /// its WebTransport endpoint's).
     pub server: SocketAddr,
+    /// Join over WebTransport (HTTP/3, a session on `/lockstep`, what a
+    /// browser speaks) instead of native QUIC: the same messages, rooms and
+    /// tokens. Default false.
+    pub webtransport: bool,
     /// The name the server's certificate is checked against (`localhost`
     /// for the dev certificate).
     pub server_name: String,
@@ -125,6 +142,7 @@ impl ClientOptions {
     ) -> Self {
         Self {
             server,
+            webtransport: false,
             server_name: "localhost".into(),
             cert: cert.into(),
             room: room.into(),

@@ -17,6 +17,10 @@
 //! I/O-free: [`LiveClient`](super::LiveClient) feeds it the confirmed
 //! bundles, its own inputs and the tick to reach.
 
+// The predictor is driven by the network client (feature `net`); without
+// it only the public trait and counters here are used.
+#![cfg_attr(not(feature = "net"), allow(dead_code))]
+
 use std::collections::{BTreeMap, VecDeque};
 
 use lockstep_core::World;

@@ -582,7 +582,7 @@ impl RoomTask {
                     seat.closing = true;
                     let remote = seat.peer.remote;
                     seat.peer.connection.close(
-                        lockstep_net::close_code::OVERLOADED.into(),
+                        lockstep_net::close_code::OVERLOADED,
                         b"stream send queue full",
                     );
                     self.shared.refused(
