@@ -29,7 +29,9 @@
 
 use super::scalar::{self, Scalar};
 
-/// Lanes per batch.
+/// Lanes per batch (read only where the lanes exist: x86_64 and the
+/// tests).
+#[cfg_attr(not(any(target_arch = "x86_64", test)), allow(dead_code))]
 pub(crate) const LANES: usize = 8;
 
 /// `a·b` rounded to nearest with ties toward +∞ and saturated with the
