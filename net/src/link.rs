@@ -171,6 +171,16 @@ impl Link {
         }
     }
 
+    /// Resolves once the connection has closed, from either side.
+    pub async fn closed(&self) {
+        let _ = self.quic().closed().await;
+    }
+
+    /// Whether this is a WebTransport session.
+    pub fn is_webtransport(&self) -> bool {
+        matches!(self, Link::WebTransport(_))
+    }
+
     /// Why the connection ended, if it did.
     pub fn close_reason(&self) -> Option<String> {
         match self {

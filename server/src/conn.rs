@@ -439,6 +439,11 @@ fn checked(id: PlayerId, bytes: &[u8], channel: Channel) -> RoomCmd {
     }
 }
 
+/// How long a WebTransport peer gets to read the close message and close
+/// the session itself before the server closes it (the page closes 0.5 s
+/// after reading it).
+const PAGE_CLOSE_GRACE: Duration = Duration::from_secs(2);
+
 /// Writes the room's frames in order; on a close command, finishes the
 /// stream, gives the client a moment to read it, and closes the connection.
 async fn write_loop(connection: Link, mut send: LinkSend, mut rx: mpsc::Receiver<WriterCmd>) {
@@ -454,6 +459,16 @@ async fn write_loop(connection: Link, mut send: LinkSend, mut rx: mpsc::Receiver
                 // Resolves once the client has every byte of the stream (or
                 // stopped it): the close message is then delivered.
                 let _ = tokio::time::timeout(Duration::from_millis(500), send.stopped()).await;
+                if connection.is_webtransport() {
+                    // Acknowledged is not read: a browser drops a stream's
+                    // unread bytes when the session closes, so the page
+                    // may lose the close message to our close. The page
+                    // closes the session itself once it has read it; wait
+                    // for that, a bounded time.
+                    tokio::time::timeout(PAGE_CLOSE_GRACE, connection.closed())
+                        .await
+                        .ok();
+                }
                 connection.close(code, truncate(&reason).as_bytes());
                 return;
             }
