@@ -65,6 +65,32 @@ impl TestServer {
         }
     }
 
+    /// As [`start`](Self::start), with a WebTransport endpoint on a free
+    /// port of 127.0.0.1 beside the QUIC one; returns the server with that
+    /// endpoint's address and certificate hash
+    /// ([`ServerEvent::WebTransportListening`]).
+    pub async fn start_webtransport(
+        dir: PathBuf,
+        tweak: impl FnOnce(&mut ServerConfig),
+    ) -> (TestServer, SocketAddr, [u8; 32]) {
+        let mut server = TestServer::start(dir, |c| {
+            c.webtransport = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
+            tweak(c);
+        })
+        .await;
+        let (addr, hash) = server
+            .wait_for(Duration::from_secs(5), |e| match e {
+                ServerEvent::WebTransportListening { addr, cert_sha256 } => {
+                    Some((*addr, *cert_sha256))
+                }
+                _ => None,
+            })
+            .await;
+        assert_ne!(addr.port(), 0);
+        assert_ne!(addr, server.addr, "its own port, beside the QUIC one");
+        (server, addr, hash)
+    }
+
     /// Waits for an event matching `pick`, up to `timeout`.
     pub async fn wait_for<T>(
         &mut self,

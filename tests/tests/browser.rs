@@ -26,7 +26,7 @@ use std::time::{Duration, Instant, SystemTime};
 use lockstep_client::bot::BotOptions;
 use lockstep_client::game::{Demo, RulesFactory};
 use lockstep_client::net::Client;
-use lockstep_server::{ServerConfig, ServerEvent, WEBTRANSPORT_PATH, issue_token};
+use lockstep_server::{ServerConfig, WEBTRANSPORT_PATH, issue_token};
 use lockstep_tests::harness::{TestServer, bots_ok};
 use lockstep_testsupport::webdriver::{self, Browser};
 use lockstep_tools::verify_replay_file;
@@ -85,23 +85,9 @@ fn start(
     name: &str,
     tweak: impl FnOnce(&mut ServerConfig),
 ) -> (TestServer, SocketAddr, String) {
-    rt.block_on(async {
-        let mut server = TestServer::start(tmp(name), |c| {
-            c.webtransport = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
-            tweak(c);
-        })
-        .await;
-        let (addr, hash) = server
-            .wait_for(Duration::from_secs(5), |e| match e {
-                ServerEvent::WebTransportListening { addr, cert_sha256 } => {
-                    Some((*addr, *cert_sha256))
-                }
-                _ => None,
-            })
-            .await;
-        let hex = hash.iter().map(|b| format!("{b:02x}")).collect();
-        (server, addr, hex)
-    })
+    let (server, addr, hash) = rt.block_on(TestServer::start_webtransport(tmp(name), tweak));
+    let hex = hash.iter().map(|b| format!("{b:02x}")).collect();
+    (server, addr, hex)
 }
 
 fn link(webtransport: SocketAddr, hash: &str, room: &str) -> JoinLink {

@@ -16,7 +16,7 @@ use lockstep_client::net::{
     ClientOptions, TrustedCert, client_config, load_certs, read_frame, write_frame,
 };
 use lockstep_proto::{ClientMessage, CloseReason, Join, PROTOCOL_VERSION, ServerMessage};
-use lockstep_server::{ServerEvent, WEBTRANSPORT_PATH, issue_token};
+use lockstep_server::{WEBTRANSPORT_PATH, issue_token};
 use lockstep_tests::harness::{TestServer, assert_same_hashes, bots_ok};
 use lockstep_tools::verify_replay_file;
 
@@ -25,27 +25,13 @@ fn tmp(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("webtransport-{name}"))
 }
 
-/// Starts a demo server with a WebTransport endpoint on a free port of
-/// 127.0.0.1; returns it with that endpoint's address and certificate
-/// hash (from [`ServerEvent::WebTransportListening`]).
+/// A demo server with a WebTransport endpoint (see
+/// [`TestServer::start_webtransport`]).
 async fn start(
     name: &str,
     tweak: impl FnOnce(&mut lockstep_server::ServerConfig),
 ) -> (TestServer, SocketAddr, [u8; 32]) {
-    let mut server = TestServer::start(tmp(name), |c| {
-        c.webtransport = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
-        tweak(c);
-    })
-    .await;
-    let (addr, hash) = server
-        .wait_for(Duration::from_secs(5), |e| match e {
-            ServerEvent::WebTransportListening { addr, cert_sha256 } => Some((*addr, *cert_sha256)),
-            _ => None,
-        })
-        .await;
-    assert_ne!(addr.port(), 0);
-    assert_ne!(addr, server.addr, "its own port, beside the QUIC one");
-    (server, addr, hash)
+    TestServer::start_webtransport(tmp(name), tweak).await
 }
 
 /// A WebTransport session to `path` on `server`, trusting only the
