@@ -51,7 +51,7 @@
 use super::gjk::Rel;
 use super::shared::relative_pose;
 use super::triangle::{
-    Axis, Convex, TriPoint, TriSat, Triangle, deepest_over, triangle_points, triangle_sat,
+    Axis, Convex, DeepestCorner, TriPoint, TriSat, Triangle, triangle_points, triangle_sat,
 };
 use crate::collision::manifold::{ContactPoint, FeatureId, Manifold};
 use crate::math::{Aabb, Scalar, Transform, Vec3};
@@ -262,6 +262,7 @@ fn contact_convex_source<S: TriangleSource>(
     if bsat.kind == Axis::TriFace && np < MAX_MESH_POINTS {
         let plane = axis.dot(tris[bi].v[0]);
         let label = |g: &Gathered| g.id & 0x3fff;
+        let mut corner: Option<DeepestCorner> = None;
         for i in 0..count {
             // The shape's deepest corner under a nearly coplanar candidate
             // that its own test found apart (the corner sank past the
@@ -274,10 +275,10 @@ fn contact_convex_source<S: TriangleSource>(
             {
                 continue;
             }
-            let Some(tp) = deepest_over(shape, &tris[i], axis) else {
+            let corner = *corner.get_or_insert_with(|| DeepestCorner::of(shape, axis));
+            let Some(tp) = corner.over(&tris[i]) else {
                 continue;
             };
-
             // Known already unless only as a shallower copy (a triangle
             // whose own depth capped it).
             let known = pts[..np]

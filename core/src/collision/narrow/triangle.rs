@@ -51,7 +51,7 @@ use crate::math::{Scalar, Vec3};
 use crate::shape::{Capsule, ConvexHull, Cuboid, Sphere};
 
 mod points;
-pub(crate) use points::{TriPoint, deepest_over, triangle_points};
+pub(crate) use points::{DeepestCorner, TriPoint, triangle_points};
 
 /// Box edges as corner pairs: the four along x, then y, then z, each group
 /// ordered by the corner bits of the other two axes.

@@ -274,23 +274,47 @@ fn lies_over(tri: &Triangle, n: Vec3, v: Vec3) -> bool {
     })
 }
 
-/// The shape's deepest point along `n` (its deepest core point, the radius
-/// below it) measured against `tri`'s plane across `n`, when it lies over
-/// `tri`: a flat region of a mesh acts as one plane for the corner that sank
-/// under a neighbour of the triangles that touch (see the mesh contact's
-/// step 3). Labelled as the face-axis points are.
-pub(crate) fn deepest_over(shape: &Convex, tri: &Triangle, n: Vec3) -> Option<TriPoint> {
-    let (k, &v) = deepest(shape.vertices(), n);
-    if !lies_over(tri, n, v) {
-        return None;
+/// The shape's deepest point along a contact axis: its deepest core point
+/// (found once per pair) with the radius below it. A flat region of a mesh
+/// acts as one plane for this corner when it sank under a neighbour of the
+/// triangles that touch (see the mesh contact's step 3).
+#[derive(Clone, Copy)]
+pub(crate) struct DeepestCorner {
+    /// The core point's index, for its label.
+    k: usize,
+    /// The core point.
+    v: Vec3,
+    /// The axis.
+    n: Vec3,
+    /// The surface point below the core point (the radius along `−n`).
+    s: Vec3,
+}
+
+impl DeepestCorner {
+    /// The deepest core point of `shape` along `n`.
+    pub(crate) fn of(shape: &Convex, n: Vec3) -> DeepestCorner {
+        let (k, &v) = deepest(shape.vertices(), n);
+        DeepestCorner {
+            k,
+            v,
+            n,
+            s: v - n * shape.radius,
+        }
     }
-    let s = v - n * shape.radius;
-    let depth = n.dot(tri.v[0]) - n.dot(s);
-    Some(TriPoint {
-        p: s + n * depth.half(),
-        depth,
-        id: 0x1000 | (k as u16 & 0xfff),
-    })
+
+    /// The corner measured against `tri`'s plane across the axis, when it
+    /// lies over `tri`; labelled as the face-axis points are.
+    pub(crate) fn over(&self, tri: &Triangle) -> Option<TriPoint> {
+        if !lies_over(tri, self.n, self.v) {
+            return None;
+        }
+        let depth = self.n.dot(tri.v[0]) - self.n.dot(self.s);
+        Some(TriPoint {
+            p: self.s + self.n * depth.half(),
+            depth,
+            id: 0x1000 | (self.k as u16 & 0xfff),
+        })
+    }
 }
 
 /// The point of `pts` with the smallest projection on `n` (the first on
