@@ -626,6 +626,63 @@ fn a_fixed_joint_holds_a_cantilever() {
 /// Distance joints: a rigid rod keeps its length; a rope is slack closer
 /// and taut at its length; a spring of f Hz oscillates with period 1/f
 /// (within 2%) about its loaded rest length.
+/// A spring far stiffer than the substep can follow (10⁶ Hz, and 10⁹ Hz,
+/// at 30 Hz with one substep, where `hω(2ζ + hω)` is past Q32.32's range)
+/// holds its length as a rigid rod does, with no overflow: the softness
+/// takes its rigid limit instead of wrapping.
+#[test]
+fn a_spring_stiffer_than_the_substep_acts_as_a_rod_without_overflow() {
+    for hertz in [1.0e6, 1.0e9] {
+        // (A damping ratio far above hω would make the rod creep back:
+        // its push-out rate is ω/(2ζ + hω).)
+        for damping in [0.0, 1.0, 100.0] {
+            let mut c = WorldConfig::default();
+            c.sleep.enabled = false;
+            c.tick_rate = 30;
+            c.substeps = 1;
+            let mut w = World::new(c).unwrap();
+            w.set_gravity(Vec3::ZERO);
+            let hub = anchor(&mut w, Vec3::ZERO);
+            let b = w
+                .create_body(
+                    &BodyDesc::dynamic()
+                        .position(v(2.0, 0.0, 0.0))
+                        .linear_velocity(v(0.0, 3.0, 0.0)),
+                )
+                .unwrap();
+            w.add_collider(b, ColliderDesc::sphere(s(0.1))).unwrap();
+            let j = w
+                .add_joint(JointDesc::spring(
+                    hub,
+                    b,
+                    s(2.0),
+                    Spring {
+                        hertz: s(hertz),
+                        damping_ratio: s(damping),
+                    },
+                ))
+                .unwrap();
+            let mut worst: f64 = 0.0;
+            for _ in 0..150 {
+                step(&mut w, 1);
+                worst = worst.max((f(w.joint_position(j).unwrap()) - 2.0).abs());
+            }
+            // One 30 Hz substep of the swing (0.1 m of arc at 3 m/s) opens a
+            // rigid rod by about (0.1)²/(2·2) = 2.5 mm before the next
+            // correction.
+            assert!(
+                worst < 0.01,
+                "{hertz} Hz, damping {damping}: length off by {worst}"
+            );
+            let speed = f(w.body(b).unwrap().linear_velocity().length());
+            assert!(
+                (speed - 3.0).abs() < 0.3,
+                "{hertz} Hz, damping {damping}: swings at {speed} m/s"
+            );
+        }
+    }
+}
+
 #[test]
 fn distance_joints_rod_rope_and_spring() {
     // Rod: a ball swung round at the end of a 2 m rod in zero gravity.

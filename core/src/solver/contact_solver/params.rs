@@ -3,6 +3,13 @@
 
 use crate::math::Scalar;
 
+/// The stiffest spring [`Softness::new`] builds, Hz (2²⁴, about 16.8 MHz):
+/// rigid at any substep rate.
+pub(crate) const MAX_HERTZ: Scalar = Scalar::from_int(1 << 24);
+
+/// The largest damping ratio [`Softness::new`] builds (2²⁴).
+pub(crate) const MAX_DAMPING_RATIO: Scalar = Scalar::from_int(1 << 24);
+
 /// Softness of the contact spring for a substep.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Softness {
@@ -44,6 +51,11 @@ impl Softness {
     /// A spring of `hertz` with damping ratio `zeta`, stepped at `h`
     /// (Box2D's `b2MakeSoft`). A zero frequency gives a rigid constraint
     /// without bias.
+    ///
+    /// A frequency above [`MAX_HERTZ`] or a damping ratio above
+    /// [`MAX_DAMPING_RATIO`] (a user's spring may ask for either) is taken
+    /// at that bound, so `2πf` and `2ζ` stay in range; such a spring is
+    /// rigid at any substep (see [`from_omega`](Self::from_omega)).
     pub(crate) fn new(hertz: Scalar, zeta: Scalar, h: Scalar) -> Softness {
         if !hertz.is_positive() {
             return Softness {
@@ -52,13 +64,37 @@ impl Softness {
                 impulse_scale: Scalar::ZERO,
             };
         }
+        let hertz = hertz.min(MAX_HERTZ);
+        let zeta = zeta.min(MAX_DAMPING_RATIO);
         Softness::from_omega(Scalar::TAU * hertz, zeta, h)
     }
 
-    /// A spring of angular frequency `omega` (> 0), damping ratio `zeta`,
-    /// stepped at `h`.
+    /// A spring of angular frequency `omega` (> 0, at most `2π·MAX_HERTZ`),
+    /// damping ratio `zeta` (at most [`MAX_DAMPING_RATIO`]), stepped at `h`
+    /// (at most 1 s).
+    ///
+    /// Bounds: `2ζ ≤ 2²⁵` and `hω ≤ 2π·2²⁴`, so `a1 = 2ζ + hω < 2²⁷`,
+    /// but `a2 = hω·a1` can pass Q32.32's range (2³¹) for a spring far
+    /// stiffer than the substep (a user's 10⁶ Hz spring at 30 Hz: `a2` ≈
+    /// 4·10¹⁰). So `a2` is formed exactly first. From `a2 ≥ 2¹⁶` on, the
+    /// spring takes its rigid limit: the whole effective mass, nothing
+    /// relaxed, the bias rate `ω/a1` as always. There the limit's own
+    /// error, `1/(1 + a2)` on the mass scale, is under 2⁻¹⁶, while the
+    /// formula's `a2·round(1/(1 + a2))` would be off by up to `a2·2⁻³³` and
+    /// only grows from there (0.05 at `a2` = 2³⁰). Both are under 1.6·10⁻⁵
+    /// at the switch. Every contact and joint spring of the world (`hω` ≤
+    /// 8, `a2` ≤ 224) is far below it. The same on every machine; no
+    /// overflow.
     pub(crate) fn from_omega(omega: Scalar, zeta: Scalar, h: Scalar) -> Softness {
         let a1 = Scalar::TWO * zeta + h * omega;
+        // `hω·a1` exactly, in units of 2⁻⁶⁴: 2¹⁶ is 2⁸⁰ of them.
+        if (h * omega).wide_mul(a1) >= 1 << 80 {
+            return Softness {
+                bias_rate: omega.checked_div(a1).unwrap_or(Scalar::ZERO),
+                mass_scale: Scalar::ONE,
+                impulse_scale: Scalar::ZERO,
+            };
+        }
         let a2 = h * omega * a1;
         let a3 = (Scalar::ONE + a2).recip();
         Softness {
@@ -124,4 +160,75 @@ pub(crate) struct SolverStats {
     pub narrow: u32,
     /// Batches of eight of them that the lanes may visit together.
     pub lane_batches: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::faults;
+
+    /// The spring formula as written, for a spring whose `hω(2ζ + hω)`
+    /// fits: the guard must not change a bit of it.
+    fn formula(omega: Scalar, zeta: Scalar, h: Scalar) -> (Scalar, Scalar, Scalar) {
+        let a1 = Scalar::TWO * zeta + h * omega;
+        let a2 = h * omega * a1;
+        let a3 = (Scalar::ONE + a2).recip();
+        (omega.checked_div(a1).unwrap(), a2 * a3, a3)
+    }
+
+    #[test]
+    fn springs_in_range_are_the_formula_bit_for_bit() {
+        faults::take();
+        for rate in [30, 60, 120, 240, 480, 960, 1920] {
+            let h = Scalar::ONE.div_int(rate);
+            for hertz in [1, 2, 30, 60, 120, 240, 1000, 5000] {
+                for zeta in [Scalar::ZERO, Scalar::ONE, Scalar::TWO, Scalar::from_int(10)] {
+                    let hw = std::f64::consts::TAU * hertz as f64 / rate as f64;
+                    if hw * (2.0 * zeta.to_f64() + hw) >= 65_000.0 {
+                        continue;
+                    }
+                    let s = Softness::new(Scalar::from_int(hertz), zeta, h);
+                    let (b, m, i) = formula(Scalar::TAU * Scalar::from_int(hertz), zeta, h);
+                    assert_eq!(
+                        (s.bias_rate, s.mass_scale, s.impulse_scale),
+                        (b, m, i),
+                        "{hertz} Hz, ζ {zeta}, {rate} Hz substeps"
+                    );
+                }
+            }
+        }
+        assert!(faults::take().is_empty());
+    }
+
+    #[test]
+    fn a_spring_past_the_range_takes_its_rigid_limit_without_overflow() {
+        faults::take();
+        let h = Scalar::ONE.div_int(30);
+        // hω·(2 + hω) crosses 2³⁰ near hω = 32,767: just below, the formula;
+        // from there on, the rigid limit, a few ulps away.
+        let below = Softness::from_omega(Scalar::from_int(32_000 * 30), Scalar::ONE, h);
+        assert!(below.impulse_scale.to_bits() <= 4, "{below:?}");
+        assert!(
+            Scalar::ONE.to_bits() - below.mass_scale.to_bits() <= 4,
+            "{below:?}"
+        );
+        for hertz in [1.0e5, 1.0e6, 1.0e9, 2.0e9] {
+            for zeta in [0.0, 1.0, 1.0e6, 2.0e9] {
+                let s = Softness::new(
+                    Scalar::from_f64_lossy(hertz),
+                    Scalar::from_f64_lossy(zeta),
+                    h,
+                );
+                assert_eq!(s.mass_scale, Scalar::ONE, "{hertz} Hz, ζ {zeta}");
+                assert_eq!(s.impulse_scale, Scalar::ZERO, "{hertz} Hz, ζ {zeta}");
+                // ω/(2ζ + hω): at most 1/h, and close to it unless ζ is
+                // far above hω.
+                assert!(s.bias_rate <= Scalar::from_int(30), "{hertz} Hz, ζ {zeta}");
+                assert!(s.bias_rate.is_positive(), "{hertz} Hz, ζ {zeta}");
+            }
+        }
+        let stiff = Softness::new(Scalar::from_int(1_000_000), Scalar::ONE, h);
+        assert!((stiff.bias_rate.to_f64() - 30.0).abs() < 0.001, "{stiff:?}");
+        assert!(faults::take().is_empty());
+    }
 }
