@@ -118,7 +118,7 @@ fn pendulum_period_and_energy_match_the_closed_form() {
     let mut crossings = Vec::new();
     let mut prev = f(w.body(bob).unwrap().center_of_mass().x);
     let mut worst_gap: f64 = 0.0;
-    let mut max_energy = e0;
+    let (mut max_energy, mut min_energy) = (e0, e0);
     for k in 1..=3600 {
         step(&mut w, 1);
         let x = f(w.body(bob).unwrap().center_of_mass().x);
@@ -129,6 +129,7 @@ fn pendulum_period_and_energy_match_the_closed_form() {
         prev = x;
         worst_gap = worst_gap.max(gap(&w, j));
         max_energy = max_energy.max(energy(&w));
+        min_energy = min_energy.min(energy(&w));
     }
     let periods: Vec<f64> = crossings.windows(2).map(|p| p[1] - p[0]).collect();
     assert!(periods.len() > 20, "{} periods", periods.len());
@@ -138,11 +139,10 @@ fn pendulum_period_and_energy_match_the_closed_form() {
         rel < 0.005,
         "period {first:.5} s, closed form {expected:.5} s ({rel:.4})"
     );
-    let kept = (energy(&w) - bottom) / swing0;
-    assert!(kept > 0.97, "kept {kept:.4} of the swing energy over 60 s");
+    let (gained, lost) = ((max_energy - e0) / swing0, (e0 - min_energy) / swing0);
     assert!(
-        max_energy <= e0 + 1e-4 * swing0,
-        "energy grew: {max_energy} > {e0}"
+        gained < 0.01 && lost < 0.01,
+        "the swing's energy moved by +{gained:.4} / -{lost:.4} over 60 s"
     );
     assert!(worst_gap < 1e-3, "anchors drifted {worst_gap} m apart");
 }
@@ -163,6 +163,18 @@ fn hanging_chain(
     m: f64,
     weight: Option<f64>,
     substeps: u32,
+) -> (World, Vec<lockstep_core::JointHandle>, BodyHandle) {
+    hanging_chain_of(n, m, weight, substeps, None)
+}
+
+/// [`hanging_chain`] with a swing cone of `cone` radians on every joint
+/// (`None`: no limit).
+fn hanging_chain_of(
+    n: usize,
+    m: f64,
+    weight: Option<f64>,
+    substeps: u32,
+    cone: Option<f64>,
 ) -> (World, Vec<lockstep_core::JointHandle>, BodyHandle) {
     let mut c = WorldConfig::default();
     c.sleep.enabled = false;
@@ -185,8 +197,12 @@ fn hanging_chain(
         } else {
             v(0.0, -0.5, 0.0)
         };
+        let kind = JointKind::Spherical {
+            cone: cone.map(s),
+            twist: None,
+        };
         joints.push(
-            w.add_joint(JointDesc::spherical(prev, b).anchors(a_anchor, v(0.0, 0.5, 0.0)))
+            w.add_joint(JointDesc::new(kind, prev, b).anchors(a_anchor, v(0.0, 0.5, 0.0)))
                 .unwrap(),
         );
         prev = b;
@@ -211,15 +227,16 @@ fn predicted_sags(masses: &[f64], hertz: f64) -> Vec<f64> {
         .collect()
 }
 
-/// A chain of 20 links (spherical joints) hanging at rest: every joint
-/// stretches by what the soft constraint predicts (its load over its
-/// effective mass times ω², 60 Hz by default) within 3%: 2.6 mm at most for
-/// these 16.8 kg links, and a quarter of that at 8 substeps, where the
-/// joints' spring is twice as fast. The chain's length is right.
+/// Joints with a limit are solved one at a time on the soft spring (not
+/// as a chain): a hanging chain of 20 links whose joints have a wide swing
+/// cone (never reached) stretches joint by joint by what the soft
+/// constraint predicts (its load over its effective mass times ω², 60 Hz
+/// by default) within 3%: 2.6 mm at most for these 16.8 kg links, and a
+/// quarter of that at 8 substeps, where the spring is twice as fast.
 #[test]
-fn a_hanging_chain_stretches_as_the_soft_constraint_predicts() {
+fn joints_with_limits_stretch_as_the_soft_constraint_predicts() {
     for (substeps, hertz) in [(4, 60.0), (8, 120.0)] {
-        let (mut w, joints, last) = hanging_chain(20, 16.76, None, substeps);
+        let (mut w, joints, last) = hanging_chain_of(20, 16.76, None, substeps, Some(3.0));
         step(&mut w, 300);
         let want = predicted_sags(&[16.76; 20], hertz);
         for (k, (&j, &p)) in joints.iter().zip(&want).enumerate() {
@@ -240,6 +257,29 @@ fn a_hanging_chain_stretches_as_the_soft_constraint_predicts() {
             (end - (30.0 - 19.5 - total)).abs() < 1e-3,
             "bottom link at {end}"
         );
+    }
+}
+
+/// A chain of 20 links (spherical joints) hanging at rest is rigid: the
+/// links' anchor blocks are solved together (a chain), each substep takes
+/// out the whole anchor error, and no joint opens by a micrometre, at 4 or
+/// 8 substeps. (Solved joint by joint with a 60 Hz spring, the top joint
+/// of these 16.8 kg links stretched 2.6 mm.) The chain's length is right.
+#[test]
+fn a_hanging_chain_is_rigid() {
+    for substeps in [4, 8] {
+        let (mut w, joints, last) = hanging_chain(20, 16.76, None, substeps);
+        step(&mut w, 300);
+        let mut worst: f64 = 0.0;
+        for &j in &joints {
+            worst = worst.max(gap(&w, j));
+        }
+        assert!(
+            worst < 1e-6,
+            "{substeps} substeps: a joint opened {worst} m"
+        );
+        let end = f(w.body(last).unwrap().center_of_mass().y);
+        assert!((end - (30.0 - 19.5)).abs() < 1e-5, "bottom link at {end}");
     }
 }
 
@@ -285,40 +325,121 @@ fn a_swinging_chain_stays_together() {
     assert!(f(end.y) > 25.0 - 20.5 && f(end.y) < 25.0, "end at {end:?}");
 }
 
-/// A 100 kg weight hung on ten 1 kg links (1:100): nothing explodes (the
-/// weight, released with the chain unstretched, never moves faster than a
-/// free fall through the stretch), it settles (under 2 cm/s after 10 s:
-/// the light links damp a heavy weight slowly), and the chain
-/// stretches by what the soft constraint
-/// predicts (within 3%): 14.5 cm in all at 4 substeps, a quarter of that at
-/// 8.
+/// A 100 kg weight on fifty 1 kg links (1:100), released with the chain
+/// unstretched: the chain never stretches by 0.1% of its length, the
+/// weight never moves faster than 1 cm/s, and it is at rest (under 1 mm/s)
+/// after 10 s with the chain stretched by under a micrometre in all.
+/// (Joint by joint with a 60 Hz spring, ten such links stretched 14.5 cm
+/// and the weight bobbed for seconds: the load reached the top one link per
+/// pass.)
 #[test]
-fn a_heavy_weight_on_light_links_stretches_as_predicted() {
-    for (substeps, hertz) in [(4, 60.0), (8, 120.0)] {
-        let (mut w, joints, weight) = hanging_chain(10, 1.0, Some(100.0), substeps);
-        let mut masses = vec![1.0; 10];
-        masses.push(100.0);
-        let want: f64 = predicted_sags(&masses, hertz).iter().sum();
-        let free_fall = (2.0 * 9.81 * want).sqrt();
-        let mut fastest: f64 = 0.0;
+fn a_heavy_weight_on_light_links_hangs_straight_and_comes_to_rest() {
+    for substeps in [4, 8] {
+        let (mut w, joints, weight) = hanging_chain(50, 1.0, Some(100.0), substeps);
+        let length = joints.len() as f64;
+        let (mut most, mut fastest): (f64, f64) = (0.0, 0.0);
         for _ in 0..600 {
             step(&mut w, 1);
             let vel = w.body(weight).unwrap().linear_velocity();
             fastest = fastest.max(f(vel.length()));
+            most = most.max(joints.iter().map(|&j| gap(&w, j)).sum());
         }
-        assert!(
-            fastest < free_fall,
-            "the weight reached {fastest} m/s (free fall {free_fall})"
-        );
         let end = f(w.body(weight).unwrap().linear_velocity().length());
-        assert!(end < 0.02, "still moving at {end} m/s");
         let got: f64 = joints.iter().map(|&j| gap(&w, j)).sum();
         assert!(
-            (got - want).abs() <= 0.03 * want,
-            "{substeps} substeps: stretched {got} m, predicted {want} m"
+            most < 0.001 * length,
+            "{substeps} substeps: stretched {most} m of {length}"
         );
-        assert!(got < if substeps == 4 { 0.15 } else { 0.04 }, "{got}");
+        assert!(
+            fastest < 0.01,
+            "{substeps} substeps: the weight reached {fastest} m/s"
+        );
+        assert!(end < 1e-3, "{substeps} substeps: still moving at {end} m/s");
+        assert!(got < 1e-6, "{substeps} substeps: stretched {got} m at rest");
     }
+    // The same chain released from horizontal whips down, the weight
+    // reaching about 30 m/s at the bottom of its swing and pulling on the
+    // light links with some 300 times its weight. They stretch by 4.7% of
+    // the chain's length at the worst moment (2.4 m of 51 in all); held
+    // under 6%.
+    let mut c = WorldConfig::default();
+    c.sleep.enabled = false;
+    let mut w = World::new(c).unwrap();
+    let top = anchor(&mut w, v(0.0, 60.0, 0.0));
+    let (mut prev, mut joints) = (top, Vec::new());
+    for i in 0..51 {
+        let mass = if i == 50 { 100.0 } else { 1.0 };
+        let b = w
+            .create_body(&BodyDesc::dynamic().position(v(i as f64 + 0.5, 60.0, 0.0)))
+            .unwrap();
+        w.add_collider(b, ColliderDesc::sphere(s(0.2)).mass(s(mass)))
+            .unwrap();
+        let a_anchor = if i == 0 { Vec3::ZERO } else { v(0.5, 0.0, 0.0) };
+        joints.push(
+            w.add_joint(JointDesc::spherical(prev, b).anchors(a_anchor, v(-0.5, 0.0, 0.0)))
+                .unwrap(),
+        );
+        prev = b;
+    }
+    let mut most: f64 = 0.0;
+    for _ in 0..600 {
+        step(&mut w, 1);
+        most = most.max(joints.iter().map(|&j| gap(&w, j)).sum());
+    }
+    assert!(
+        most < 0.06 * 51.0,
+        "stretched {most} m of 51 while swinging"
+    );
+}
+
+/// A free double pendulum (two 1 kg balls on 1 m rods, ball joints, no
+/// damping) released from horizontal keeps its energy over 60 s at 60 Hz ×
+/// 4 substeps: the largest change at any tick is 1.09% of the swing's
+/// energy (held under 1.2%), with no drift (0.33% at the end). Joint by
+/// joint with a 60 Hz spring it lost 1.5% by 10 s, 5.2% by 30 s and 11.5%
+/// by 60 s.
+#[test]
+fn a_double_pendulum_keeps_its_energy_for_a_minute() {
+    let mut w = no_sleep();
+    let top = anchor(&mut w, v(0.0, 10.0, 0.0));
+    let bob = |w: &mut World, x: f64| {
+        let b = w
+            .create_body(&BodyDesc::dynamic().position(v(x, 10.0, 0.0)))
+            .unwrap();
+        w.add_collider(b, ColliderDesc::sphere(s(0.05)).mass(s(1.0)))
+            .unwrap();
+        b
+    };
+    let (b1, b2) = (bob(&mut w, 1.0), bob(&mut w, 2.0));
+    w.add_joint(JointDesc::spherical(top, b1).anchors(Vec3::ZERO, v(-1.0, 0.0, 0.0)))
+        .unwrap();
+    w.add_joint(JointDesc::spherical(b1, b2).anchors(Vec3::ZERO, v(-1.0, 0.0, 0.0)))
+        .unwrap();
+    let energy = |w: &World| -> f64 {
+        [b1, b2]
+            .iter()
+            .map(|&h| {
+                let b = w.body(h).unwrap();
+                let m = f(b.mass());
+                let v = f(b.linear_velocity().length());
+                let rot = 0.5 * f(b.angular_velocity().dot(b.angular_momentum()));
+                m * 9.81 * f(b.center_of_mass().y) + 0.5 * m * v * v + rot
+            })
+            .sum()
+    };
+    let e0 = energy(&w);
+    // The swing's energy: from the lowest point, both balls hanging.
+    let swing = 9.81 * (1.0 + 2.0);
+    let mut worst: f64 = 0.0;
+    for _ in 0..3600 {
+        step(&mut w, 1);
+        worst = worst.max((energy(&w) - e0).abs());
+    }
+    assert!(
+        worst / swing < 0.012,
+        "energy off by {:.3}% of the swing",
+        100.0 * worst / swing
+    );
 }
 
 /// A wheel on a hinge with a lever arm loaded by gravity: the speed motor

@@ -24,6 +24,10 @@
 //! (without the bias: `s = 1`, `b = 0`, `i = 0`). Blocks of rows that share
 //! bodies (the three rows of an anchor, of a rotation lock, the two of a
 //! hinge) are solved together with the block's 3×3 or 2×2 effective mass.
+//! The joints that form a chain (see [`chains`]) have their anchor blocks
+//! solved together, exactly, after every joint's other rows, and held
+//! rigidly (the whole anchor error out in each substep); the rest keep the
+//! soft spring.
 //! Limits are one-sided rows whose accumulated impulse stays ≥ 0 and which
 //! are speculative while apart (the gap may close within one substep, no
 //! more); motors are rows clamped by the largest force times the substep.
@@ -40,12 +44,14 @@
 use crate::arena::Arena;
 use crate::body::{BodyHandle, BodyHot, BodyKind, BodySet};
 use crate::joint::{Joint, JointKind, Motor};
-use crate::math::{Mat3, Quat, Scalar, SymMat3, Vec3};
+use crate::math::{Mat3, Scalar, SymMat3, Vec3};
 use crate::scratch::Capacities;
 
 use super::contact_solver::Softness;
 
+mod chains;
 mod kinds;
+mod rows;
 
 pub(crate) use kinds::twist_between;
 use kinds::{
@@ -53,112 +59,13 @@ use kinds::{
     solve_cone, solve_distance, solve_hinge, solve_lock, solve_point, solve_slide, twist_angle,
     twist_axis,
 };
+pub(crate) use rows::JointParams;
+use rows::{
+    End, Posed, RIGID, Row, apply_angular, apply_linear, apply_point, linear_row, pose, read, write,
+};
 
 /// Damping ratio of the joints' soft constraints (Box2D v3's default).
 pub(crate) const JOINT_DAMPING_RATIO: Scalar = Scalar::TWO;
-
-/// The solver's settings for one substep.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct JointParams {
-    /// The substep, s.
-    pub h: Scalar,
-    /// 1/h.
-    pub inv_h: Scalar,
-    /// The joints' soft constraint.
-    pub softness: Softness,
-}
-
-/// One end of a joint, as the rows see it.
-#[derive(Clone, Copy, Debug, Default)]
-struct End {
-    /// Body slot.
-    slot: u32,
-    /// Whether impulses move it.
-    dynamic: bool,
-    /// 1/mass (0 unless dynamic).
-    inv_mass: Scalar,
-    /// World inverse inertia at the start of the tick (0 unless dynamic).
-    inv_inertia: SymMat3,
-    /// Whether `inv_inertia` is a multiple of the identity (a sphere, a
-    /// cube): the same in every frame, and products with it are one scale.
-    isotropic: bool,
-    /// The joint frame's origin relative to the centre of mass, body axes.
-    anchor: Vec3,
-    /// The joint frame's rotation in body axes.
-    frame: Quat,
-}
-
-/// One joint of this tick.
-#[derive(Clone, Copy, Debug, Default)]
-struct Row {
-    /// The joint's slot in the arena.
-    joint: u32,
-    a: End,
-    b: End,
-    /// Whether the rows read the joint frames' rotations (all but a
-    /// spherical joint without limits and a distance joint).
-    frames: bool,
-}
-
-impl End {
-    /// `I⁻¹ v`, world axes (the same bits as the full product).
-    #[inline]
-    fn inv_i(&self, v: Vec3) -> Vec3 {
-        if self.isotropic {
-            v * self.inv_inertia.xx
-        } else {
-            self.inv_inertia.mul_vec(v)
-        }
-    }
-
-    /// The angular part of the effective mass of a point at arm `r` (the
-    /// same bits as the full product).
-    #[inline]
-    fn arm_mass(&self, r: Vec3) -> SymMat3 {
-        if self.isotropic {
-            SymMat3::skew_sandwich_scalar(self.inv_inertia.xx, r)
-        } else {
-            self.inv_inertia.skew_sandwich(r)
-        }
-    }
-}
-
-/// The state of both ends at the current substep, and the joint's geometry
-/// there.
-#[derive(Clone, Copy, Debug, Default)]
-struct Geometry {
-    /// Anchors relative to the centres of mass, world axes.
-    ra: Vec3,
-    rb: Vec3,
-    /// Anchor B minus anchor A.
-    d: Vec3,
-    /// Joint frames in world axes.
-    fa: Quat,
-    fb: Quat,
-}
-
-/// Velocities of both ends (read from the bodies, written back at the end
-/// of a joint's visit).
-#[derive(Clone, Copy)]
-struct Vels {
-    va: Vec3,
-    wa: Vec3,
-    vb: Vec3,
-    wb: Vec3,
-    /// Angular impulse taken by each end during the visit.
-    la: Vec3,
-    lb: Vec3,
-}
-
-/// A joint at the current poses: its geometry and its anchor block's
-/// inverse effective mass (`None` for kinds without the block, or when the
-/// block is singular). Positions do not change within a stage, so this is
-/// computed once per stage and read by every pass of it.
-#[derive(Clone, Copy, Debug, Default)]
-struct Posed {
-    g: Geometry,
-    point_inv: Option<SymMat3>,
-}
 
 /// The joints' solver (scratch: rebuilt every tick).
 #[derive(Clone, Debug, Default)]
@@ -166,6 +73,8 @@ pub(crate) struct JointSolver {
     rows: Vec<Row>,
     /// Per row, the joint at the poses of the stage being solved.
     posed: Vec<Posed>,
+    /// The chains among the rows.
+    chains: chains::Chains,
 }
 
 impl JointSolver {
@@ -213,10 +122,26 @@ impl JointSolver {
                 a: end(a, ha, &j.desc.frame_a),
                 b: end(b, hb, &j.desc.frame_b),
                 frames,
+                // Limits and motors are solved one joint at a time beside
+                // the chain's anchors: with them in chains, a pile of
+                // ragdolls kept a dozen of them jittering awake.
+                chainable: matches!(
+                    j.desc.kind,
+                    JointKind::Spherical {
+                        cone: None,
+                        twist: None
+                    } | JointKind::Revolute {
+                        limits: None,
+                        motor: None
+                    } | JointKind::Fixed
+                ),
+                chained: false,
             });
         }
         self.posed.resize(self.rows.len(), Posed::default());
-        self.capacities().grew_since(&before)
+        let chains_before = self.chains.capacities();
+        self.chains.build(&mut self.rows);
+        self.capacities().grew_since(&before) || self.chains.capacities().grew_since(&chains_before)
     }
 
     /// The buffers [`prepare`](Self::prepare) fills.
@@ -297,6 +222,9 @@ impl JointSolver {
             }
             write(row, hot, &vel);
         }
+        if measure {
+            self.chains.factor(&self.rows, &mut self.posed);
+        }
     }
 
     /// One pass over every joint, soft with `use_bias`, rigid without. With
@@ -338,7 +266,9 @@ impl JointSolver {
                         angular_limit(row, &mut vel, t, angle - lo, lower, params, use_bias);
                         angular_limit(row, &mut vel, -t, hi - angle, upper, params, use_bias);
                     }
-                    solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                    if !row.chained {
+                        solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                    }
                 }
                 JointKind::Revolute { limits, motor } => {
                     let axis = g.fa.rotate(Vec3::X);
@@ -360,7 +290,9 @@ impl JointSolver {
                         angular_limit(row, &mut vel, -axis, hi - angle, upper, params, use_bias);
                     }
                     solve_hinge(row, g, &mut vel, &mut imp.angular, &soft);
-                    solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                    if !row.chained {
+                        solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                    }
                 }
                 JointKind::Prismatic { limits, motor } => {
                     let axis = g.fa.rotate(Vec3::X);
@@ -380,7 +312,9 @@ impl JointSolver {
                 }
                 JointKind::Fixed => {
                     solve_lock(row, g, &mut vel, &mut imp.angular, &soft);
-                    solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                    if !row.chained {
+                        solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                    }
                 }
                 JointKind::Distance {
                     length,
@@ -404,6 +338,31 @@ impl JointSolver {
                     }
                 }
             }
+            write(row, hot, &vel);
+        }
+        if measure {
+            self.chains.factor(&self.rows, &mut self.posed);
+        }
+        // A chain's anchors are held rigidly: the solve pass takes out the
+        // whole anchor error in the substep, the relax pass what that added.
+        let soft = if use_bias {
+            Softness {
+                bias_rate: params.inv_h,
+                mass_scale: Scalar::ONE,
+                impulse_scale: Scalar::ZERO,
+            }
+        } else {
+            RIGID
+        };
+        self.chains
+            .solve(&self.rows, &self.posed, joints, hot, &soft);
+        for i in self.chains.unsolved() {
+            let (row, posed) = (&self.rows[i], &self.posed[i]);
+            let Some(j) = joints.get_by_index_mut(row.joint) else {
+                continue;
+            };
+            let mut vel = read(row, hot);
+            solve_point(row, posed, &mut vel, &mut j.impulses.linear, &soft);
             write(row, hot, &vel);
         }
     }
@@ -440,169 +399,4 @@ pub(crate) fn loads(j: &Joint, inv_h: Scalar) -> (Scalar, Scalar) {
         _ => ang += axial,
     }
     (lin * inv_h, ang * inv_h)
-}
-
-/// A limit farther than this (m or rad) from being reached is idle.
-const LIMIT_REACH: Scalar = Scalar::from_int(1 << 16);
-
-/// A row without softness: rigid, no bias.
-const RIGID: Softness = Softness {
-    bias_rate: Scalar::ZERO,
-    mass_scale: Scalar::ONE,
-    impulse_scale: Scalar::ZERO,
-};
-
-/// Measures a joint at the bodies' current poses, for the passes that
-/// follow until the positions move: the geometry, and the anchor block's
-/// effective mass, inverted. (Keeping the solve's inverse for the relax
-/// passes, one substep's rotation later, left ragdolls jittering awake.)
-fn pose(row: &Row, kind: &JointKind, hot: &[BodyHot]) -> Posed {
-    let g = geometry(row, hot);
-    let point_inv = match kind {
-        JointKind::Spherical { .. } | JointKind::Revolute { .. } | JointKind::Fixed => {
-            point_mass(row, g.ra, g.rb).try_inverse_fast()
-        }
-        _ => None,
-    };
-    Posed { g, point_inv }
-}
-
-fn geometry(row: &Row, hot: &[BodyHot]) -> Geometry {
-    let a = &hot[row.a.slot as usize];
-    let b = &hot[row.b.slot as usize];
-    let ra = a.rotation.rotate(row.a.anchor);
-    let rb = b.rotation.rotate(row.b.anchor);
-    let (fa, fb) = if row.frames {
-        (a.rotation * row.a.frame, b.rotation * row.b.frame)
-    } else {
-        (a.rotation, b.rotation)
-    };
-    Geometry {
-        ra,
-        rb,
-        d: (b.center + rb) - (a.center + ra),
-        fa,
-        fb,
-    }
-}
-
-/// The anchor block's `K` for anchors `ra`, `rb` (relative to the centres
-/// of mass, world axes), built at the current anchors in every stage.
-/// (Inverting it once per tick at the start anchors, as Box2D does, let a
-/// pendulum with a small bob gain energy: the bob's `K` is strongly
-/// anisotropic and turns with it.)
-fn point_mass(row: &Row, ra: Vec3, rb: Vec3) -> SymMat3 {
-    let ms = row.a.inv_mass + row.b.inv_mass;
-    let mut k = SymMat3::from_diagonal(Vec3::new(ms, ms, ms));
-    if row.a.dynamic {
-        k = k + row.a.arm_mass(ra);
-    }
-    if row.b.dynamic {
-        k = k + row.b.arm_mass(rb);
-    }
-    k
-}
-
-fn read(row: &Row, hot: &[BodyHot]) -> Vels {
-    let a = &hot[row.a.slot as usize];
-    let b = &hot[row.b.slot as usize];
-    let vel = |b: &BodyHot| {
-        if b.kind == BodyKind::Static || b.sleeping {
-            (Vec3::ZERO, Vec3::ZERO)
-        } else {
-            (b.linear_velocity, b.angular_velocity)
-        }
-    };
-    let ((va, wa), (vb, wb)) = (vel(a), vel(b));
-    Vels {
-        va,
-        wa,
-        vb,
-        wb,
-        la: Vec3::ZERO,
-        lb: Vec3::ZERO,
-    }
-}
-
-fn write(row: &Row, hot: &mut [BodyHot], vel: &Vels) {
-    if row.a.dynamic {
-        let a = &mut hot[row.a.slot as usize];
-        a.linear_velocity = vel.va;
-        a.angular_velocity = vel.wa;
-        a.angular_momentum += vel.la;
-    }
-    if row.b.dynamic {
-        let b = &mut hot[row.b.slot as usize];
-        b.linear_velocity = vel.vb;
-        b.angular_velocity = vel.wb;
-        b.angular_momentum += vel.lb;
-    }
-}
-
-/// Applies the angular impulse `p` to B and `−p` to A.
-fn apply_angular(row: &Row, vel: &mut Vels, p: Vec3) {
-    if p.is_zero() {
-        return;
-    }
-    if row.a.dynamic {
-        vel.la -= p;
-        vel.wa -= row.a.inv_i(p);
-    }
-    if row.b.dynamic {
-        vel.lb += p;
-        vel.wb += row.b.inv_i(p);
-    }
-}
-
-/// Applies the impulse `p` at B's anchor and `−p` at A's.
-fn apply_point(row: &Row, g: &Geometry, vel: &mut Vels, p: Vec3) {
-    if p.is_zero() {
-        return;
-    }
-    if row.a.dynamic {
-        vel.va -= p * row.a.inv_mass;
-        let l = g.ra.cross(p);
-        vel.la -= l;
-        vel.wa -= row.a.inv_i(l);
-    }
-    if row.b.dynamic {
-        vel.vb += p * row.b.inv_mass;
-        let l = g.rb.cross(p);
-        vel.lb += l;
-        vel.wb += row.b.inv_i(l);
-    }
-}
-
-/// A's and B's angular arms of a linear row along `u`: the row is
-/// `u·(vB − vA) + cb·ωB − ca·ωA` with `ca = (rA + d) × u` (A's frame carries
-/// the direction) and `cb = rB × u`.
-fn arms(g: &Geometry, u: Vec3) -> (Vec3, Vec3) {
-    ((g.ra + g.d).cross(u), g.rb.cross(u))
-}
-
-/// Applies the impulse `lambda` along the linear row `u`.
-fn apply_linear(row: &Row, g: &Geometry, vel: &mut Vels, u: Vec3, lambda: Scalar) {
-    if lambda.is_zero() {
-        return;
-    }
-    let (ca, cb) = arms(g, u);
-    if row.a.dynamic {
-        vel.va -= u * (row.a.inv_mass * lambda);
-        vel.la -= ca * lambda;
-        vel.wa -= row.a.inv_i(ca * lambda);
-    }
-    if row.b.dynamic {
-        vel.vb += u * (row.b.inv_mass * lambda);
-        vel.lb += cb * lambda;
-        vel.wb += row.b.inv_i(cb * lambda);
-    }
-}
-
-/// The effective mass's inverse (`k`) and the current rate of the linear
-/// row along `u`.
-fn linear_row(row: &Row, g: &Geometry, vel: &Vels, u: Vec3) -> (Scalar, Scalar) {
-    let (ca, cb) = arms(g, u);
-    let k = row.a.inv_mass + row.b.inv_mass + ca.dot(row.a.inv_i(ca)) + cb.dot(row.b.inv_i(cb));
-    let cdot = u.dot(vel.vb - vel.va) + cb.dot(vel.wb) - ca.dot(vel.wa);
-    (k, cdot)
 }

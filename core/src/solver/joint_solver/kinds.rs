@@ -7,7 +7,7 @@ use crate::math::{Quat, Scalar, Vec3};
 
 use crate::solver::contact_solver::Softness;
 
-use super::{
+use super::rows::{
     Geometry, JointParams, LIMIT_REACH, Posed, RIGID, Row, Vels, apply_angular, apply_linear,
     apply_point, arms, linear_row,
 };
