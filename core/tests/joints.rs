@@ -283,29 +283,22 @@ fn a_hanging_chain_is_rigid() {
     }
 }
 
-/// A 20-link chain released horizontally swings down: while it swings no
-/// joint opens by more than 5 cm (the links' centrifugal load on the soft
-/// joints), and it hangs below its anchor afterwards.
-#[test]
-fn a_swinging_chain_stays_together() {
-    let mut w = no_sleep();
-    let top = anchor(&mut w, v(0.0, 25.0, 0.0));
-    let mut prev = top;
-    let mut joints = Vec::new();
-    for i in 0..20 {
-        let at = v(i as f64 + 0.5, 25.0, 0.0);
-        let b = w.create_body(&BodyDesc::dynamic().position(at)).unwrap();
-        let along_x = Transform::new(
-            Vec3::ZERO,
-            Quat::from_axis_angle(Vec3::Z, Scalar::FRAC_PI_2),
-        );
-        w.add_collider(
-            b,
-            ColliderDesc::capsule(s(0.35), s(0.1))
-                .local_pose(along_x)
-                .density(s(500.0)),
-        )
-        .unwrap();
+/// A chain of `n` links 1 m long laid along +x from `top`, on ball joints
+/// (each link's collider from `link(i)`); returns the joints from the top
+/// and the last link.
+fn horizontal_chain(
+    w: &mut World,
+    top: BodyHandle,
+    n: usize,
+    link: impl Fn(usize) -> ColliderDesc,
+) -> (Vec<lockstep_core::JointHandle>, BodyHandle) {
+    let at = f(w.body(top).unwrap().center_of_mass().y);
+    let (mut prev, mut joints) = (top, Vec::new());
+    for i in 0..n {
+        let b = w
+            .create_body(&BodyDesc::dynamic().position(v(i as f64 + 0.5, at, 0.0)))
+            .unwrap();
+        w.add_collider(b, link(i)).unwrap();
         let a_anchor = if i == 0 { Vec3::ZERO } else { v(0.5, 0.0, 0.0) };
         joints.push(
             w.add_joint(JointDesc::spherical(prev, b).anchors(a_anchor, v(-0.5, 0.0, 0.0)))
@@ -313,6 +306,25 @@ fn a_swinging_chain_stays_together() {
         );
         prev = b;
     }
+    (joints, prev)
+}
+
+/// A 20-link chain released horizontally swings down: while it swings no
+/// joint opens by more than 5 cm (the links' centrifugal load on the soft
+/// joints), and it hangs below its anchor afterwards.
+#[test]
+fn a_swinging_chain_stays_together() {
+    let mut w = no_sleep();
+    let top = anchor(&mut w, v(0.0, 25.0, 0.0));
+    let along_x = Transform::new(
+        Vec3::ZERO,
+        Quat::from_axis_angle(Vec3::Z, Scalar::FRAC_PI_2),
+    );
+    let (joints, prev) = horizontal_chain(&mut w, top, 20, |_| {
+        ColliderDesc::capsule(s(0.35), s(0.1))
+            .local_pose(along_x)
+            .density(s(500.0))
+    });
     let mut worst: f64 = 0.0;
     for _ in 0..600 {
         step(&mut w, 1);
@@ -366,21 +378,10 @@ fn a_heavy_weight_on_light_links_hangs_straight_and_comes_to_rest() {
     c.sleep.enabled = false;
     let mut w = World::new(c).unwrap();
     let top = anchor(&mut w, v(0.0, 60.0, 0.0));
-    let (mut prev, mut joints) = (top, Vec::new());
-    for i in 0..51 {
+    let (joints, _) = horizontal_chain(&mut w, top, 51, |i| {
         let mass = if i == 50 { 100.0 } else { 1.0 };
-        let b = w
-            .create_body(&BodyDesc::dynamic().position(v(i as f64 + 0.5, 60.0, 0.0)))
-            .unwrap();
-        w.add_collider(b, ColliderDesc::sphere(s(0.2)).mass(s(mass)))
-            .unwrap();
-        let a_anchor = if i == 0 { Vec3::ZERO } else { v(0.5, 0.0, 0.0) };
-        joints.push(
-            w.add_joint(JointDesc::spherical(prev, b).anchors(a_anchor, v(-0.5, 0.0, 0.0)))
-                .unwrap(),
-        );
-        prev = b;
-    }
+        ColliderDesc::sphere(s(0.2)).mass(s(mass))
+    });
     let mut most: f64 = 0.0;
     for _ in 0..600 {
         step(&mut w, 1);
