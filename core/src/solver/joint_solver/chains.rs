@@ -167,8 +167,17 @@ impl Chains {
             // a time, and a rigid anchor there is as unstable as any
             // stiff joint solved so (a grid of such joints blew up); its
             // joints keep the soft spring.
+            //
+            // A run held at both ends (a bridge between two static bodies)
+            // is left out too: pulled straight, its rows along the line
+            // are one more than the bodies they move (the last is implied
+            // by the others), `K` is singular, and the elimination
+            // overflowed; one joint at a time copes with redundant rows.
+            // With one end free, every joint brings a body of its own and
+            // the rows are independent.
             let free = |e: &super::rows::End| !e.dynamic || self.degree[e.slot as usize] == 1;
-            if !free(&first_end) || !free(&last_end) {
+            let held_both = !first_end.dynamic && !last_end.dynamic;
+            if !free(&first_end) || !free(&last_end) || held_both {
                 for &i in &self.order[begin..] {
                     rows[i as usize].chained = false;
                 }
@@ -416,6 +425,9 @@ mod tests {
         // it also moves.
         let mut limited = [row(0, 1, true), row(1, 2, false), row(2, 3, true)];
         assert!(chains_of(&mut limited).is_empty());
+        // A bridge: held at both ends.
+        let mut bridge = [row(0, 1, true), row(1, 2, true), row(2, 0, true)];
+        assert!(chains_of(&mut bridge).is_empty());
         // Two joints between the same two bodies close a ring of two.
         let mut double = [row(1, 2, true), row(1, 2, true)];
         assert!(chains_of(&mut double).is_empty());
