@@ -9,13 +9,15 @@
 //! in linear time (block Thomas elimination), so every pass leaves every
 //! anchor of the chain where the spring asks, whatever the mass ratio.
 //!
-//! A chain is a maximal run of joints with an anchor block (spherical,
-//! revolute, fixed) in which each joint shares one moving body with the
-//! next and that body carries no other joint. A body with three or more
-//! joints (a ragdoll's pelvis) ends the runs through it; a ring of joints
-//! with no end is left to Gauss–Seidel. The other rows of a chained joint
-//! (limits, motors, the hinge's and the lock's) are solved one joint at a
-//! time as before, then each chain's anchor blocks together.
+//! A chain is a maximal run of joints with an anchor block and no limit or
+//! motor (spherical, revolute, fixed) in which each joint shares one moving
+//! body with the next and that body carries no other joint; no other joint
+//! touches the run's two end bodies, and at least one of them moves (see
+//! [`Chains::build`] for why each rule). A ring of joints has no end. The
+//! joints left out keep the soft spring, one joint at a time. The other
+//! rows of a chained joint (the hinge's two, the weld's lock) are solved
+//! one joint at a time as before, then each chain's anchor blocks
+//! together, held rigidly.
 //!
 //! Off the diagonal, joints `k` and `k + 1` share body `B` at arms `r_k`,
 //! `r_{k+1}` (world axes from its centre of mass):
