@@ -805,6 +805,24 @@ fn a_fixed_joint_holds_a_cantilever() {
 /// Distance joints: a rigid rod keeps its length; a rope is slack closer
 /// and taut at its length; a spring of f Hz oscillates with period 1/f
 /// (within 2%) about its loaded rest length.
+/// A world of `config` without gravity, a static hub at the origin and a
+/// 10 cm ball 2 m from it moving at 3 m/s across the line to it (ready to
+/// be swung round on a 2 m joint); returns the world, the hub and the ball.
+fn swung_ball(config: WorldConfig) -> (World, BodyHandle, BodyHandle) {
+    let mut w = World::new(config).unwrap();
+    w.set_gravity(Vec3::ZERO);
+    let hub = anchor(&mut w, Vec3::ZERO);
+    let b = w
+        .create_body(
+            &BodyDesc::dynamic()
+                .position(v(2.0, 0.0, 0.0))
+                .linear_velocity(v(0.0, 3.0, 0.0)),
+        )
+        .unwrap();
+    w.add_collider(b, ColliderDesc::sphere(s(0.1))).unwrap();
+    (w, hub, b)
+}
+
 /// A spring far stiffer than the substep can follow (10⁶ Hz, and 10⁹ Hz,
 /// at 30 Hz with one substep, where `hω(2ζ + hω)` is past Q32.32's range)
 /// holds its length as a rigid rod does, with no overflow: the softness
@@ -819,17 +837,7 @@ fn a_spring_stiffer_than_the_substep_acts_as_a_rod_without_overflow() {
             c.sleep.enabled = false;
             c.tick_rate = 30;
             c.substeps = 1;
-            let mut w = World::new(c).unwrap();
-            w.set_gravity(Vec3::ZERO);
-            let hub = anchor(&mut w, Vec3::ZERO);
-            let b = w
-                .create_body(
-                    &BodyDesc::dynamic()
-                        .position(v(2.0, 0.0, 0.0))
-                        .linear_velocity(v(0.0, 3.0, 0.0)),
-                )
-                .unwrap();
-            w.add_collider(b, ColliderDesc::sphere(s(0.1))).unwrap();
+            let (mut w, hub, b) = swung_ball(c);
             let j = w
                 .add_joint(JointDesc::spring(
                     hub,
@@ -865,17 +873,9 @@ fn a_spring_stiffer_than_the_substep_acts_as_a_rod_without_overflow() {
 #[test]
 fn distance_joints_rod_rope_and_spring() {
     // Rod: a ball swung round at the end of a 2 m rod in zero gravity.
-    let mut w = no_sleep();
-    w.set_gravity(Vec3::ZERO);
-    let hub = anchor(&mut w, Vec3::ZERO);
-    let b = w
-        .create_body(
-            &BodyDesc::dynamic()
-                .position(v(2.0, 0.0, 0.0))
-                .linear_velocity(v(0.0, 3.0, 0.0)),
-        )
-        .unwrap();
-    w.add_collider(b, ColliderDesc::sphere(s(0.1))).unwrap();
+    let mut c = WorldConfig::default();
+    c.sleep.enabled = false;
+    let (mut w, hub, b) = swung_ball(c);
     let rod = w.add_joint(JointDesc::distance(hub, b, s(2.0))).unwrap();
     let mut worst: f64 = 0.0;
     for _ in 0..300 {
