@@ -59,6 +59,18 @@ fn gap(w: &World, j: lockstep_core::JointHandle) -> f64 {
     f((b.translation - a.translation).length())
 }
 
+/// Steps `ticks` times; the widest any of `joints` opened after a step.
+fn widest_gap(w: &mut World, joints: &[lockstep_core::JointHandle], ticks: usize) -> f64 {
+    let mut widest: f64 = 0.0;
+    for _ in 0..ticks {
+        step(w, 1);
+        for &j in joints {
+            widest = widest.max(gap(w, j));
+        }
+    }
+    widest
+}
+
 /// A frame whose x axis points along `axis` (unit).
 fn frame_along(at: Vec3, axis: Vec3) -> Transform {
     let x = Vec3::X;
@@ -325,13 +337,7 @@ fn a_swinging_chain_stays_together() {
             .local_pose(along_x)
             .density(s(500.0))
     });
-    let mut worst: f64 = 0.0;
-    for _ in 0..600 {
-        step(&mut w, 1);
-        for &j in &joints {
-            worst = worst.max(gap(&w, j));
-        }
-    }
+    let worst = widest_gap(&mut w, &joints, 600);
     assert!(worst < 0.05, "{worst} m apart while swinging");
     let end = w.body(prev).unwrap().center_of_mass();
     assert!(f(end.y) > 25.0 - 20.5 && f(end.y) < 25.0, "end at {end:?}");
@@ -434,13 +440,7 @@ fn a_plank_bridge_between_two_posts_carries_a_box() {
         ColliderDesc::cuboid(s(0.3), s(0.3), s(0.3)).density(s(3000.0)),
     )
     .unwrap();
-    let mut widest: f64 = 0.0;
-    for _ in 0..600 {
-        step(&mut w, 1);
-        for &j in &joints {
-            widest = widest.max(gap(&w, j));
-        }
-    }
+    let widest = widest_gap(&mut w, &joints, 600);
     assert!(widest < 0.03, "a joint opened {widest} m");
     let c = w.body(load).unwrap().center_of_mass();
     let (x, y) = (f(c.x), f(c.y));

@@ -345,17 +345,11 @@ impl JointSolver {
         }
         // A chain's anchors are held rigidly: the solve pass takes out the
         // whole anchor error in the substep, the relax pass what that added.
-        let soft = if use_bias {
-            Softness {
-                bias_rate: params.inv_h,
-                mass_scale: Scalar::ONE,
-                impulse_scale: Scalar::ZERO,
-            }
-        } else {
-            RIGID
-        };
+        let push_out = if use_bias { params.inv_h } else { Scalar::ZERO };
         self.chains
-            .solve(&self.rows, &self.posed, joints, hot, &soft);
+            .solve(&self.rows, &self.posed, joints, hot, push_out);
+        // A chain whose elimination failed: one joint at a time, as rigid.
+        let soft = Softness::rigid(push_out);
         for i in self.chains.unsolved() {
             let (row, posed) = (&self.rows[i], &self.posed[i]);
             let Some(j) = joints.get_by_index_mut(row.joint) else {

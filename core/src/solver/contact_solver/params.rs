@@ -22,6 +22,18 @@ pub(crate) struct Softness {
 }
 
 impl Softness {
+    /// No softness: the whole effective mass, nothing relaxed, and the
+    /// error pushed out at `bias_rate` (zero: no push-out at all; `1/h`:
+    /// the whole error in the substep).
+    #[inline]
+    pub(crate) const fn rigid(bias_rate: Scalar) -> Softness {
+        Softness {
+            bias_rate,
+            mass_scale: Scalar::ONE,
+            impulse_scale: Scalar::ZERO,
+        }
+    }
+
     /// Whether this is no softness at all: no bias, the whole effective
     /// mass, nothing relaxed.
     #[inline]
@@ -58,11 +70,7 @@ impl Softness {
     /// rigid at any substep (see [`from_omega`](Self::from_omega)).
     pub(crate) fn new(hertz: Scalar, zeta: Scalar, h: Scalar) -> Softness {
         if !hertz.is_positive() {
-            return Softness {
-                bias_rate: Scalar::ZERO,
-                mass_scale: Scalar::ONE,
-                impulse_scale: Scalar::ZERO,
-            };
+            return Softness::rigid(Scalar::ZERO);
         }
         let hertz = hertz.min(MAX_HERTZ);
         let zeta = zeta.min(MAX_DAMPING_RATIO);
@@ -89,11 +97,7 @@ impl Softness {
         let a1 = Scalar::TWO * zeta + h * omega;
         // `hω·a1` exactly, in units of 2⁻⁶⁴: 2¹⁶ is 2⁸⁰ of them.
         if (h * omega).wide_mul(a1) >= 1 << 80 {
-            return Softness {
-                bias_rate: omega.checked_div(a1).unwrap_or(Scalar::ZERO),
-                mass_scale: Scalar::ONE,
-                impulse_scale: Scalar::ZERO,
-            };
+            return Softness::rigid(omega.checked_div(a1).unwrap_or(Scalar::ZERO));
         }
         let a2 = h * omega * a1;
         let a3 = (Scalar::ONE + a2).recip();

@@ -7,7 +7,7 @@
 //! `K·x = w` whose matrix is block tridiagonal (3×3 blocks): joint `k`
 //! shares a body only with joints `k − 1` and `k + 1`. It is solved exactly
 //! in linear time (block Thomas elimination), so every pass leaves every
-//! anchor of the chain where the spring asks, whatever the mass ratio.
+//! anchor of the chain where the push-out asks, whatever the mass ratio.
 //!
 //! A chain is a maximal run of joints with an anchor block and no limit or
 //! motor (spherical, revolute, fixed) in which each joint shares one moving
@@ -43,7 +43,6 @@ use super::rows::{Geometry, Posed, Row, apply_point, point_mass, read, write};
 use crate::arena::Arena;
 use crate::body::BodyHot;
 use crate::joint::Joint;
-use crate::solver::contact_solver::Softness;
 
 /// No row.
 const NONE: u32 = u32::MAX;
@@ -249,18 +248,29 @@ impl Chains {
         }
     }
 
+    /// The rows of the chains whose last factorisation failed, for the
+    /// caller to solve one joint at a time (their own anchor blocks were
+    /// inverted by [`factor`](Self::factor)).
+    pub(super) fn unsolved(&self) -> impl Iterator<Item = usize> + '_ {
+        self.runs
+            .iter()
+            .filter(|r| !r.2)
+            .flat_map(|r| &self.order[r.0 as usize..(r.0 + r.1) as usize])
+            .map(|&i| i as usize)
+    }
+
     /// Solves each chain's anchor blocks together (see the module docs),
-    /// with the spring `soft`. A chain whose last factorisation failed is
-    /// left out: its rows are [`unsolved`](Self::unsolved).
+    /// rigidly, pushing the anchors' error out at `push_out` (zero in a
+    /// relax pass). A chain whose last factorisation failed is left out:
+    /// its rows are [`unsolved`](Self::unsolved).
     pub(super) fn solve(
         &mut self,
         rows: &[Row],
         posed: &[Posed],
         joints: &mut Arena<Joint>,
         hot: &mut [BodyHot],
-        soft: &Softness,
+        push_out: Scalar,
     ) {
-        let rigid = soft.is_rigid();
         for &(begin, len, ok) in &self.runs {
             let (begin, len) = (begin as usize, len as usize);
             if !ok {
@@ -273,10 +283,10 @@ impl Chains {
                 let (row, g) = (&rows[i], &posed[i].g);
                 let v = read(row, hot);
                 let cdot = v.vb + v.wb.cross(g.rb) - v.va - v.wa.cross(g.ra);
-                let mut w = if rigid {
+                let mut w = if push_out.is_zero() {
                     cdot
                 } else {
-                    cdot + g.d * soft.bias_rate
+                    cdot + g.d * push_out
                 };
                 if k > begin {
                     w -= self.factors[k - 1].e.transpose_mul_vec(self.z[k - 1]);
@@ -288,21 +298,14 @@ impl Chains {
                 let next = self.z[k + 1];
                 self.z[k] -= self.factors[k].g.mul_vec(next);
             }
-            // Each joint's impulse, as its own block's soft impulse is
-            // formed from its block's solution.
+            // Each joint's impulse: −x, the whole effective mass's.
             for k in begin..begin + len {
                 let i = self.order[k] as usize;
                 let Some(j) = joints.get_by_index_mut(rows[i].joint) else {
                     continue;
                 };
-                let acc = &mut j.impulses.linear;
-                let x = self.z[k];
-                let p = if rigid {
-                    -x
-                } else {
-                    -(x * soft.mass_scale) - *acc * soft.impulse_scale
-                };
-                *acc += p;
+                let p = -self.z[k];
+                j.impulses.linear += p;
                 let row = &rows[i];
                 let mut v = read(row, hot);
                 apply_point(row, &posed[i].g, &mut v, p);
@@ -325,19 +328,6 @@ fn across(degree: &[u8], first: &[[u32; 2]], rows: &[Row], i: usize, b: bool) ->
         NONE
     } else {
         other
-    }
-}
-
-impl Chains {
-    /// The rows of the chains whose last factorisation failed, for the
-    /// caller to solve one joint at a time (their own anchor blocks were
-    /// inverted by [`factor`](Self::factor)).
-    pub(super) fn unsolved(&self) -> impl Iterator<Item = usize> + '_ {
-        self.runs
-            .iter()
-            .filter(|r| !r.2)
-            .flat_map(|r| &self.order[r.0 as usize..(r.0 + r.1) as usize])
-            .map(|&i| i as usize)
     }
 }
 

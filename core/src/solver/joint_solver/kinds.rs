@@ -49,11 +49,7 @@ pub(super) fn limit_impulse(
         return d;
     }
     let soft = if c.is_positive() {
-        Softness {
-            bias_rate: params.inv_h,
-            mass_scale: Scalar::ONE,
-            impulse_scale: Scalar::ZERO,
-        }
+        Softness::rigid(params.inv_h)
     } else if use_bias {
         params.softness
     } else {

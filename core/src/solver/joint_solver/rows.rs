@@ -120,11 +120,7 @@ pub(super) struct Posed {
 pub(super) const LIMIT_REACH: Scalar = Scalar::from_int(1 << 16);
 
 /// A row without softness: rigid, no bias.
-pub(super) const RIGID: Softness = Softness {
-    bias_rate: Scalar::ZERO,
-    mass_scale: Scalar::ONE,
-    impulse_scale: Scalar::ZERO,
-};
+pub(super) const RIGID: Softness = Softness::rigid(Scalar::ZERO);
 
 /// Measures a joint at the bodies' current poses, for the passes that
 /// follow until the positions move: the geometry, and the anchor block's
