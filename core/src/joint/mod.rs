@@ -165,6 +165,15 @@ pub struct JointDesc {
     pub break_force: Option<Scalar>,
     /// The torque (N·m) at which the joint breaks, if any (angular part).
     pub break_torque: Option<Scalar>,
+    /// Whether the angle limits (a revolute joint's; a spherical joint's
+    /// cone and twist) hold rigidly instead of giving like the joints' soft
+    /// spring (default: soft). A rigid limit stops the joint at the limit
+    /// and holds it there under a steady load (a door, a lever, a
+    /// machine's end stop); soft limits let a pile of ragdolls settle and
+    /// sleep (see docs/joints.md). Prismatic and distance limits are soft
+    /// either way.
+    #[serde(default)]
+    pub rigid_limits: bool,
     /// A name for tools and scene files.
     pub name: String,
 }
@@ -183,6 +192,7 @@ impl JointDesc {
             collide_connected: false,
             break_force: None,
             break_torque: None,
+            rigid_limits: false,
             name: String::new(),
         }
     }
@@ -298,6 +308,12 @@ impl JointDesc {
     pub fn breakable(mut self, force: Option<Scalar>, torque: Option<Scalar>) -> JointDesc {
         self.break_force = force;
         self.break_torque = torque;
+        self
+    }
+
+    /// Makes the angle limits rigid (see [`JointDesc::rigid_limits`]).
+    pub fn rigid_limits(mut self, yes: bool) -> JointDesc {
+        self.rigid_limits = yes;
         self
     }
 

@@ -134,6 +134,7 @@ pub fn build_world_with_config(
         let mut jd = crate::joint::JointDesc::new(j.kind, a, b)
             .frames(j.frame_a, j.frame_b)
             .collide_connected(j.collide_connected)
+            .rigid_limits(j.rigid_limits)
             .breakable(j.break_force, j.break_torque);
         jd.name = j.name.clone();
         world

@@ -51,6 +51,8 @@ pub struct JointSceneDesc {
     pub frame_b: crate::math::Transform,
     /// Whether the two bodies collide with each other.
     pub collide_connected: bool,
+    /// Whether the angle limits are rigid (`rigid_limits`).
+    pub rigid_limits: bool,
     /// Break thresholds, N and N·m.
     pub break_force: Option<Scalar>,
     /// See `break_force`.

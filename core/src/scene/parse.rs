@@ -34,6 +34,7 @@ const JOINT_KEYS: &[&str] = &[
     "collide_connected",
     "break_force",
     "break_torque",
+    "rigid_limits",
     "cone_deg",
     "twist_deg",
     "limits_deg",
@@ -229,8 +230,14 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
     // The keys each kind reads (the others are errors, so a key meant for
     // another kind is not silently ignored).
     let allowed: &[&str] = match kind_name {
-        "spherical" => &["cone_deg", "twist_deg"],
-        "revolute" => &["limits_deg", "motor_speed", "motor_target_deg", "max_force"],
+        "spherical" => &["rigid_limits", "cone_deg", "twist_deg"],
+        "revolute" => &[
+            "rigid_limits",
+            "limits_deg",
+            "motor_speed",
+            "motor_target_deg",
+            "max_force",
+        ],
         "prismatic" => &["limits", "motor_speed", "motor_target", "max_force"],
         "fixed" => &[],
         "distance" => &[
@@ -441,10 +448,14 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
     };
     let break_force = threshold("break_force", "N")?;
     let break_torque = threshold("break_torque", "N·m")?;
-    let collide_connected = match t.get("collide_connected") {
-        Some(f) => t.boolean(&f)?,
-        None => false,
+    let flag = |key: &str| -> Result<bool> {
+        match t.get(key) {
+            Some(f) => t.boolean(&f),
+            None => Ok(false),
+        }
     };
+    let collide_connected = flag("collide_connected")?;
+    let rigid_limits = flag("rigid_limits")?;
     Ok(JointSceneDesc {
         name,
         kind,
@@ -453,6 +464,7 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
         frame_a,
         frame_b,
         collide_connected,
+        rigid_limits,
         break_force,
         break_torque,
         line,

@@ -55,13 +55,14 @@ mod rows;
 
 pub(crate) use kinds::twist_between;
 use kinds::{
-    angle_near, angular_limit, angular_mass, cone_axis, hinge_axes, linear_limit, motor_impulse,
-    solve_cone, solve_distance, solve_hinge, solve_lock, solve_point, solve_slide, twist_angle,
-    twist_axis,
+    HeldAxis, angle_near, angular_limit, angular_mass, cone_axis, hinge_axes, linear_limit,
+    motor_impulse, solve_cone, solve_distance, solve_hinge, solve_lock, solve_point, solve_slide,
+    twist_angle, twist_axis,
 };
 pub(crate) use rows::JointParams;
 use rows::{
-    End, Posed, RIGID, Row, apply_angular, apply_linear, apply_point, linear_row, pose, read, write,
+    End, Posed, RIGID, Row, Vels, apply_angular, apply_linear, apply_point, linear_row, pose, read,
+    write,
 };
 
 /// Damping ratio of the joints' soft constraints (Box2D v3's default).
@@ -136,6 +137,7 @@ impl JointSolver {
                     } | JointKind::Fixed
                 ),
                 chained: false,
+                rigid_limits: j.desc.rigid_limits,
             });
         }
         self.posed.resize(self.rows.len(), Posed::default());
@@ -172,6 +174,7 @@ impl JointSolver {
             if measure {
                 *posed = pose(row, &j.desc.kind, hot);
             }
+            let posed = &*posed;
             let g = &posed.g;
             let mut vel = read(row, hot);
             let imp = j.impulses;
@@ -198,24 +201,48 @@ impl JointSolver {
                 JointKind::Fixed | JointKind::Prismatic { .. } => {
                     apply_angular(row, &mut vel, imp.angular);
                 }
-                JointKind::Revolute { .. } => {
-                    let (j1, j2) = hinge_axes(g);
+                JointKind::Revolute { limits, .. } => {
+                    let hinge = hinge_axes(g);
+                    let (j1, j2) = hinge;
                     apply_angular(row, &mut vel, j1 * imp.angular.x + j2 * imp.angular.y);
                     let axis = g.fa.rotate(Vec3::X);
-                    let axial = imp.axial[0] - imp.axial[1] + imp.axial[2];
-                    apply_angular(row, &mut vel, axis * axial);
+                    let limit = imp.axial[0] - imp.axial[1];
+                    // A rigid limit's impulse went along its held row.
+                    let held = limits
+                        .filter(|_| row.rigid_limits)
+                        .and_then(|_| HeldAxis::new(row, posed, axis, Some(hinge)));
+                    match held {
+                        Some(held) => {
+                            held.apply(row, posed, &mut vel, limit);
+                            apply_angular(row, &mut vel, axis * imp.axial[2]);
+                        }
+                        None => apply_angular(row, &mut vel, axis * (limit + imp.axial[2])),
+                    }
                 }
                 // A ball joint without limits has no limit rows to warm
                 // start (their impulses are zero): skip their axes.
                 JointKind::Spherical { cone, twist } => {
+                    // A rigid limit's impulse went along its held row.
+                    let held = |axis: Vec3| {
+                        row.rigid_limits
+                            .then(|| HeldAxis::new(row, posed, axis, None))
+                            .flatten()
+                    };
                     if cone.is_some()
                         && let Some((n, _)) = cone_axis(g)
                     {
-                        apply_angular(row, &mut vel, -n * imp.axial[0]);
+                        match held(n) {
+                            Some(held) => held.apply(row, posed, &mut vel, -imp.axial[0]),
+                            None => apply_angular(row, &mut vel, -n * imp.axial[0]),
+                        }
                     }
                     if twist.is_some() {
                         let t = twist_axis(g);
-                        apply_angular(row, &mut vel, t * (imp.axial[1] - imp.axial[2]));
+                        let d = imp.axial[1] - imp.axial[2];
+                        match held(t) {
+                            Some(held) => held.apply(row, posed, &mut vel, d),
+                            None => apply_angular(row, &mut vel, t * d),
+                        }
                     }
                 }
                 JointKind::Distance { .. } => {}
@@ -255,6 +282,42 @@ impl JointSolver {
             // Limits and motors first, the holding rows last (they matter
             // most, and Gauss–Seidel favours the last row visited).
             match kind {
+                JointKind::Spherical { cone, twist }
+                    if row.rigid_limits && (cone.is_some() || twist.is_some()) =>
+                {
+                    // The anchor block first, then the limits orthogonal to
+                    // it (they leave its rate as it is).
+                    solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                    if let Some(cone) = cone
+                        && let Some((n, angle)) = cone_axis(g)
+                    {
+                        let c = cone - angle;
+                        let acc = &mut imp.axial[0];
+                        match HeldAxis::new(row, posed, n, None) {
+                            Some(held) => {
+                                held.limit(row, posed, &mut vel, true, c, acc, params, use_bias)
+                            }
+                            None => angular_limit(row, &mut vel, -n, c, acc, params, use_bias),
+                        }
+                    }
+                    if let Some((lo, hi)) = twist {
+                        let t = twist_axis(g);
+                        let angle = angle_near(twist_angle(g), lo, hi);
+                        let [_, lower, upper, _] = &mut imp.axial;
+                        let on = HeldAxis::new(row, posed, t, None);
+                        let c = (angle - lo, hi - angle);
+                        held_limits(
+                            row,
+                            posed,
+                            &mut vel,
+                            (t, on),
+                            c,
+                            [lower, upper],
+                            params,
+                            use_bias,
+                        );
+                    }
+                }
                 JointKind::Spherical { cone, twist } => {
                     if let Some(cone) = cone {
                         solve_cone(row, g, &mut vel, cone, &mut imp.axial[0], params, use_bias);
@@ -283,15 +346,43 @@ impl JointSolver {
                         let d = motor_impulse(m, cdot, x, k, &mut imp.axial[2], params, use_bias);
                         apply_angular(row, &mut vel, axis * d);
                     }
-                    if let Some((lo, hi)) = limits {
-                        let angle = angle_near(angle, lo, hi);
-                        let [lower, upper, ..] = &mut imp.axial;
-                        angular_limit(row, &mut vel, axis, angle - lo, lower, params, use_bias);
-                        angular_limit(row, &mut vel, -axis, hi - angle, upper, params, use_bias);
-                    }
-                    solve_hinge(row, g, &mut vel, &mut imp.angular, &soft);
-                    if !row.chained {
-                        solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                    match limits {
+                        // Rigid: the held rows first, then the limit
+                        // orthogonal to them (it leaves their rates be).
+                        Some((lo, hi)) if row.rigid_limits => {
+                            solve_hinge(row, g, &mut vel, &mut imp.angular, &soft);
+                            solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                            let angle = angle_near(angle, lo, hi);
+                            let on = HeldAxis::new(row, posed, axis, Some(hinge_axes(g)));
+                            let [lower, upper, ..] = &mut imp.axial;
+                            let c = (angle - lo, hi - angle);
+                            let accs = [lower, upper];
+                            held_limits(
+                                row,
+                                posed,
+                                &mut vel,
+                                (axis, on),
+                                c,
+                                accs,
+                                params,
+                                use_bias,
+                            );
+                        }
+                        // Soft: the limit, then the rows that matter most
+                        // (Gauss–Seidel favours the last row visited).
+                        _ => {
+                            if let Some((lo, hi)) = limits {
+                                let angle = angle_near(angle, lo, hi);
+                                let [lower, upper, ..] = &mut imp.axial;
+                                let (c_lo, c_hi) = (angle - lo, hi - angle);
+                                angular_limit(row, &mut vel, axis, c_lo, lower, params, use_bias);
+                                angular_limit(row, &mut vel, -axis, c_hi, upper, params, use_bias);
+                            }
+                            solve_hinge(row, g, &mut vel, &mut imp.angular, &soft);
+                            if !row.chained {
+                                solve_point(row, posed, &mut vel, &mut imp.linear, &soft);
+                            }
+                        }
                     }
                 }
                 JointKind::Prismatic { limits, motor } => {
@@ -379,6 +470,32 @@ impl JointSolver {
                 || d.break_torque.is_some_and(|t| torque > t);
             over.then_some((row.joint, force, torque))
         })
+    }
+}
+
+/// Both sides of a rigid angular limit about `axis` (positions `c_lo`,
+/// `c_hi`, ≥ 0 allowed), orthogonal to the held rows (`on`), or as soft
+/// rows when it cannot be (see [`HeldAxis::new`]).
+#[allow(clippy::too_many_arguments)]
+fn held_limits(
+    row: &Row,
+    posed: &Posed,
+    vel: &mut Vels,
+    (axis, on): (Vec3, Option<HeldAxis>),
+    (c_lo, c_hi): (Scalar, Scalar),
+    [lower, upper]: [&mut Scalar; 2],
+    params: &JointParams,
+    use_bias: bool,
+) {
+    match on {
+        Some(held) => {
+            held.limit(row, posed, vel, false, c_lo, lower, params, use_bias);
+            held.limit(row, posed, vel, true, c_hi, upper, params, use_bias);
+        }
+        None => {
+            angular_limit(row, vel, axis, c_lo, lower, params, use_bias);
+            angular_limit(row, vel, -axis, c_hi, upper, params, use_bias);
+        }
     }
 }
 

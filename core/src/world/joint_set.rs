@@ -144,7 +144,8 @@ impl JointSet {
             }
             h.transform(&d.frame_a);
             h.transform(&d.frame_b);
-            h.word(d.collide_connected as u64);
+            // Bit 0: collide connected; bit 1: rigid limits.
+            h.word(d.collide_connected as u64 | (d.rigid_limits as u64) << 1);
             opt(h, d.break_force);
             opt(h, d.break_torque);
             h.vec3(j.impulses.linear);

@@ -351,3 +351,157 @@ pub(super) fn solve_distance(
         }
     }
 }
+
+/// An angular limit made orthogonal, in the mass metric, to the rows its
+/// joint holds (the anchor block and, for a hinge, the two rows that keep
+/// the axes aligned), as Rapier orthogonalises a joint's limit rows against
+/// its locked ones: the default (rigid) limits. The limit's impulse `λ`
+/// goes about its axis and `−λ·w` along the held rows
+/// (`w = K_held⁻¹·k_held,limit`), so it changes none of their rates, and
+/// theirs none of its. Alone, a hinge's limit row sees only the body's
+/// inertia about its centre (a door hinged 1 m from its centre: a seventh
+/// of its inertia about the hinge); the anchor rows then undo most of its
+/// impulse, Gauss–Seidel closes the gap by that ratio per pass, and the
+/// door passes its limit.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct HeldAxis {
+    /// The limit's axis (world).
+    axis: Vec3,
+    /// A hinge's two held angular rows (`None` for a ball joint).
+    hinge: Option<(Vec3, Vec3)>,
+    /// The held rows' impulses per unit of the limit's: the anchor block's,
+    /// and the hinge rows'.
+    w_point: Vec3,
+    w_hinge: [Scalar; 2],
+    /// The inverse effective mass of the limit with the held rows held (the
+    /// Schur complement `k − k_held,limit·w`), > 0.
+    k: Scalar,
+}
+
+/// The anchor block's rate change per unit of angular impulse about `j`:
+/// `I_B⁻¹j × r_B + I_A⁻¹j × r_A`.
+fn point_by_angular(row: &Row, g: &Geometry, j: Vec3) -> Vec3 {
+    row.b.inv_i(j).cross(g.rb) + row.a.inv_i(j).cross(g.ra)
+}
+
+/// `j·(I_A⁻¹ + I_B⁻¹)·k`.
+fn angular_by_angular(row: &Row, j: Vec3, k: Vec3) -> Scalar {
+    j.dot(row.a.inv_i(k) + row.b.inv_i(k))
+}
+
+impl HeldAxis {
+    /// The limit about `axis` of a joint whose anchor block is held and,
+    /// with `hinge`, its two hinge rows: `None` when this joint does not
+    /// solve the anchor block (chained, or singular) or the limit has no
+    /// mass left once the held rows hold.
+    pub(super) fn new(
+        row: &Row,
+        posed: &Posed,
+        axis: Vec3,
+        hinge: Option<(Vec3, Vec3)>,
+    ) -> Option<HeldAxis> {
+        let p = posed.point_inv?;
+        let g = &posed.g;
+        let k_p = point_by_angular(row, g, axis);
+        let pk = p.mul_vec(k_p);
+        let mut held = HeldAxis {
+            axis,
+            hinge,
+            w_point: pk,
+            w_hinge: [Scalar::ZERO; 2],
+            k: angular_mass(row, axis) - k_p.dot(pk),
+        };
+        if let Some((j1, j2)) = hinge {
+            // The held block is [[K_pp, K_ph], [K_hp, K_hh]]; with
+            // P = K_pp⁻¹, its Schur complement S = K_hh − K_hp·P·K_ph (2×2)
+            // gives the hinge rows' share, and the anchor block's follows.
+            let (c1, c2) = (point_by_angular(row, g, j1), point_by_angular(row, g, j2));
+            let (p1, p2) = (p.mul_vec(c1), p.mul_vec(c2));
+            let s11 = angular_by_angular(row, j1, j1) - c1.dot(p1);
+            let s12 = angular_by_angular(row, j1, j2) - c1.dot(p2);
+            let s22 = angular_by_angular(row, j2, j2) - c2.dot(p2);
+            let r1 = angular_by_angular(row, j1, axis) - c1.dot(pk);
+            let r2 = angular_by_angular(row, j2, axis) - c2.dot(pk);
+            let det = s11 * s22 - s12 * s12;
+            if det.is_positive() {
+                let w1 = (s22 * r1 - s12 * r2).checked_div(det)?;
+                let w2 = (s11 * r2 - s12 * r1).checked_div(det)?;
+                held.w_hinge = [w1, w2];
+                held.w_point = pk - p1 * w1 - p2 * w2;
+                held.k = held.k - r1 * w1 - r2 * w2;
+            }
+        }
+        held.k.is_positive().then_some(held)
+    }
+
+    /// One side of the limit, rigid: about the axis with position `c`
+    /// (≥ 0 allowed; `upper`: about the reversed axis).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn limit(
+        &self,
+        row: &Row,
+        posed: &Posed,
+        vel: &mut Vels,
+        upper: bool,
+        c: Scalar,
+        acc: &mut Scalar,
+        params: &JointParams,
+        use_bias: bool,
+    ) {
+        // The raw rate: the held rows were solved just before, and the
+        // limit's impulse leaves them be, so this is the rate the positions
+        // will move at (the orthogonal row's own rate differs by the held
+        // rows' soft push-out, and let the door overshoot).
+        let rate = (vel.wb - vel.wa).dot(self.axis);
+        let d = if upper {
+            -held_limit_impulse(self.k, -rate, c, acc, params, use_bias)
+        } else {
+            held_limit_impulse(self.k, rate, c, acc, params, use_bias)
+        };
+        self.apply(row, posed, vel, d);
+    }
+
+    /// Applies the limit's impulse `d` about the axis, and `−d·w` along the
+    /// held rows.
+    pub(super) fn apply(&self, row: &Row, posed: &Posed, vel: &mut Vels, d: Scalar) {
+        if d.is_zero() {
+            return;
+        }
+        apply_point(row, &posed.g, vel, -(self.w_point * d));
+        let mut ang = self.axis * d;
+        if let Some((j1, j2)) = self.hinge {
+            ang = ang - j1 * (self.w_hinge[0] * d) - j2 * (self.w_hinge[1] * d);
+        }
+        apply_angular(row, vel, ang);
+    }
+}
+
+/// One side of a rigid limit (see [`HeldAxis`]): speculative while apart
+/// (the approach that closes the gap within the substep is allowed), as
+/// [`limit_impulse`]; reached, the solve pass pushes the whole error out in
+/// the substep and the relax pass lets nothing through. No softness: a
+/// steady load holds it where it is, not a spring's stretch past it.
+fn held_limit_impulse(
+    k: Scalar,
+    cdot: Scalar,
+    c: Scalar,
+    acc: &mut Scalar,
+    params: &JointParams,
+    use_bias: bool,
+) -> Scalar {
+    if c > LIMIT_REACH {
+        let d = -*acc;
+        *acc = Scalar::ZERO;
+        return d;
+    }
+    let soft = if c.is_positive() || use_bias {
+        Softness::rigid(params.inv_h)
+    } else {
+        RIGID
+    };
+    let imp = soft_impulse(k, cdot, c, *acc, &soft);
+    let new = (*acc + imp).max(Scalar::ZERO);
+    let d = new - *acc;
+    *acc = new;
+    d
+}

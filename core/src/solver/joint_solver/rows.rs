@@ -54,6 +54,9 @@ pub(super) struct Row {
     /// Whether its anchor block is solved with its chain's (see
     /// [`chains`]).
     pub(super) chained: bool,
+    /// Whether its angle limits are rigid and orthogonal to its held rows
+    /// (see [`super::kinds::HeldAxis`]), not soft.
+    pub(super) rigid_limits: bool,
 }
 
 impl End {
