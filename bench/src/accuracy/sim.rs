@@ -222,6 +222,11 @@ pub enum JointSpecKind {
         limits: Option<[f64; 2]>,
         /// Target speed, rad/s, and the largest torque, N·m.
         motor: Option<[f64; 2]>,
+        /// Whether ours holds the limits rigidly (`JointDesc::rigid_limits`,
+        /// the setting for a door or an end stop; off, they give like a
+        /// spring, the setting for ragdolls). Rapier's limits are always
+        /// rigid.
+        rigid_limits: bool,
     },
 }
 
@@ -435,7 +440,7 @@ impl Ours {
                     cone: None,
                     twist: None,
                 },
-                JointSpecKind::Hinge { limits, motor } => JointKind::Revolute {
+                JointSpecKind::Hinge { limits, motor, .. } => JointKind::Revolute {
                     limits: limits.map(|[lo, hi]| (s(lo), s(hi))),
                     motor: motor.map(|[speed, torque]| Motor::Speed {
                         speed: s(speed),
@@ -444,10 +449,18 @@ impl Ours {
                 },
             };
             let frame = |anchor: [f64; 3]| Transform::new(v3(anchor), rot);
+            let rigid_limits = matches!(
+                j.kind,
+                JointSpecKind::Hinge {
+                    rigid_limits: true,
+                    ..
+                }
+            );
             world
                 .add_joint(
                     JointDesc::new(kind, handles[j.a], handles[j.b])
-                        .frames(frame(j.anchors[0]), frame(j.anchors[1])),
+                        .frames(frame(j.anchors[0]), frame(j.anchors[1]))
+                        .rigid_limits(rigid_limits),
                 )
                 .expect("joint");
         }
@@ -634,7 +647,7 @@ macro_rules! rapier_adapter {
                             .local_frame1(frame(j.anchors[0]))
                             .local_frame2(frame(j.anchors[1]))
                             .contacts_enabled(false);
-                        if let JointSpecKind::Hinge { limits, motor } = j.kind {
+                        if let JointSpecKind::Hinge { limits, motor, .. } = j.kind {
                             if let Some([lo, hi]) = limits {
                                 joint = joint.limits(JointAxis::AngX, [r(lo), r(hi)]);
                             }
