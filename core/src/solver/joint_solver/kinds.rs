@@ -31,9 +31,10 @@ pub(super) fn soft_impulse(
     -(m * soft.mass_scale * (cdot + soft.bias_rate * c)) - soft.impulse_scale * acc
 }
 
-/// One side of a limit: `c ≥ 0` is allowed, the row's impulse pushes
+/// One side of a soft limit: `c ≥ 0` is allowed, the row's impulse pushes
 /// along its direction only (accumulated ≥ 0). Apart, it is speculative:
 /// the approach that closes the gap within the substep is allowed.
+/// Reached, it is a row on the joints' soft spring.
 pub(super) fn limit_impulse(
     k: Scalar,
     cdot: Scalar,
@@ -42,20 +43,40 @@ pub(super) fn limit_impulse(
     params: &JointParams,
     use_bias: bool,
 ) -> Scalar {
+    one_sided(k, cdot, c, acc, params, &reached(params, use_bias, false))
+}
+
+/// A limit's row once reached: on the joints' soft spring or, `rigid`,
+/// without softness (the solve pass pushes the whole error out in the
+/// substep, the relax pass lets nothing through; a steady load then holds
+/// it at the limit, not a spring's stretch past it).
+fn reached(params: &JointParams, use_bias: bool, rigid: bool) -> Softness {
+    match (use_bias, rigid) {
+        (false, _) => RIGID,
+        (true, false) => params.softness,
+        (true, true) => Softness::rigid(params.inv_h),
+    }
+}
+
+/// The impulse of a one-sided row at position `c` (≥ 0 allowed),
+/// speculative while apart and `reached` once reached.
+fn one_sided(
+    k: Scalar,
+    cdot: Scalar,
+    c: Scalar,
+    acc: &mut Scalar,
+    params: &JointParams,
+    reached: &Softness,
+) -> Scalar {
     if c > LIMIT_REACH {
         // Far from the limit: the row is idle (and its bias would not fit).
         let d = -*acc;
         *acc = Scalar::ZERO;
         return d;
     }
-    let soft = if c.is_positive() {
-        Softness::rigid(params.inv_h)
-    } else if use_bias {
-        params.softness
-    } else {
-        RIGID
-    };
-    let imp = soft_impulse(k, cdot, c, *acc, &soft);
+    let spec = Softness::rigid(params.inv_h);
+    let soft = if c.is_positive() { &spec } else { reached };
+    let imp = soft_impulse(k, cdot, c, *acc, soft);
     let new = (*acc + imp).max(Scalar::ZERO);
     let d = new - *acc;
     *acc = new;
@@ -453,10 +474,11 @@ impl HeldAxis {
         // will move at (the orthogonal row's own rate differs by the held
         // rows' soft push-out, and let the door overshoot).
         let rate = (vel.wb - vel.wa).dot(self.axis);
+        let rigid = reached(params, use_bias, true);
         let d = if upper {
-            -held_limit_impulse(self.k, -rate, c, acc, params, use_bias)
+            -one_sided(self.k, -rate, c, acc, params, &rigid)
         } else {
-            held_limit_impulse(self.k, rate, c, acc, params, use_bias)
+            one_sided(self.k, rate, c, acc, params, &rigid)
         };
         self.apply(row, posed, vel, d);
     }
@@ -474,34 +496,4 @@ impl HeldAxis {
         }
         apply_angular(row, vel, ang);
     }
-}
-
-/// One side of a rigid limit (see [`HeldAxis`]): speculative while apart
-/// (the approach that closes the gap within the substep is allowed), as
-/// [`limit_impulse`]; reached, the solve pass pushes the whole error out in
-/// the substep and the relax pass lets nothing through. No softness: a
-/// steady load holds it where it is, not a spring's stretch past it.
-fn held_limit_impulse(
-    k: Scalar,
-    cdot: Scalar,
-    c: Scalar,
-    acc: &mut Scalar,
-    params: &JointParams,
-    use_bias: bool,
-) -> Scalar {
-    if c > LIMIT_REACH {
-        let d = -*acc;
-        *acc = Scalar::ZERO;
-        return d;
-    }
-    let soft = if c.is_positive() || use_bias {
-        Softness::rigid(params.inv_h)
-    } else {
-        RIGID
-    };
-    let imp = soft_impulse(k, cdot, c, *acc, &soft);
-    let new = (*acc + imp).max(Scalar::ZERO);
-    let d = new - *acc;
-    *acc = new;
-    d
 }
