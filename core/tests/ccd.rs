@@ -761,3 +761,66 @@ fn a_deeply_pressed_spinning_limb_is_not_frozen_by_its_core() {
     let y = b.center_of_mass().y.to_f64();
     assert!(y > 0.019, "the contact pushed it up: y {y}");
 }
+
+/// A thin door (8 cm) hinged to a static post and swung at 7.5 rad/s: its
+/// edge moves farther in a tick than it is thick, so CCD sweeps it, and the
+/// post it touches at the hinge is a target the joint keeps it from
+/// colliding with. Swept against the post it found its time of impact at
+/// the hinge and froze there (at 69° on its way to a 100° stop) while its
+/// velocity stayed; the sweep now skips what a joint keeps a body from
+/// touching, as the contacts do. A post that may collide with the door
+/// (`collide_connected`) still stops it.
+#[test]
+fn ccd_skips_what_a_joint_keeps_a_body_from_touching() {
+    use lockstep_core::joint::{JointDesc, JointKind};
+    let swing = |collide: bool| {
+        let mut w = zero_g();
+        let post = w
+            .create_body(&BodyDesc::fixed().position(v3(0.0, 0.0, 0.0)))
+            .unwrap();
+        w.add_collider(post, ColliderDesc::cuboid(s(0.05), s(1.0), s(0.05)))
+            .unwrap();
+        let door = w
+            .create_body(
+                &BodyDesc::dynamic()
+                    .position(v3(0.55, 0.0, 0.0))
+                    .angular_velocity(v3(0.0, 7.5, 0.0))
+                    .linear_velocity(v3(0.0, 0.0, -7.5 * 0.5)),
+            )
+            .unwrap();
+        w.add_collider(door, ColliderDesc::cuboid(s(0.5), s(1.0), s(0.04)))
+            .unwrap();
+        let axis = Quat::from_axis_angle(Vec3::Z, Scalar::PI.half()).normalize();
+        let j = w
+            .add_joint(
+                JointDesc::new(
+                    JointKind::Revolute {
+                        limits: None,
+                        motor: None,
+                    },
+                    post,
+                    door,
+                )
+                .frames(
+                    lockstep_core::Transform::new(v3(0.05, 0.0, 0.0), axis),
+                    lockstep_core::Transform::new(v3(-0.5, 0.0, 0.0), axis),
+                )
+                .collide_connected(collide),
+            )
+            .unwrap();
+        let mut swept = 0;
+        for _ in 0..10 {
+            swept += w.step().ccd_bodies;
+        }
+        (w.joint_position(j).unwrap().to_f64(), swept)
+    };
+    let (angle, swept) = swing(false);
+    assert!(swept > 0, "the door was not swept");
+    // 10 ticks at 7.5 rad/s: 1.25 rad.
+    assert!((angle - 1.25).abs() < 0.02, "the door turned {angle} rad");
+    let (angle, _) = swing(true);
+    assert!(
+        angle < 1.0,
+        "a post the door may touch let it turn {angle} rad"
+    );
+}

@@ -443,6 +443,7 @@ impl World {
             colliders,
             broad,
             ccd,
+            joints,
             ..
         } = &mut *self;
         let (Some(hot), Some(cold)) = (bodies.hot(h), bodies.cold(h)) else {
@@ -490,7 +491,9 @@ impl World {
             let Some(target) = colliders.get(super::collide::collider_of(key).0) else {
                 continue;
             };
-            if target.is_trigger || target.body == h {
+            // Nor what a joint keeps it from colliding with (a door's own
+            // hinge post: they touch at the hinge, and the door froze there).
+            if target.is_trigger || target.body == h || joints.blocks(h, target.body) {
                 continue;
             }
             let (Some(thot), Some(tcold)) = (bodies.hot(target.body), bodies.cold(target.body))
