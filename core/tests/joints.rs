@@ -1186,21 +1186,43 @@ fn a_joint_breaks_above_its_force_with_an_event() {
 /// body takes its joints; stale joint handles are refused.
 #[test]
 fn joints_are_state_snapshots_and_handles() {
-    let build = || {
+    // The hinge falls onto a rigid limit (−0.3 rad): the snapshot is taken
+    // while the limit presses, with its accumulated impulse.
+    let build_with = |rigid: bool| {
         let mut w = no_sleep();
         let top = anchor(&mut w, v(0.0, 5.0, 0.0));
         let a = cube(&mut w, v(1.0, 5.0, 0.0), 0.2);
         let b = cube(&mut w, v(2.0, 5.0, 0.0), 0.2);
+        let hinge = JointKind::Revolute {
+            limits: Some((s(-0.3), s(0.3))),
+            motor: None,
+        };
         let j1 = w
-            .add_joint(JointDesc::revolute(top, a).anchors(Vec3::ZERO, v(-1.0, 0.0, 0.0)))
+            .add_joint(
+                JointDesc::new(hinge, top, a)
+                    .frames(
+                        frame_along(Vec3::ZERO, Vec3::Z),
+                        frame_along(v(-1.0, 0.0, 0.0), Vec3::Z),
+                    )
+                    .rigid_limits(rigid),
+            )
             .unwrap();
         let j2 = w
             .add_joint(JointDesc::spherical(a, b).anchors(v(0.5, 0.0, 0.0), v(-0.5, 0.0, 0.0)))
             .unwrap();
         (w, a, b, j1, j2)
     };
+    let build = || build_with(true);
     let (mut w, a, _b, j1, j2) = build();
-    step(&mut w, 30);
+    let pressed = |w: &World| w.joint(j1).unwrap().impulses.axial[0].is_positive();
+    let mut ticks = 0;
+    while !pressed(&w) {
+        step(&mut w, 1);
+        ticks += 1;
+        assert!(ticks < 60, "the hinge never reached its limit");
+    }
+    // The setting is part of the state.
+    assert_ne!(build_with(false).0.state_hash(), build().0.state_hash());
     let snap = w.snapshot();
     let mut copy = World::restore(&snap).unwrap();
     assert_eq!(copy.state_hash(), w.state_hash());
