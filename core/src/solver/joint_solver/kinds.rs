@@ -415,6 +415,14 @@ impl HeldAxis {
     /// with `hinge`, its two hinge rows: `None` when this joint does not
     /// solve the anchor block (chained, or singular) or the limit has no
     /// mass left once the held rows hold.
+    ///
+    /// Bounds: every product is of terms the anchor block and the hinge
+    /// rows already form (inverse masses and inertias times arms, and the
+    /// block's inverse), so it overflows where they would; like theirs, an
+    /// overflow saturates and raises the world's fault flag. A 2×2
+    /// complement that is not positive leaves the hinge rows out of `w`
+    /// (the anchor block alone), and a failed division gives `None`: the
+    /// limit is then solved as a soft row, the same on every machine.
     pub(super) fn new(
         row: &Row,
         posed: &Posed,
