@@ -279,8 +279,9 @@ impl JointSolver {
             let soft = if use_bias { params.softness } else { RIGID };
             let kind = j.desc.kind;
             let imp = &mut j.impulses;
-            // Limits and motors first, the holding rows last (they matter
-            // most, and Gauss–Seidel favours the last row visited).
+            // Soft limits and motors first, the holding rows last (they
+            // matter most, and Gauss–Seidel favours the last row visited);
+            // rigid limits after the rows they are orthogonal to.
             match kind {
                 JointKind::Spherical { cone, twist }
                     if row.rigid_limits && (cone.is_some() || twist.is_some()) =>
@@ -291,14 +292,20 @@ impl JointSolver {
                     if let Some(cone) = cone
                         && let Some((n, angle)) = cone_axis(g)
                     {
-                        let c = cone - angle;
+                        let on = HeldAxis::new(row, posed, n, None);
                         let acc = &mut imp.axial[0];
-                        match HeldAxis::new(row, posed, n, None) {
-                            Some(held) => {
-                                held.limit(row, posed, &mut vel, true, c, acc, params, use_bias)
-                            }
-                            None => angular_limit(row, &mut vel, -n, c, acc, params, use_bias),
-                        }
+                        let c = cone - angle;
+                        held_side(
+                            row,
+                            posed,
+                            &mut vel,
+                            (n, on),
+                            true,
+                            c,
+                            acc,
+                            params,
+                            use_bias,
+                        );
                     }
                     if let Some((lo, hi)) = twist {
                         let t = twist_axis(g);
@@ -474,27 +481,42 @@ impl JointSolver {
 }
 
 /// Both sides of a rigid angular limit about `axis` (positions `c_lo`,
-/// `c_hi`, ≥ 0 allowed), orthogonal to the held rows (`on`), or as soft
-/// rows when it cannot be (see [`HeldAxis::new`]).
+/// `c_hi`, ≥ 0 allowed; see [`held_side`]).
 #[allow(clippy::too_many_arguments)]
 fn held_limits(
     row: &Row,
     posed: &Posed,
     vel: &mut Vels,
-    (axis, on): (Vec3, Option<HeldAxis>),
+    on: (Vec3, Option<HeldAxis>),
     (c_lo, c_hi): (Scalar, Scalar),
     [lower, upper]: [&mut Scalar; 2],
     params: &JointParams,
     use_bias: bool,
 ) {
+    held_side(row, posed, vel, on, false, c_lo, lower, params, use_bias);
+    held_side(row, posed, vel, on, true, c_hi, upper, params, use_bias);
+}
+
+/// One side of a rigid angular limit about `axis` (`upper`: about the
+/// reversed axis) with position `c` (≥ 0 allowed): orthogonal to the held
+/// rows (`on`), or a soft row when it cannot be (see [`HeldAxis::new`]).
+#[allow(clippy::too_many_arguments)]
+fn held_side(
+    row: &Row,
+    posed: &Posed,
+    vel: &mut Vels,
+    (axis, on): (Vec3, Option<HeldAxis>),
+    upper: bool,
+    c: Scalar,
+    acc: &mut Scalar,
+    params: &JointParams,
+    use_bias: bool,
+) {
     match on {
-        Some(held) => {
-            held.limit(row, posed, vel, false, c_lo, lower, params, use_bias);
-            held.limit(row, posed, vel, true, c_hi, upper, params, use_bias);
-        }
+        Some(held) => held.limit(row, posed, vel, upper, c, acc, params, use_bias),
         None => {
-            angular_limit(row, vel, axis, c_lo, lower, params, use_bias);
-            angular_limit(row, vel, -axis, c_hi, upper, params, use_bias);
+            let dir = if upper { -axis } else { axis };
+            angular_limit(row, vel, dir, c, acc, params, use_bias);
         }
     }
 }

@@ -376,8 +376,8 @@ pub(super) fn solve_distance(
 /// An angular limit made orthogonal, in the mass metric, to the rows its
 /// joint holds (the anchor block and, for a hinge, the two rows that keep
 /// the axes aligned), as Rapier orthogonalises a joint's limit rows against
-/// its locked ones: the default (rigid) limits. The limit's impulse `λ`
-/// goes about its axis and `−λ·w` along the held rows
+/// its locked ones: the rigid limits (`JointDesc::rigid_limits`). The
+/// limit's impulse `λ` goes about its axis and `−λ·w` along the held rows
 /// (`w = K_held⁻¹·k_held,limit`), so it changes none of their rates, and
 /// theirs none of its. Alone, a hinge's limit row sees only the body's
 /// inertia about its centre (a door hinged 1 m from its centre: a seventh
