@@ -1,6 +1,7 @@
 //! The swept scenes of the `stress` suite. Each sweep raises one quantity
-//! (stack height, pyramid base, mass ratio, projectile speed, distance from
-//! the origin, overlapping boxes) until an engine fails its criterion,
+//! (stack height, pyramid base, the base of a pyramid that must come to
+//! rest, mass ratio, projectile speed, distance from the origin,
+//! overlapping boxes) until an engine fails its criterion,
 //! which is stated in numbers in [`Sweep::criterion`] (and in
 //! docs/stress.md: keep the two in step). A trial stops stepping as soon as
 //! its criterion has failed; the generic checks of the accuracy suite's
@@ -150,6 +151,62 @@ fn pyramid(r: &mut Runner, n: f64, quick: bool) -> Outcome {
         !(within(off, STAND_OFFSET) && within(drop, STAND_DROP)),
         Failure::Collapsed,
     )
+}
+
+/// How long a pyramid is watched for coming to rest, s (quick: a smoke
+/// run's 2 s).
+fn rest_seconds(quick: bool) -> f64 {
+    if quick { 2.0 } else { 40.0 }
+}
+
+/// The speed every box of a pyramid at rest stays under through the last
+/// quarter of the run, m/s.
+pub const REST_SPEED: f64 = 0.01;
+
+/// A pyramid of base `n` unit boxes in the x–y plane, sleeping off, for
+/// [`rest_seconds`]: it must stand (as in [`pyramid`]) and come to rest,
+/// every box under [`REST_SPEED`] through the last quarter of the run. A
+/// pyramid that stands but keeps swaying (a solver that pumps energy into a
+/// mode the structure has) fails here though it passes `pyramid_base`.
+fn pyramid_rest(r: &mut Runner, n: f64, quick: bool) -> Outcome {
+    let n = n as usize;
+    let mut bodies = vec![ground([0.0; 3], 100.0)];
+    for row in 0..n {
+        for i in 0..(n - row) {
+            let x = i as f64 - (n - 1 - row) as f64 * 0.5;
+            bodies.push(unit_box([x, 0.5 + row as f64, 0.0]));
+        }
+    }
+    let starts: Vec<[f64; 3]> = bodies.iter().map(|b| b.pos).collect();
+    let mut sim = r.build(&Spec::new(GRAVITY, bodies));
+    let (mut off, mut drop, mut fastest): (f64, f64, f64) = (0.0, 0.0, 0.0);
+    let ticks = r.ticks(rest_seconds(quick));
+    let last_quarter = ticks - ticks / 4;
+    let mut tick = 0;
+    run_while(r, sim.as_mut(), ticks, |sim| {
+        tick += 1;
+        for (i, p0) in starts.iter().enumerate().skip(1) {
+            let s = sim.state(i);
+            off = off.max(horizontal(s.pos, *p0));
+            drop = drop.max(p0[1] - s.pos[1]);
+            if tick > last_quarter {
+                fastest = fastest.max(norm(s.vel));
+            }
+        }
+        off <= STAND_OFFSET && drop <= STAND_DROP
+    });
+    Outcome::ok(
+        fastest,
+        format!(
+            "fastest box in the last quarter {fastest:.3e} m/s; worst box moved up to {off:.3e} m \
+             sideways, dropped up to {drop:.3e} m"
+        ),
+    )
+    .failed_if(
+        !(within(off, STAND_OFFSET) && within(drop, STAND_DROP)),
+        Failure::Collapsed,
+    )
+    .failed_if(!within(fastest, REST_SPEED), Failure::Wrong("not at rest"))
 }
 
 /// The heavy box's mass in the mass-ratio sweeps, kg (a unit box of
@@ -442,6 +499,25 @@ pub const SWEEPS: &[Sweep] = &[
         log_x: false,
         stop_after: 1,
         trial: pyramid,
+    },
+    Sweep {
+        name: "pyramid_rest",
+        title: "pyramid of base n unit boxes (μ = 0.5), sleeping off, 40 s (quick: 2 s)",
+        param: "boxes in the base",
+        unit: "",
+        metric: "fastest box's speed through the last quarter of the run, m/s",
+        criterion: "comes to rest: stands (as pyramid_base) and every box slower than 1 cm/s through the last 10 s",
+        limit: REST_SPEED,
+        values: |q| {
+            if q {
+                vec![3.0, 5.0]
+            } else {
+                vec![5.0, 10.0, 15.0, 20.0, 30.0]
+            }
+        },
+        log_x: false,
+        stop_after: 1,
+        trial: pyramid_rest,
     },
     Sweep {
         name: "mass_ratio_pair",
