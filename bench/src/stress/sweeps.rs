@@ -121,9 +121,9 @@ fn stack(r: &mut Runner, n: f64, quick: bool) -> Outcome {
     )
 }
 
-/// A pyramid of base `n` unit boxes in the x–y plane.
-fn pyramid(r: &mut Runner, n: f64, quick: bool) -> Outcome {
-    let n = n as usize;
+/// The ground and a pyramid of base `n` unit boxes in the x–y plane on
+/// it, row by row from the bottom.
+fn pyramid_bodies(n: usize) -> Vec<BodySpec> {
     let mut bodies = vec![ground([0.0; 3], 100.0)];
     for row in 0..n {
         for i in 0..(n - row) {
@@ -131,6 +131,12 @@ fn pyramid(r: &mut Runner, n: f64, quick: bool) -> Outcome {
             bodies.push(unit_box([x, 0.5 + row as f64, 0.0]));
         }
     }
+    bodies
+}
+
+/// A pyramid of base `n` unit boxes in the x–y plane.
+fn pyramid(r: &mut Runner, n: f64, quick: bool) -> Outcome {
+    let bodies = pyramid_bodies(n as usize);
     let starts: Vec<[f64; 3]> = bodies.iter().map(|b| b.pos).collect();
     let mut sim = r.build(&Spec::new(GRAVITY, bodies));
     let (mut off, mut drop): (f64, f64) = (0.0, 0.0);
@@ -169,14 +175,7 @@ pub const REST_SPEED: f64 = 0.01;
 /// pyramid that stands but keeps swaying (a solver that pumps energy into a
 /// mode the structure has) fails here though it passes `pyramid_base`.
 fn pyramid_rest(r: &mut Runner, n: f64, quick: bool) -> Outcome {
-    let n = n as usize;
-    let mut bodies = vec![ground([0.0; 3], 100.0)];
-    for row in 0..n {
-        for i in 0..(n - row) {
-            let x = i as f64 - (n - 1 - row) as f64 * 0.5;
-            bodies.push(unit_box([x, 0.5 + row as f64, 0.0]));
-        }
-    }
+    let bodies = pyramid_bodies(n as usize);
     let starts: Vec<[f64; 3]> = bodies.iter().map(|b| b.pos).collect();
     let mut sim = r.build(&Spec::new(GRAVITY, bodies));
     let (mut off, mut drop, mut fastest): (f64, f64, f64) = (0.0, 0.0, 0.0);
