@@ -134,29 +134,67 @@ fn pyramid_bodies(n: usize) -> Vec<BodySpec> {
     bodies
 }
 
-/// A pyramid of base `n` unit boxes in the x–y plane.
-fn pyramid(r: &mut Runner, n: f64, quick: bool) -> Outcome {
-    let bodies = pyramid_bodies(n as usize);
+/// What watching a pyramid found: the largest sideways move and drop of
+/// any box, and the fastest box through the last quarter of the run (if
+/// asked for).
+struct PyramidWatch {
+    off: f64,
+    drop: f64,
+    fastest: f64,
+}
+
+impl PyramidWatch {
+    /// Whether every box stayed within the stand bounds.
+    fn stood(&self) -> bool {
+        within(self.off, STAND_OFFSET) && within(self.drop, STAND_DROP)
+    }
+}
+
+/// Steps the pyramid of base `n` for `seconds`, stopping once a box leaves
+/// the stand bounds; with `last_quarter`, also records the fastest box
+/// through the last quarter of the ticks.
+fn watch_pyramid(r: &mut Runner, n: usize, seconds: f64, last_quarter: bool) -> PyramidWatch {
+    let bodies = pyramid_bodies(n);
     let starts: Vec<[f64; 3]> = bodies.iter().map(|b| b.pos).collect();
     let mut sim = r.build(&Spec::new(GRAVITY, bodies));
-    let (mut off, mut drop): (f64, f64) = (0.0, 0.0);
-    let ticks = r.ticks(stand_seconds(quick));
+    let mut w = PyramidWatch {
+        off: 0.0,
+        drop: 0.0,
+        fastest: 0.0,
+    };
+    let ticks = r.ticks(seconds);
+    let rest_from = if last_quarter {
+        ticks - ticks / 4
+    } else {
+        ticks
+    };
+    let mut tick = 0;
     run_while(r, sim.as_mut(), ticks, |sim| {
+        tick += 1;
         for (i, p0) in starts.iter().enumerate().skip(1) {
-            let p = sim.state(i).pos;
-            off = off.max(horizontal(p, *p0));
-            drop = drop.max(p0[1] - p[1]);
+            let s = sim.state(i);
+            w.off = w.off.max(horizontal(s.pos, *p0));
+            w.drop = w.drop.max(p0[1] - s.pos[1]);
+            if tick > rest_from {
+                w.fastest = w.fastest.max(norm(s.vel));
+            }
         }
-        off <= STAND_OFFSET && drop <= STAND_DROP
+        w.off <= STAND_OFFSET && w.drop <= STAND_DROP
     });
+    w
+}
+
+/// A pyramid of base `n` unit boxes in the x–y plane.
+fn pyramid(r: &mut Runner, n: f64, quick: bool) -> Outcome {
+    let w = watch_pyramid(r, n as usize, stand_seconds(quick), false);
     Outcome::ok(
-        off,
-        format!("worst box: moved up to {off:.3e} m sideways, dropped up to {drop:.3e} m"),
+        w.off,
+        format!(
+            "worst box: moved up to {:.3e} m sideways, dropped up to {:.3e} m",
+            w.off, w.drop
+        ),
     )
-    .failed_if(
-        !(within(off, STAND_OFFSET) && within(drop, STAND_DROP)),
-        Failure::Collapsed,
-    )
+    .failed_if(!w.stood(), Failure::Collapsed)
 }
 
 /// How long a pyramid is watched for coming to rest, s (quick: a smoke
@@ -175,37 +213,20 @@ pub const REST_SPEED: f64 = 0.01;
 /// pyramid that stands but keeps swaying (a solver that pumps energy into a
 /// mode the structure has) fails here though it passes `pyramid_base`.
 fn pyramid_rest(r: &mut Runner, n: f64, quick: bool) -> Outcome {
-    let bodies = pyramid_bodies(n as usize);
-    let starts: Vec<[f64; 3]> = bodies.iter().map(|b| b.pos).collect();
-    let mut sim = r.build(&Spec::new(GRAVITY, bodies));
-    let (mut off, mut drop, mut fastest): (f64, f64, f64) = (0.0, 0.0, 0.0);
-    let ticks = r.ticks(rest_seconds(quick));
-    let last_quarter = ticks - ticks / 4;
-    let mut tick = 0;
-    run_while(r, sim.as_mut(), ticks, |sim| {
-        tick += 1;
-        for (i, p0) in starts.iter().enumerate().skip(1) {
-            let s = sim.state(i);
-            off = off.max(horizontal(s.pos, *p0));
-            drop = drop.max(p0[1] - s.pos[1]);
-            if tick > last_quarter {
-                fastest = fastest.max(norm(s.vel));
-            }
-        }
-        off <= STAND_OFFSET && drop <= STAND_DROP
-    });
+    let w = watch_pyramid(r, n as usize, rest_seconds(quick), true);
     Outcome::ok(
-        fastest,
+        w.fastest,
         format!(
-            "fastest box in the last quarter {fastest:.3e} m/s; worst box moved up to {off:.3e} m \
-             sideways, dropped up to {drop:.3e} m"
+            "fastest box in the last quarter {:.3e} m/s; worst box moved up to {:.3e} m \
+             sideways, dropped up to {:.3e} m",
+            w.fastest, w.off, w.drop
         ),
     )
+    .failed_if(!w.stood(), Failure::Collapsed)
     .failed_if(
-        !(within(off, STAND_OFFSET) && within(drop, STAND_DROP)),
-        Failure::Collapsed,
+        !within(w.fastest, REST_SPEED),
+        Failure::Wrong("not at rest"),
     )
-    .failed_if(!within(fastest, REST_SPEED), Failure::Wrong("not at rest"))
 }
 
 /// The heavy box's mass in the mass-ratio sweeps, kg (a unit box of
