@@ -1580,6 +1580,83 @@ fn ragdolls_fall_and_sleep(text: &str, name: &str, bars: RagdollBars) {
     );
 }
 
+/// A leg on a step: a thigh lying on the step, its knee 5 cm in from the
+/// edge, and the shin, hinged there, hanging down over the edge against
+/// the step's corner. The shin's weight tips the thigh a little towards the
+/// edge, so the thigh touches the step at the edge and at its far end. It
+/// used to rock for ever (a 10-tick cycle of 0.1 rad/s: the narrow phase
+/// gave the tilted thigh the edge alone, it fell back onto its far end, two
+/// points, and tipped again); it comes to rest and sleeps.
+#[test]
+fn a_leg_over_a_step_edge_comes_to_rest_and_sleeps() {
+    let text = r#"
+[world]
+gravity = [0, -9.81, 0]
+
+[materials.cloth]
+friction = 0.6
+density = 985
+
+[materials.stone]
+friction = 0.8
+
+[[bodies]]
+name = "step"
+kind = "static"
+position = [0, -0.25, 0]
+shapes = [{ kind = "box", half_extents = [1, 0.25, 0.5], material = "stone" }]
+
+[[bodies]]
+name = "thigh"
+kind = "dynamic"
+position = [0, 0.0705, 0.25]
+rotation = { axis = [1, 0, 0], angle_deg = -90 }
+angular_damping = 0.5
+shapes = [{ kind = "capsule", half_height = 0.2, radius = 0.07, material = "cloth" }]
+
+[[bodies]]
+name = "shin"
+kind = "dynamic"
+position = [0, 0.0705, 0.65]
+rotation = { axis = [1, 0, 0], angle_deg = -90 }
+angular_damping = 0.5
+shapes = [{ kind = "capsule", half_height = 0.15, radius = 0.06, material = "cloth" }]
+
+[[joints]]
+name = "knee"
+kind = "revolute"
+body_a = "thigh"
+body_b = "shin"
+anchor_a = [0, -0.2, 0]
+anchor_b = [0, 0.2, 0]
+limits_deg = [0, 140]
+"#;
+    let mut w = lockstep_core::scene::load_world(text, "leg.toml").unwrap();
+    let by_name = |w: &World, name: &str| {
+        w.body_handles()
+            .find(|&h| w.body(h).unwrap().name() == name)
+            .unwrap()
+    };
+    let (thigh, shin) = (by_name(&w, "thigh"), by_name(&w, "shin"));
+    let knee = w.joints().next().unwrap().0;
+    step(&mut w, 300);
+    for h in [thigh, shin] {
+        assert!(
+            w.body(h).unwrap().is_sleeping(),
+            "{} awake after 5 s: {:?} m/s, {:?} rad/s",
+            w.body(h).unwrap().name(),
+            w.body(h).unwrap().linear_velocity().to_f64_array(),
+            w.body(h).unwrap().angular_velocity().to_f64_array()
+        );
+    }
+    // Where it rests: the thigh on the step, the shin hanging over the
+    // edge with the knee bent past 60°.
+    let c = w.body(thigh).unwrap().center_of_mass();
+    assert!(f(c.y) > 0.06 && f(c.z) < 0.5, "thigh at {c:?}");
+    assert!(f(w.body(shin).unwrap().center_of_mass().y) < 0.0);
+    assert!(f(w.joint_position(knee).unwrap()) > 60f64.to_radians());
+}
+
 /// scenes/ragdolls.toml: four ragdolls (eleven capsules, cone-twist and
 /// hinge limits) pushed down a staircase of eight steps; all asleep by 10 s.
 #[test]

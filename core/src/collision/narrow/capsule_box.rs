@@ -45,17 +45,22 @@ fn sign_of(x: Scalar) -> Scalar {
 ///   deepest clipped end (id `(segment feature, 27 + face)`), an edge the
 ///   closest points of the segment and that box edge (id `(segment feature,
 ///   100 + edge)`), depth `r − separation`.
-/// - In both cases, when the normal is a face normal and the capsule lies
-///   within about 1.8° of parallel to that face, the ends of the segment
-///   clipped to the face's rectangle become the points (ids `(0x10 + end,
-///   27 + face)`), each with its own depth; tilted further, so do the two
-///   ends' lowest points when the whole segment and both lowest points are
-///   over the face, both are within the margin and the shallower end's core
-///   is not below the face. (With two points only within 1.8°, a capsule that landed on
-///   one end and swung down had no contact under the other: the solver let
-///   it pivot about the deep end, continuous collision stopped the other
-///   end at the start of every tick, and the capsule stayed 7 cm deep with
-///   a growing velocity.)
+/// - In both cases, when the normal is a face normal (or, apart, the
+///   closest point is over an edge or corner: the face nearest the gap
+///   direction) and the capsule lies within about 1.8° of parallel to that
+///   face, the ends of the segment clipped to the face's rectangle become
+///   the points (ids `(0x10 + end, 27 + face)`), each with its own depth;
+///   tilted further, so do the two ends' lowest points when the whole
+///   segment and both lowest points are over the face, both are within the
+///   margin and the shallower end's core is not below the face. (With two
+///   points only within 1.8°, a capsule that landed on one end and swung
+///   down had no contact under the other: the solver let it pivot about the
+///   deep end, continuous collision stopped the other end at the start of
+///   every tick, and the capsule stayed 7 cm deep with a growing velocity.
+///   With the face tried only when the closest point is over it, a capsule
+///   lying on a step with one end out past the edge touched the edge alone
+///   whenever it dipped towards it: it rocked onto its far end, two points,
+///   and back, for as long as it lay there.)
 pub fn contact_capsule_box(
     a: &Capsule,
     pose_a: &Transform,
@@ -138,16 +143,35 @@ pub fn contact_capsule_box(
                 return false;
             }
             out.normal = pose_b.transform_vector(n);
-            if let Some(k) = face_region(on_seg, h) {
-                let sigma = sign_of(on_seg.get(k));
-                let mut f = Vec3::ZERO;
-                f.set(k, -sigma);
-                out.normal = pose_b.transform_vector(f);
-                if along_face(out, pose_b, p0, p1, u, h, k, sigma, r, margin) {
-                    return true;
+            // The face under the closest point, or, when that point is over
+            // an edge or corner, the face whose normal is nearest the gap
+            // direction: a capsule lying on a face with one end out past its
+            // edge rests on the edge and on the face (two points), not on
+            // the edge alone.
+            let over_face = face_region(on_seg, h);
+            let k = over_face.unwrap_or_else(|| dominant_axis(n));
+            let sigma = sign_of(on_seg.get(k));
+            let mut f = Vec3::ZERO;
+            f.set(k, -sigma);
+            out.normal = pose_b.transform_vector(f);
+            if along_face(out, pose_b, p0, p1, u, h, k, sigma, r, margin) {
+                if over_face.is_none() {
+                    // The deeper point is the one at the edge, where the
+                    // closest features are: it takes their separation
+                    // exactly (measured along the face normal it is short
+                    // by up to r·(1/cos θ − 1) and the core's rise across
+                    // the rounding).
+                    let mut deepest = 0;
+                    for i in 1..out.count as usize {
+                        if out.points[i].depth > out.points[deepest].depth {
+                            deepest = i;
+                        }
+                    }
+                    out.points[deepest].depth = r - dist;
                 }
-                out.normal = pose_b.transform_vector(n);
+                return true;
             }
+            out.normal = pose_b.transform_vector(n);
             let mid = (on_seg + n * r + on_box).half();
             let id = FeatureId::pair(segment_feature(t), box_region(on_seg, h));
             push_point(out, pose_b, mid, r - dist, id);
@@ -217,6 +241,19 @@ fn face_region(p: Vec3, h: Vec3) -> Option<usize> {
         }
     }
     face
+}
+
+/// The axis along which `n` has its largest magnitude (the lowest axis on
+/// a tie).
+fn dominant_axis(n: Vec3) -> usize {
+    let a = n.abs();
+    if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    }
 }
 
 /// The face id of the face on axis `k` with outward sign `sigma`.

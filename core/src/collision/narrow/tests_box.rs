@@ -170,6 +170,58 @@ fn capsule_lying_on_a_box_face_gets_two_clipped_points() {
 }
 
 #[test]
+fn capsule_lying_out_past_a_box_edge_rests_on_the_edge_and_the_face() {
+    // A thigh on a step: a capsule along z on the +y face of a box whose
+    // face ends at z = 0.5, its +z end 5 cm out past that edge, tilted 1°
+    // towards it. Its core is above the face everywhere (apart), its far
+    // end 1 mm into the face, and the closest feature is the edge. It lies
+    // along the face: two points, the face's normal, not the edge alone
+    // (on which it rocked).
+    let (hh, r) = (0.2, 0.07);
+    let (a, b) = (capsule(hh, r), cuboid(1.0, 0.25, 0.5));
+    let th = 91f64.to_radians();
+    let d = [0.0, th.cos(), th.sin()];
+    let yc = 0.25 - 0.001 + r + hh * d[1];
+    let zc = 0.35;
+    let pose = posed(0.0, yc, zc, rot(Vec3::X, 91));
+    let m = run(&a, &pose, &b, &Transform::IDENTITY, 0.02);
+    assert_eq!(m.count, 2, "{m:?}");
+    assert_vec_close(m.normal, [0.0, -1.0, 0.0], 1e-8, "the face's normal");
+    let depth_at = |z: f64| {
+        m.points()
+            .iter()
+            .find(|p| (vf(p.point)[2] - z).abs() < 1e-6)
+            .map(|p| p.depth)
+    };
+    // The far end, 1 mm deep; at the edge, r less the edge's distance
+    // from the core (the closest features' separation, exactly).
+    let far_z = zc - hh * d[2];
+    assert_close(
+        depth_at(far_z).expect("far end"),
+        0.001,
+        1e-6,
+        "far end depth",
+    );
+    let edge_dist = ((0.25 - yc) * d[2] - (0.5 - zc) * d[1]).abs();
+    assert_close(
+        depth_at(0.5).expect("edge"),
+        r - edge_dist,
+        1e-6,
+        "edge depth",
+    );
+    // Tilted the other way (the far end lower), the closest point is over
+    // the face: the same two points' ids.
+    let far = run(
+        &a,
+        &posed(0.0, yc, zc, rot(Vec3::X, 89)),
+        &b,
+        &Transform::IDENTITY,
+        0.02,
+    );
+    assert_eq!(ids(&far), ids(&m));
+}
+
+#[test]
 fn capsule_across_a_box_edge_uses_the_edge_axis() {
     // The box rotated 45° about z has a top edge along z at height √2·0.5.
     // A capsule along x crossing it: the edge × segment axis is y.
