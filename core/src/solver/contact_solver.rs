@@ -465,11 +465,8 @@ impl ContactSolver {
             use_bias,
             fuse,
             // Substep k starts each manifold's points at point k (mod
-            // count) and goes round: always the same order lets the first
-            // point of a manifold take more than its share of the load, and
-            // that keeps a tall stack rocking (without sleeping, the stack
-            // of 20's top box swung by 8 cm; rotating the start keeps it
-            // within a millimetre).
+            // count), forward in even substeps and backward in odd ones
+            // (`constraint::row_order`, which says why).
             rot: self.substeps as usize,
             bodies: &self.bodies,
             pq: &self.pq,

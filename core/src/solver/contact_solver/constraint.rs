@@ -278,3 +278,29 @@ pub(super) struct ShockRow {
     /// Whether the upper body is B (else A).
     pub(super) upper_is_b: bool,
 }
+
+/// The `kk`-th normal row visited, of a manifold's `count` (≥ 1), in the
+/// passes of substep `rot` (the solver's substep counter): the rows start at
+/// point `rot mod count` and go round, forward in even substeps and backward
+/// in odd ones (`rot mod count`, then one less, …). Always the same start
+/// lets a manifold's first point take more than its share of the load (a
+/// stack of 20 without sleeping rocked by 8 cm; rotating the start keeps it
+/// within a millimetre). Always the same direction goes round a face's
+/// corners the same way every substep, and the last row visited sees every
+/// other row's push: in a stack or pyramid of equal boxes that bias tilted
+/// every box the same way while they sagged and rebounded, and seeded the
+/// column's bending mode. Alternating the direction costs no extra visit.
+/// Every row path (the Q32.32 rows and their lanes, the narrow rows and
+/// their lanes) visits in this order.
+#[inline(always)]
+pub(super) fn row_order(kk: usize, count: usize, rot: usize) -> usize {
+    debug_assert!(kk < count);
+    let start = rot % count;
+    // Both sums are below 2·count: one subtraction brings them into range.
+    let k = if rot & 1 == 0 {
+        start + kk
+    } else {
+        start + count - kk
+    };
+    if k >= count { k - count } else { k }
+}

@@ -610,9 +610,10 @@ pub(super) struct VisitArgs<'a> {
 }
 
 /// One visit of a constraint on the narrow rows: friction at the patch
-/// centre, then the normal rows from point `rot mod count`, as the Q32.32
-/// visit does. Returns `false`, having written nothing but the biases at
-/// the current poses, when the guard fails. With `!use_bias` (relax) it
+/// centre, then the normal rows in the substep's order
+/// ([`row_order`](super::constraint::row_order)), as the Q32.32 visit
+/// does. Returns `false`, having written nothing but the biases at the
+/// current poses, when the guard fails. With `!use_bias` (relax) it
 /// also adds the angular impulses since the last write-back to the bodies'
 /// momenta.
 #[inline(always)]
@@ -669,16 +670,11 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
     }
     // The normal rows. Soft: Λ' = ms·(Λ − vn − bias), ms in Q1.30.
     let ms = rsh(args.params.softness.mass_scale.to_bits(), 2);
-    let first = if count == 0 { 0 } else { args.rot % count };
     let mut impulses = [0i32; MAX_MANIFOLD_POINTS];
     impulses[..count].copy_from_slice(&r.impulse[..count]);
     let mut first_vn = r.first_vn;
     for kk in 0..count {
-        let i = if kk + first >= count {
-            kk + first - count
-        } else {
-            kk + first
-        };
+        let i = super::constraint::row_order(kk, count, args.rot);
         let vn = b.along(&r.n, &r.rows[i], je);
         let old = impulses[i] as i64;
         let (bias, soft) = if r.speculative[i] {

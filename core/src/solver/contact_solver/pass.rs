@@ -61,17 +61,17 @@ pub(super) struct Visit {
     /// Whether `frame` and the points' separations were cached at these
     /// poses (else the points compute and cache their separations).
     pub(super) cached: bool,
-    /// The first point visited.
-    pub(super) start: usize,
+    /// The substep counter: the order of the normal rows
+    /// ([`row_order`](super::constraint::row_order)).
+    pub(super) rot: usize,
 }
 
 impl Visit {
-    /// The point visited at step `kk` of a manifold of `count` points: the
-    /// points in order, starting at `start` and going round.
+    /// The point visited at step `kk` of a manifold of `count` points
+    /// ([`row_order`](super::constraint::row_order)).
     #[inline(always)]
     pub(super) fn point(&self, kk: usize, count: usize) -> usize {
-        let k = kk + self.start;
-        if k >= count { k - count } else { k }
+        super::constraint::row_order(kk, count, self.rot)
     }
 }
 
@@ -244,12 +244,12 @@ impl Pass<'_> {
             applied,
             frame: c.frame,
             cached,
-            start: if count == 0 { 0 } else { self.rot % count },
+            rot: self.rot,
         }
     }
 
     /// The normal rows: non-penetration at each point's current
-    /// separation, in the order that starts at `v.start`.
+    /// separation, in the substep's order ([`Visit::point`]).
     #[inline(always)]
     pub(super) fn points(&self, c: &mut Constraint, v: &mut Visit) {
         let params = self.params;

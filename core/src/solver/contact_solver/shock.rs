@@ -119,7 +119,9 @@ impl ContactSolver {
         let vels = &mut self.vels;
         let dls = &mut self.dls;
         let bodies = &self.bodies;
-        // As the regular passes: substep k starts at point k (mod count).
+        // Substep k starts at point k (mod count), as the regular passes
+        // do, but always forward (they also alternate direction per
+        // substep: `constraint::row_order`).
         let rot = self.substeps as usize;
         for row in &self.shock {
             let c = &mut self.constraints[row.constraint as usize];

@@ -333,7 +333,7 @@ fn clamp_lanes(want: &[L64; 2], mass: &[L32; 2], disc: &L64, active: &Mask) -> [
 /// The rows of one batch on the lanes: the twin's friction and normal
 /// rows, step by step. Returns each lane's guard.
 #[inline(always)]
-fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> Mask {
+fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
     // The velocities were checked as they were gathered (`st.ok`).
     let mut ok = st.ok;
     let mut active = [false; LANES];
@@ -389,14 +389,10 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> M
         st.impulse_w[l] = n as i32 as i64;
     }
     apply(&d, &b.rows[TW], &b.ae, &mut st.v, &mut ok);
-    // The normal rows from point `first`.
+    // The normal rows in the substep's order.
     let count = b.count;
     for kk in 0..count {
-        let i = if kk + first >= count {
-            kk + first - count
-        } else {
-            kk + first
-        };
+        let i = super::super::constraint::row_order(kk, count, rot);
         let p = &b.rows[i];
         let vn = along(&b.n, &p.ja, &p.jb, &st.v, &b.je);
         let mut d = [0i64; LANES];
@@ -428,19 +424,19 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> M
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx512bw")]
-fn kernel_avx512(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> Mask {
-    kernel(b, st, ms, use_bias, first)
+fn kernel_avx512(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
+    kernel(b, st, ms, use_bias, rot)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn kernel_avx2(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> Mask {
-    kernel(b, st, ms, use_bias, first)
+fn kernel_avx2(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
+    kernel(b, st, ms, use_bias, rot)
 }
 
 #[inline(never)]
-fn kernel_plain(b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> Mask {
-    kernel(b, st, ms, use_bias, first)
+fn kernel_plain(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
+    kernel(b, st, ms, use_bias, rot)
 }
 
 /// Which build of the lane kernel runs (the results are the same bits).
@@ -491,16 +487,16 @@ impl Kernel {
         }
     }
 
-    fn run(self, b: &Batch, st: &mut State, ms: i64, use_bias: bool, first: usize) -> Mask {
+    fn run(self, b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
         match self {
             // SAFETY: `best` found these features on this CPU (a caller
             // that names a kernel explicitly, as the tests do, checks
             // `best` first).
             #[cfg(target_arch = "x86_64")]
-            Kernel::Avx512 => unsafe { kernel_avx512(b, st, ms, use_bias, first) },
+            Kernel::Avx512 => unsafe { kernel_avx512(b, st, ms, use_bias, rot) },
             #[cfg(target_arch = "x86_64")]
-            Kernel::Avx2 => unsafe { kernel_avx2(b, st, ms, use_bias, first) },
-            _ => kernel_plain(b, st, ms, use_bias, first),
+            Kernel::Avx2 => unsafe { kernel_avx2(b, st, ms, use_bias, rot) },
+            _ => kernel_plain(b, st, ms, use_bias, rot),
         }
     }
 }
@@ -523,11 +519,6 @@ pub(in crate::solver::contact_solver) fn visit(
         batch.load(rows);
     }
     let mut st = State::default();
-    let first = if batch.count == 0 {
-        0
-    } else {
-        args.rot % batch.count
-    };
     for l in 0..LANES {
         let b = Bodies::load(args.arrays, batch.a[l], batch.b[l]);
         st.ok[l] = b.fit();
@@ -587,7 +578,7 @@ pub(in crate::solver::contact_solver) fn visit(
         }
     }
     let ms = super::rsh(args.params.softness.mass_scale.to_bits(), 2);
-    let ok = kernel.run(batch, &mut st, ms, args.use_bias, first);
+    let ok = kernel.run(batch, &mut st, ms, args.use_bias, args.rot);
     let bs = &mut batch.state;
     let mut refused = [false; LANES];
     for l in 0..LANES {
