@@ -588,7 +588,7 @@ fn a_100_tick_course_replays_to_the_same_bits_as_recorded() {
     // any bit changes it on purpose.
     assert_eq!(
         a,
-        (0x53d9_9c0e_5b29_75ad, 0x26a2_5de1_a3cc_e5d2),
+        (0xad42_7a25_3984_da2f, 0x4da3_0d3e_ead0_4733),
         "folded {:#018x}, final {:#018x}",
         a.0,
         a.1
