@@ -1677,9 +1677,14 @@ fn ragdolls_tumble_down_the_stairs_and_sleep() {
             half_width: 4.0,
             ticks: 1500,
             fastest: 12.0,
-            // Measured 5.2 cm at the hardest landing: soft joints give under
-            // impacts.
-            widest: 0.08,
+            // Soft joints give under impacts, as in the hundred below:
+            // measured 9.4 cm at the hardest landing (tick 69: a ragdoll's
+            // pelvis and thighs stop dead on a step, friction holding them
+            // from the landing's first visit, while its head and arms
+            // still fall at 5 m/s: the neck and shoulders open; 4.6 cm
+            // while friction came before the normal rows and took no part
+            // in that first visit).
+            widest: 0.1,
         },
     );
 }

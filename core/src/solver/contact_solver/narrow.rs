@@ -364,11 +364,6 @@ pub(super) fn write_back(r: &NarrowRows, c: &mut Constraint) {
     c.warm_total = r.warm_total;
 }
 
-/// The total normal impulse (Q32.32) of the current Λ.
-fn normal_total(r: &NarrowRows) -> Scalar {
-    normal_total_of(r, &r.impulse)
-}
-
 /// The total normal impulse (Q32.32) of the points' Λ in `impulses` (the
 /// rows' own, or a lanes' batch's copy of them).
 fn normal_total_of(r: &NarrowRows, impulses: &[i32; ROWS]) -> Scalar {
@@ -377,6 +372,18 @@ fn normal_total_of(r: &NarrowRows, impulses: &[i32; ROWS]) -> Scalar {
         total += impulse(big, m);
     }
     total
+}
+
+/// The rows' impulses with the points' Λ as a visit's normal rows settled
+/// them, each held in `[0, LIMIT)`: that changes none of an accepted
+/// visit (its guard holds them there), and keeps the friction bounds of a
+/// refused one in the range of the rows' own.
+fn settled(rows: [i32; ROWS], points: &[i32; MAX_MANIFOLD_POINTS]) -> [i32; ROWS] {
+    let mut out = rows;
+    for (o, &p) in out.iter_mut().zip(points) {
+        *o = p.clamp(0, LIMIT as i32 - 1);
+    }
+    out
 }
 
 /// The friction disc's radius (at `2^(S+me)`) and the twist bound (quanta)
@@ -628,46 +635,6 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
     let (je, ae) = (r.je as u32, r.ae as u32);
     let count = r.count as usize;
     let mut ok = true;
-    // Friction at the patch centre (see `patch::solve_patch`), bounded by
-    // the warm start's total normal impulse, or the current one.
-    let (disc, twist_limit) = if r.limits_set {
-        (r.disc_limit, r.twist_limit)
-    } else {
-        limits_for(r, normal_total(r))
-    };
-    let mut impulse_t = [r.impulse[T0], r.impulse[T0 + 1]];
-    let mut impulse_w = r.impulse[TW];
-    if !(disc == 0 && impulse_t == [0; 2] && impulse_w == 0) {
-        let vt0 = b.along(&r.t[0], &r.rows[T0], je);
-        let vt1 = b.along(&r.t[1], &r.rows[T0 + 1], je);
-        let want = [
-            (impulse_t[0] as i64).wrapping_sub(vt0),
-            (impulse_t[1] as i64).wrapping_sub(vt1),
-        ];
-        ok &= want[0].abs() < ROW_LIMIT && want[1].abs() < ROW_LIMIT;
-        let new = clamp_to_disc(want, &r.mass_t, disc);
-        for j in 0..2 {
-            ok &= new[j].abs() < LIMIT;
-            let d = new[j].wrapping_sub(impulse_t[j] as i64);
-            impulse_t[j] = new[j] as i32;
-            if d != 0 {
-                b.apply(d, &r.rows[T0 + j], ae);
-                ok &= b.fit();
-            }
-        }
-        // Twist: the relative spin about the normal.
-        let spin = rsh(dot(&r.n, &b.wb).wrapping_sub(dot(&r.n, &b.wa)), je);
-        let want = (impulse_w as i64).wrapping_sub(spin);
-        ok &= want.abs() < ROW_LIMIT;
-        let new = want.clamp(-twist_limit, twist_limit);
-        ok &= new.abs() < LIMIT;
-        let d = new.wrapping_sub(impulse_w as i64);
-        impulse_w = new as i32;
-        if d != 0 {
-            b.apply(d, &r.rows[TW], ae);
-            ok &= b.fit();
-        }
-    }
     // The normal rows. Soft: Λ' = ms·(Λ − vn − bias), ms in Q1.30.
     let ms = rsh(args.params.softness.mass_scale.to_bits(), 2);
     let mut impulses = [0i32; MAX_MANIFOLD_POINTS];
@@ -701,6 +668,48 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
         impulses[i] = new as i32;
         if d != 0 {
             b.apply(d, &r.rows[i], ae);
+            ok &= b.fit();
+        }
+    }
+    let mut impulse_t = [r.impulse[T0], r.impulse[T0 + 1]];
+    let mut impulse_w = r.impulse[TW];
+    // Friction at the patch centre, after the normal rows (see
+    // `patch::solve_patch`), bounded by the warm start's total normal
+    // impulse, or (a contact new this substep) the one its normal rows
+    // just settled.
+    let (disc, twist_limit) = if r.limits_set {
+        (r.disc_limit, r.twist_limit)
+    } else {
+        limits_for(r, normal_total_of(r, &settled(r.impulse, &impulses)))
+    };
+    if !(disc == 0 && impulse_t == [0; 2] && impulse_w == 0) {
+        let vt0 = b.along(&r.t[0], &r.rows[T0], je);
+        let vt1 = b.along(&r.t[1], &r.rows[T0 + 1], je);
+        let want = [
+            (impulse_t[0] as i64).wrapping_sub(vt0),
+            (impulse_t[1] as i64).wrapping_sub(vt1),
+        ];
+        ok &= want[0].abs() < ROW_LIMIT && want[1].abs() < ROW_LIMIT;
+        let new = clamp_to_disc(want, &r.mass_t, disc);
+        for j in 0..2 {
+            ok &= new[j].abs() < LIMIT;
+            let d = new[j].wrapping_sub(impulse_t[j] as i64);
+            impulse_t[j] = new[j] as i32;
+            if d != 0 {
+                b.apply(d, &r.rows[T0 + j], ae);
+                ok &= b.fit();
+            }
+        }
+        // Twist: the relative spin about the normal.
+        let spin = rsh(dot(&r.n, &b.wb).wrapping_sub(dot(&r.n, &b.wa)), je);
+        let want = (impulse_w as i64).wrapping_sub(spin);
+        ok &= want.abs() < ROW_LIMIT;
+        let new = want.clamp(-twist_limit, twist_limit);
+        ok &= new.abs() < LIMIT;
+        let d = new.wrapping_sub(impulse_w as i64);
+        impulse_w = new as i32;
+        if d != 0 {
+            b.apply(d, &r.rows[TW], ae);
             ok &= b.fit();
         }
     }

@@ -42,9 +42,9 @@ pub(super) struct Pass<'a> {
     pub(super) kernel: Option<Kernel>,
 }
 
-/// One constraint's visit between its friction rows and its normal rows:
-/// what [`Pass::head`] leaves for [`Pass::points`] (or the wide kernel) and
-/// [`Pass::tail`].
+/// One constraint's visit from its velocities to its write-back: what
+/// [`Pass::head`] leaves for [`Pass::points`] (or the wide kernel),
+/// [`Pass::friction`] and [`Pass::tail`].
 #[derive(Clone, Copy, Default)]
 pub(super) struct Visit {
     pub(super) va: BodyVel,
@@ -76,7 +76,7 @@ impl Visit {
 }
 
 impl Pass<'_> {
-    /// One visit of constraint `c`: friction, then the normal rows, on the
+    /// One visit of constraint `c`: the normal rows, then friction, on the
     /// narrow rows if the constraint is on them (see [`narrow`]), else on
     /// the Q32.32 rows. A narrow visit whose guard fails writes nothing;
     /// the constraint's impulses go back to Q32.32 and the Q32.32 rows
@@ -206,32 +206,16 @@ impl Pass<'_> {
     pub(super) fn visit_exact(&self, c: &mut Constraint) {
         let mut v = self.head(c);
         self.points(c, &mut v);
+        self.friction(c, &mut v);
         self.tail(c, &mut v);
     }
 
-    /// The visit up to the normal rows: the velocities, the friction rows
-    /// and the separation frame.
+    /// The visit up to the normal rows: the velocities and the separation
+    /// frame.
     #[inline(always)]
     pub(super) fn head(&self, c: &mut Constraint) -> Visit {
-        let (mut va, mut vb) = self.arrays.load(c.a, c.b);
+        let (va, vb) = self.arrays.load(c.a, c.b);
         let u = linear_basis(c, &va, &vb);
-        let mut applied = [Scalar::ZERO; 3];
-        let count = c.count.min(MAX_MANIFOLD_POINTS);
-        // Friction at the patch centre, bounded by μ times the manifold's
-        // total normal impulse of the warm start, the one the last
-        // substep's relax pass settled (see [`solve_patch`]). A contact
-        // without one (new this substep) takes its current total: an exact
-        // sum, whatever the order of its points.
-        let total = if c.warm_total.is_positive() {
-            c.warm_total
-        } else {
-            let mut total = Scalar::ZERO;
-            for cp in &c.points[..count] {
-                total += cp.normal_impulse;
-            }
-            total
-        };
-        solve_patch(c, &mut va, &mut vb, &u, &mut applied, total);
         let cached = c.frame_poses == self.poses;
         if !cached {
             c.frame = SeparationFrame::of(c, self.bodies);
@@ -241,7 +225,7 @@ impl Pass<'_> {
             va,
             vb,
             u,
-            applied,
+            applied: [Scalar::ZERO; 3],
             frame: c.frame,
             cached,
             rot: self.rot,
@@ -297,7 +281,27 @@ impl Pass<'_> {
         }
     }
 
-    /// The visit after the normal rows: the linear impulses, the
+    /// Friction at the patch centre, after the normal rows, bounded by μ
+    /// times the manifold's total normal impulse of the warm start, the one
+    /// the last substep's relax pass settled, or for a contact without one
+    /// (new this substep) the total its normal rows just settled: an exact
+    /// sum, whatever the order of its points (see [`solve_patch`]).
+    #[inline(always)]
+    pub(super) fn friction(&self, c: &mut Constraint, v: &mut Visit) {
+        let total = if c.warm_total.is_positive() {
+            c.warm_total
+        } else {
+            let count = c.count.min(MAX_MANIFOLD_POINTS);
+            let mut total = Scalar::ZERO;
+            for cp in &c.points[..count] {
+                total += cp.normal_impulse;
+            }
+            total
+        };
+        solve_patch(c, &mut v.va, &mut v.vb, &v.u, &mut v.applied, total);
+    }
+
+    /// The visit after the normal rows and friction: the linear impulses, the
     /// velocities back, and (relax) the angular write-back and the next
     /// warm start.
     #[inline(always)]
@@ -348,6 +352,7 @@ impl Pass<'_> {
                 }
             }
             for (c, v) in batch.iter_mut().zip(&mut visits) {
+                self.friction(c, v);
                 self.tail(c, v);
             }
         }

@@ -86,7 +86,7 @@ pub(super) fn prepare_patch(
     f
 }
 
-/// One visit of constraint `c`'s friction rows, before its normal rows:
+/// One visit of constraint `c`'s friction rows, after its normal rows:
 /// `total` is the normal impulse that bounds them, `u` the linear relative
 /// velocity along (n, t₀, t₁) and `applied` the linear impulses of the
 /// visit (the tangent ones are added here).
@@ -98,11 +98,21 @@ pub(super) fn prepare_patch(
 /// spring settles at a rate of about ω²h). Bounded by it, a box launched at
 /// 5 m/s with μ = 0.5 slid 2.3% too far at 480 Hz × 4, 9% at 1,920 Hz × 4
 /// and 18% at 3,840 Hz × 4. The last relax pass's total is one substep old,
-/// an error that vanishes with the substep. (Solving the normal rows first
-/// and bounding by what they settle does the same, but friction as the
-/// last row of the soft pass, before the positions integrate, set a box
-/// under one 100 times heavier rocking, its speed growing past 0.2 m/s
-/// in 10 s.)
+/// an error that vanishes with the substep. (Bounding by what the normal
+/// rows of the same visit settle does the same, and with friction as the
+/// last row of the soft pass it also set a box under one 100 times heavier
+/// rocking, its speed growing past 0.2 m/s in 10 s.) A contact new this
+/// substep has no warm start: its bound is what its normal rows just
+/// settled, so that friction acts from a landing's first visit.
+///
+/// Why after the normal rows, measured (`stress` and `accuracy`, 60 Hz × 4
+/// substeps): visited last, friction leaves each visit's velocities with
+/// the patch held against sliding and turning, and the normal rows' small
+/// error for the next visit and the push-out to take back. With friction
+/// first the 50-box stack leaned past its bound within 10 s (it stood to
+/// 40); with friction last it stands, as Rapier's does, the pyramids stand
+/// as before, and a box sliding to a stop on a ramp lands within a tenth
+/// of the error.
 #[inline(always)]
 pub(super) fn solve_patch(
     c: &mut Constraint,

@@ -27,7 +27,7 @@ use super::super::rows::BodyArrays;
 use super::{
     Bodies, BodyVel, LIMIT, MAX_MANIFOLD_POINTS, NarrowRows, PoseQ, ROW_LIMIT, ROWS, Row, T0, TW,
     VisitArgs, add_momenta, bias_of, clamp_to_disc, limits_for, limits_of, normal_total_of,
-    separations,
+    separations, settled,
 };
 use crate::math::Scalar;
 
@@ -241,6 +241,9 @@ struct State {
     /// Whether each lane's velocities fit the guard as gathered.
     ok: Mask,
     v: Vels,
+    /// Whether each lane's friction bounds were set by its warm start
+    /// (else the kernel sets them from what its normal rows settle).
+    limits_set: Mask,
     disc: L64,
     twist_limit: L64,
     impulse_t: [L64; 2],
@@ -330,12 +333,60 @@ fn clamp_lanes(want: &[L64; 2], mass: &[L32; 2], disc: &L64, active: &Mask) -> [
     out
 }
 
-/// The rows of one batch on the lanes: the twin's friction and normal
+/// The rows of one batch on the lanes: the twin's normal and friction
 /// rows, step by step. Returns each lane's guard.
 #[inline(always)]
-fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
+fn kernel(
+    b: &Batch,
+    rows: &[NarrowRows],
+    st: &mut State,
+    ms: i64,
+    use_bias: bool,
+    rot: usize,
+) -> Mask {
     // The velocities were checked as they were gathered (`st.ok`).
     let mut ok = st.ok;
+    // The normal rows in the substep's order.
+    let count = b.count;
+    for kk in 0..count {
+        let i = super::super::constraint::row_order(kk, count, rot);
+        let p = &b.rows[i];
+        let vn = along(&b.n, &p.ja, &p.jb, &st.v, &b.je);
+        let mut d = [0i64; LANES];
+        for l in 0..LANES {
+            let spec = st.speculative[i][l];
+            let bias = if spec || use_bias { st.bias[i][l] } else { 0 };
+            let soft = !spec && use_bias;
+            let old = st.impulses[i][l];
+            let x = old.wrapping_sub(vn[l]).wrapping_sub(bias);
+            ok[l] &= x.abs() < ROW_LIMIT && !(st.saturated[i][l] && x > 0);
+            // |x| < 2³¹ while the guard passes: a 32-bit operand.
+            let new = if soft {
+                rsh(mul(ms as i32, x as i32), 30)
+            } else {
+                x
+            }
+            .max(0);
+            ok[l] &= new < LIMIT;
+            d[l] = new.wrapping_sub(old);
+            if st.first_vn[i][l] == i32::MAX as i64 && new > 0 {
+                st.first_vn[i][l] = vn[l].clamp(i32::MIN as i64, i32::MAX as i64 - 1);
+            }
+            st.impulses[i][l] = new as i32 as i64;
+        }
+        apply(&d, p, &b.ae, &mut st.v, &mut ok);
+    }
+    // Friction at the patch centre, after the normal rows, bounded by the
+    // warm start's total normal impulse or (a contact new this substep) the
+    // one its normal rows just settled, as the twin: both tangents from
+    // the same velocities, held in the disc, then the twist.
+    for (l, r) in rows.iter().enumerate().take(LANES) {
+        if !st.limits_set[l] {
+            let points = std::array::from_fn(|i| st.impulses[i][l] as i32);
+            (st.disc[l], st.twist_limit[l]) =
+                limits_for(r, normal_total_of(r, &settled([0; ROWS], &points)));
+        }
+    }
     let mut active = [false; LANES];
     for l in 0..LANES {
         active[l] = !(st.disc[l] == 0
@@ -343,8 +394,6 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mas
             && st.impulse_t[1][l] == 0
             && st.impulse_w[l] == 0);
     }
-    // Friction at the patch centre: both tangents from the same
-    // velocities, held in the disc, then the twist.
     let (t0, t1) = (&b.rows[T0], &b.rows[T0 + 1]);
     let vt0 = along(&b.t[0], &t0.ja, &t0.jb, &st.v, &b.je);
     let vt1 = along(&b.t[1], &t1.ja, &t1.jb, &st.v, &b.je);
@@ -389,54 +438,45 @@ fn kernel(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mas
         st.impulse_w[l] = n as i32 as i64;
     }
     apply(&d, &b.rows[TW], &b.ae, &mut st.v, &mut ok);
-    // The normal rows in the substep's order.
-    let count = b.count;
-    for kk in 0..count {
-        let i = super::super::constraint::row_order(kk, count, rot);
-        let p = &b.rows[i];
-        let vn = along(&b.n, &p.ja, &p.jb, &st.v, &b.je);
-        let mut d = [0i64; LANES];
-        for l in 0..LANES {
-            let spec = st.speculative[i][l];
-            let bias = if spec || use_bias { st.bias[i][l] } else { 0 };
-            let soft = !spec && use_bias;
-            let old = st.impulses[i][l];
-            let x = old.wrapping_sub(vn[l]).wrapping_sub(bias);
-            ok[l] &= x.abs() < ROW_LIMIT && !(st.saturated[i][l] && x > 0);
-            // |x| < 2³¹ while the guard passes: a 32-bit operand.
-            let new = if soft {
-                rsh(mul(ms as i32, x as i32), 30)
-            } else {
-                x
-            }
-            .max(0);
-            ok[l] &= new < LIMIT;
-            d[l] = new.wrapping_sub(old);
-            if st.first_vn[i][l] == i32::MAX as i64 && new > 0 {
-                st.first_vn[i][l] = vn[l].clamp(i32::MIN as i64, i32::MAX as i64 - 1);
-            }
-            st.impulses[i][l] = new as i32 as i64;
-        }
-        apply(&d, p, &b.ae, &mut st.v, &mut ok);
-    }
     ok
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx512bw")]
-fn kernel_avx512(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
-    kernel(b, st, ms, use_bias, rot)
+fn kernel_avx512(
+    b: &Batch,
+    rows: &[NarrowRows],
+    st: &mut State,
+    ms: i64,
+    use_bias: bool,
+    rot: usize,
+) -> Mask {
+    kernel(b, rows, st, ms, use_bias, rot)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn kernel_avx2(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
-    kernel(b, st, ms, use_bias, rot)
+fn kernel_avx2(
+    b: &Batch,
+    rows: &[NarrowRows],
+    st: &mut State,
+    ms: i64,
+    use_bias: bool,
+    rot: usize,
+) -> Mask {
+    kernel(b, rows, st, ms, use_bias, rot)
 }
 
 #[inline(never)]
-fn kernel_plain(b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
-    kernel(b, st, ms, use_bias, rot)
+fn kernel_plain(
+    b: &Batch,
+    rows: &[NarrowRows],
+    st: &mut State,
+    ms: i64,
+    use_bias: bool,
+    rot: usize,
+) -> Mask {
+    kernel(b, rows, st, ms, use_bias, rot)
 }
 
 /// Which build of the lane kernel runs (the results are the same bits).
@@ -487,16 +527,24 @@ impl Kernel {
         }
     }
 
-    fn run(self, b: &Batch, st: &mut State, ms: i64, use_bias: bool, rot: usize) -> Mask {
+    fn run(
+        self,
+        b: &Batch,
+        rows: &[NarrowRows],
+        st: &mut State,
+        ms: i64,
+        use_bias: bool,
+        rot: usize,
+    ) -> Mask {
         match self {
             // SAFETY: `best` found these features on this CPU (a caller
             // that names a kernel explicitly, as the tests do, checks
             // `best` first).
             #[cfg(target_arch = "x86_64")]
-            Kernel::Avx512 => unsafe { kernel_avx512(b, st, ms, use_bias, rot) },
+            Kernel::Avx512 => unsafe { kernel_avx512(b, rows, st, ms, use_bias, rot) },
             #[cfg(target_arch = "x86_64")]
-            Kernel::Avx2 => unsafe { kernel_avx2(b, st, ms, use_bias, rot) },
-            _ => kernel_plain(b, st, ms, use_bias, rot),
+            Kernel::Avx2 => unsafe { kernel_avx2(b, rows, st, ms, use_bias, rot) },
+            _ => kernel_plain(b, rows, st, ms, use_bias, rot),
         }
     }
 }
@@ -555,13 +603,9 @@ pub(in crate::solver::contact_solver) fn visit(
             }
         }
     }
-    for (l, r) in rows.iter().enumerate().take(LANES) {
-        (st.disc[l], st.twist_limit[l]) = if bs.limits_set[l] {
-            (bs.disc[l], bs.twist_limit[l])
-        } else {
-            let imp: [i32; ROWS] = std::array::from_fn(|k| bs.impulse[k][l]);
-            limits_for(r, normal_total_of(r, &imp))
-        };
+    for l in 0..LANES {
+        st.limits_set[l] = bs.limits_set[l];
+        (st.disc[l], st.twist_limit[l]) = (bs.disc[l], bs.twist_limit[l]);
     }
     for l in 0..LANES {
         st.impulse_t[0][l] = bs.impulse[T0][l] as i64;
@@ -578,7 +622,7 @@ pub(in crate::solver::contact_solver) fn visit(
         }
     }
     let ms = super::rsh(args.params.softness.mass_scale.to_bits(), 2);
-    let ok = kernel.run(batch, &mut st, ms, args.use_bias, args.rot);
+    let ok = kernel.run(batch, rows, &mut st, ms, args.use_bias, args.rot);
     let bs = &mut batch.state;
     let mut refused = [false; LANES];
     for l in 0..LANES {
