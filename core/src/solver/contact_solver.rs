@@ -419,8 +419,8 @@ impl ContactSolver {
         );
     }
 
-    /// One pass over every constraint: friction, then the normal impulses
-    /// (soft with `use_bias`, rigid without).
+    /// One pass over every constraint: the normal impulses (soft with
+    /// `use_bias`, rigid without), then friction.
     ///
     /// The relax pass (`use_bias == false`) also sums each constraint's
     /// angular impulses into its bodies' write-back (one pass over the
