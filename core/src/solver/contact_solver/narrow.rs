@@ -616,13 +616,12 @@ pub(super) struct VisitArgs<'a> {
     pub poses: u32,
 }
 
-/// One visit of a constraint on the narrow rows: friction at the patch
-/// centre, then the normal rows in the substep's order
-/// ([`row_order`](super::constraint::row_order)), as the Q32.32 visit
-/// does. Returns `false`, having written nothing but the biases at the
-/// current poses, when the guard fails. With `!use_bias` (relax) it
-/// also adds the angular impulses since the last write-back to the bodies'
-/// momenta.
+/// One visit of a constraint on the narrow rows: the normal rows in the
+/// substep's order ([`row_order`](super::constraint::row_order)), then
+/// friction at the patch centre, as the Q32.32 visit does. Returns
+/// `false`, having written nothing but the biases at the current poses,
+/// when the guard fails. With `!use_bias` (relax) it also adds the angular
+/// impulses since the last write-back to the bodies' momenta.
 #[inline(always)]
 pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
     if r.bias_poses != args.poses && !update_biases(r, args.pq, args.params, args.poses) {
