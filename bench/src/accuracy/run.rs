@@ -111,6 +111,12 @@ impl Runner {
         }
     }
 
+    /// Steps at `tick_rate` instead of the settings' rate: for a sweep
+    /// over the step length. Call before [`build`](Self::build).
+    pub fn set_tick_rate(&mut self, tick_rate: u32) {
+        self.settings.tick_rate = tick_rate;
+    }
+
     /// The step length, s.
     pub fn dt(&self) -> f64 {
         1.0 / self.settings.tick_rate as f64

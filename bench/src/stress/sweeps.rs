@@ -1,7 +1,8 @@
 //! The swept scenes of the `stress` suite. Each sweep raises one quantity
 //! (stack height, pyramid base, the base of a pyramid that must come to
 //! rest, mass ratio, projectile speed, distance from the origin,
-//! overlapping boxes) until an engine fails its criterion,
+//! overlapping boxes, the step under a thrown box's landing) until an
+//! engine fails its criterion,
 //! which is stated in numbers in [`Sweep::criterion`] (and in
 //! docs/stress.md: keep the two in step). A trial stops stepping as soon as
 //! its criterion has failed; the generic checks of the accuracy suite's
@@ -437,6 +438,69 @@ fn far_roll(r: &mut Runner, d: f64, quick: bool) -> Outcome {
     )
 }
 
+/// The thrown box's velocity, m/s, and the height of its bottom above the
+/// floor when thrown, m.
+const THROW_VEL: [f64; 3] = [5.0, 2.0, 0.0];
+const THROW_HEIGHT: f64 = 1.0;
+/// Largest distance of the thrown box's rest point from the closed form, m.
+pub const LANDING_ERROR: f64 = 0.01;
+/// The tick rates of the landing sweep, finest first (its values are their
+/// step lengths, ascending).
+const LANDING_RATES: [f64; 7] = [3840.0, 1920.0, 960.0, 480.0, 240.0, 120.0, 60.0];
+
+/// Where a rigid unit box thrown flat (its bottom [`THROW_HEIGHT`] above the
+/// floor, at [`THROW_VEL`]) comes to rest along x. It flies until its
+/// bottom reaches the floor; the landing is fully inelastic, and friction
+/// takes μ times the hit's normal impulse from the sliding speed (the
+/// normal impulse moves toward the leading edge and cancels friction's
+/// pitch, which it can while μ times the half height is below the half
+/// width); the slide then adds `v²/(2μg)`. 3.4965 + 0.6733 = 4.1698 m.
+pub fn landing_rest() -> f64 {
+    let [vx, vy, _] = THROW_VEL;
+    let t = (vy + (vy * vy + 2.0 * G * THROW_HEIGHT).sqrt()) / G;
+    let hit = G * t - vy;
+    let slide = vx - MU * hit;
+    vx * t + slide * slide / (2.0 * MU * G)
+}
+
+/// A unit box thrown flat at [`THROW_VEL`], its bottom [`THROW_HEIGHT`]
+/// above the floor, stepped `ms` milliseconds per step (the suite's
+/// substeps) for 2.5 s: how far from [`landing_rest`] it comes to rest.
+fn landing(r: &mut Runner, ms: f64, _quick: bool) -> Outcome {
+    r.set_tick_rate((1000.0 / ms).round() as u32);
+    let thrown = unit_box([0.0, 0.5 + THROW_HEIGHT, 0.0]).vel(THROW_VEL);
+    let bodies = vec![ground([0.0; 3], 50.0), thrown];
+    let mut sim = r.build(&Spec::new(GRAVITY, bodies));
+    let (mut landed, mut spin) = (false, 0.0_f64);
+    let ticks = r.ticks(2.5);
+    run_while(r, sim.as_mut(), ticks, |sim| {
+        let s = sim.state(1);
+        // Its centre is half a box up once its bottom meets the floor.
+        landed |= s.pos[1] < 0.5 + 0.01;
+        if landed {
+            spin = spin.max(norm(s.omega));
+        }
+        true
+    });
+    let s = sim.state(1);
+    let expect = landing_rest();
+    let err = horizontal(s.pos, [expect, 0.0, 0.0]);
+    let speed = norm(s.vel);
+    Outcome::ok(
+        err,
+        format!(
+            "rests at x = {:.4} m, z = {:.4} m (closed form x = {expect:.4} m); \
+             spin after landing up to {spin:.3} rad/s; final speed {speed:.2e} m/s",
+            s.pos[0], s.pos[2]
+        ),
+    )
+    .failed_if(speed > 1e-3, Failure::Wrong("not at rest"))
+    .failed_if(
+        !within(err, LANDING_ERROR),
+        Failure::Wrong("off the closed form"),
+    )
+}
+
 /// Fastest speed a box may reach while overlapping boxes separate, m/s.
 pub const OVERLAP_SPEED: f64 = 2.0;
 /// Boxes count as separated when every two centres are at least this far
@@ -655,6 +719,23 @@ pub const SWEEPS: &[Sweep] = &[
         stop_after: 2,
         trial: overlap,
     },
+    Sweep {
+        name: "landing",
+        title: "unit box thrown flat at (5, 2, 0) m/s, its bottom 1 m above the floor (μ = 0.5, e = 0), stepped at 3840 Hz down to 60 Hz, 2.5 s",
+        param: "step length, ms",
+        unit: " ms",
+        metric: "rest point's distance from the closed form (rigid landing, Coulomb friction), m",
+        criterion: "comes to rest within 1 cm of where a rigid box does (x = 4.170 m)",
+        limit: LANDING_ERROR,
+        values: |q| {
+            let rates: &[f64] = if q { &[480.0, 60.0] } else { &LANDING_RATES };
+            // Rounded to 0.1 µs for the tables; the rate comes back exact.
+            rates.iter().map(|r| (1e7 / r).round() / 1e4).collect()
+        },
+        log_x: true,
+        stop_after: 0,
+        trial: landing,
+    },
 ];
 
 #[cfg(test)]
@@ -676,6 +757,16 @@ mod tests {
             }
             assert!((s.values)(true).len() <= 2, "quick stays tiny");
         }
+    }
+
+    #[test]
+    fn the_thrown_box_rests_where_the_closed_form_says() {
+        // Flight 0.6993 s to x = 3.4965 m, hitting at 4.8602 m/s; it slides
+        // on at 5 − 0.5·4.8602 = 2.5699 m/s for 0.6733 m.
+        assert!((landing_rest() - 4.1698).abs() < 1e-4, "{}", landing_rest());
+        let ms = (SWEEPS.iter().find(|s| s.name == "landing").unwrap().values)(false);
+        let rates: Vec<u32> = ms.iter().map(|m| (1000.0 / m).round() as u32).collect();
+        assert_eq!(rates, [3840, 1920, 960, 480, 240, 120, 60]);
     }
 
     #[test]
