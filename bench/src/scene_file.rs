@@ -253,6 +253,20 @@ pub fn build_rapier(desc: &SceneDesc) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
             }
             .motor_max_force(axis, f(motor.max_force()));
         }
+        // Joint friction: a speed motor at 0 with the friction torque about
+        // each free angular axis (not on a hinge's axis that has a motor).
+        if joint.friction.is_positive() {
+            let free: &[JointAxis] = match joint.kind {
+                JointKind::Spherical { .. } => &[JointAxis::AngX, JointAxis::AngY, JointAxis::AngZ],
+                JointKind::Revolute { motor: None, .. } => &[JointAxis::AngX],
+                _ => &[],
+            };
+            for &axis in free {
+                builder = builder
+                    .motor_velocity(axis, 0.0, RAPIER_MOTOR_FACTOR as f32)
+                    .motor_max_force(axis, f(joint.friction));
+            }
+        }
         world.insert_impulse_joint(
             handle_of(&joint.body_a),
             handle_of(&joint.body_b),

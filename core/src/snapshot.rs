@@ -1,7 +1,7 @@
 //! Snapshots: the whole world as bytes, to save, send to a late joiner, or
 //! rewind to.
 //!
-//! Layout: the 8-byte magic `LSSNAP06`, then the world encoded with bincode
+//! Layout: the 8-byte magic `LSSNAP07`, then the world encoded with bincode
 //! 2's standard configuration (little-endian, variable-length integers).
 //! Every field that influences later steps is included, so a restored world
 //! steps exactly as the original would have: tested by restoring at tick k
@@ -13,7 +13,7 @@ use crate::world::World;
 
 /// The first bytes of every snapshot; the last two digits are the format
 /// version.
-pub const SNAPSHOT_MAGIC: [u8; 8] = *b"LSSNAP06";
+pub const SNAPSHOT_MAGIC: [u8; 8] = *b"LSSNAP07";
 
 /// The largest snapshot [`restore`](World::restore) accepts (1 GiB): a
 /// corrupt length field must not make it allocate without bound.

@@ -174,6 +174,15 @@ pub struct JointDesc {
     /// either way.
     #[serde(default)]
     pub rigid_limits: bool,
+    /// Joint friction (spherical and revolute joints): the largest torque
+    /// (N·m) that resists the bodies' rotation relative to each other about
+    /// each axis the joint leaves free (a revolute joint's hinge; each of a
+    /// spherical joint's three frame axes), like a motor holding speed 0
+    /// with that much torque. Zero (the default): none. A ragdoll's knee or
+    /// neck with a little friction comes to rest where one without swings
+    /// on (see docs/joints.md).
+    #[serde(default)]
+    pub friction: Scalar,
     /// A name for tools and scene files.
     pub name: String,
 }
@@ -193,6 +202,7 @@ impl JointDesc {
             break_force: None,
             break_torque: None,
             rigid_limits: false,
+            friction: Scalar::ZERO,
             name: String::new(),
         }
     }
@@ -317,6 +327,12 @@ impl JointDesc {
         self
     }
 
+    /// Sets the joint friction, N·m (see [`JointDesc::friction`]).
+    pub fn friction(mut self, torque: Scalar) -> JointDesc {
+        self.friction = torque;
+        self
+    }
+
     /// Sets the name.
     pub fn name(mut self, name: impl Into<String>) -> JointDesc {
         self.name = name.into();
@@ -333,7 +349,8 @@ pub struct JointImpulses {
     /// in `x`.
     pub linear: Vec3,
     /// The rotation lock (world axes); for a revolute joint, its two rows
-    /// in `x` and `y`.
+    /// in `x` and `y` and its friction in `z`; for a spherical joint, its
+    /// friction about A's joint frame axes.
     pub angular: Vec3,
     /// Lower limit (or cone), upper limit (or twist lower), motor (or twist
     /// upper), spring.

@@ -135,6 +135,7 @@ pub fn build_world_with_config(
             .frames(j.frame_a, j.frame_b)
             .collide_connected(j.collide_connected)
             .rigid_limits(j.rigid_limits)
+            .friction(j.friction)
             .breakable(j.break_force, j.break_torque);
         jd.name = j.name.clone();
         world

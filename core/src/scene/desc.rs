@@ -53,6 +53,8 @@ pub struct JointSceneDesc {
     pub collide_connected: bool,
     /// Whether the angle limits are rigid (`rigid_limits`).
     pub rigid_limits: bool,
+    /// Joint friction, N·m (`friction_torque`; zero: none).
+    pub friction: Scalar,
     /// Break thresholds, N and N·m.
     pub break_force: Option<Scalar>,
     /// See `break_force`.

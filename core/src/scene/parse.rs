@@ -35,6 +35,7 @@ const JOINT_KEYS: &[&str] = &[
     "break_force",
     "break_torque",
     "rigid_limits",
+    "friction_torque",
     "cone_deg",
     "twist_deg",
     "limits_deg",
@@ -230,9 +231,10 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
     // The keys each kind reads (the others are errors, so a key meant for
     // another kind is not silently ignored).
     let allowed: &[&str] = match kind_name {
-        "spherical" => &["rigid_limits", "cone_deg", "twist_deg"],
+        "spherical" => &["rigid_limits", "friction_torque", "cone_deg", "twist_deg"],
         "revolute" => &[
             "rigid_limits",
+            "friction_torque",
             "limits_deg",
             "motor_speed",
             "motor_target_deg",
@@ -456,6 +458,10 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
     };
     let collide_connected = flag("collide_connected")?;
     let rigid_limits = flag("rigid_limits")?;
+    let friction = match t.get("friction_torque") {
+        Some(f) => t.scalar_where(&f, |v| !v.is_negative(), "≥ 0 (N·m)")?,
+        None => Scalar::ZERO,
+    };
     Ok(JointSceneDesc {
         name,
         kind,
@@ -465,6 +471,7 @@ fn read_joint(t: &mut TableView<'_>, bodies: &[BodyDesc]) -> Result<JointSceneDe
         frame_b,
         collide_connected,
         rigid_limits,
+        friction,
         break_force,
         break_torque,
         line,

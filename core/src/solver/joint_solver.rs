@@ -55,9 +55,9 @@ mod rows;
 
 pub(crate) use kinds::twist_between;
 use kinds::{
-    HeldAxis, angle_near, angular_limit, angular_mass, cone_axis, hinge_axes, linear_limit,
-    motor_impulse, solve_cone, solve_distance, solve_hinge, solve_lock, solve_point, solve_slide,
-    twist_angle, twist_axis,
+    HeldAxis, angle_near, angular_limit, angular_mass, cone_axis, friction_axes, hinge_axes,
+    linear_limit, motor_impulse, solve_cone, solve_distance, solve_friction, solve_hinge,
+    solve_lock, solve_point, solve_slide, twist_angle, twist_axis,
 };
 pub(crate) use rows::JointParams;
 use rows::{
@@ -138,6 +138,7 @@ impl JointSolver {
                 ),
                 chained: false,
                 rigid_limits: j.desc.rigid_limits,
+                friction: j.desc.friction,
             });
         }
         self.posed.resize(self.rows.len(), Posed::default());
@@ -206,6 +207,9 @@ impl JointSolver {
                     let (j1, j2) = hinge;
                     apply_angular(row, &mut vel, j1 * imp.angular.x + j2 * imp.angular.y);
                     let axis = g.fa.rotate(Vec3::X);
+                    if row.friction.is_positive() {
+                        apply_angular(row, &mut vel, axis * imp.angular.z);
+                    }
                     let limit = imp.axial[0] - imp.axial[1];
                     // A rigid limit's impulse went along its held row.
                     let held = limits
@@ -222,6 +226,11 @@ impl JointSolver {
                 // A ball joint without limits has no limit rows to warm
                 // start (their impulses are zero): skip their axes.
                 JointKind::Spherical { cone, twist } => {
+                    if row.friction.is_positive() {
+                        let [x, y, z] = friction_axes(g);
+                        let f = imp.angular;
+                        apply_angular(row, &mut vel, x * f.x + y * f.y + z * f.z);
+                    }
                     // A rigid limit's impulse went along its held row.
                     let held = |axis: Vec3| {
                         row.rigid_limits
@@ -279,9 +288,26 @@ impl JointSolver {
             let soft = if use_bias { params.softness } else { RIGID };
             let kind = j.desc.kind;
             let imp = &mut j.impulses;
-            // Soft limits and motors first, the holding rows last (they
-            // matter most, and Gauss–Seidel favours the last row visited);
-            // rigid limits after the rows they are orthogonal to.
+            // Friction first, then soft limits and motors, the holding rows
+            // last (they matter most, and Gauss–Seidel favours the last row
+            // visited); rigid limits after the rows they are orthogonal to.
+            if row.friction.is_positive() {
+                match kind {
+                    JointKind::Spherical { .. } => {
+                        let f = &mut imp.angular;
+                        let accs = [&mut f.x, &mut f.y, &mut f.z];
+                        for (axis, acc) in friction_axes(g).into_iter().zip(accs) {
+                            solve_friction(row, &mut vel, axis, row.friction, acc, params);
+                        }
+                    }
+                    JointKind::Revolute { .. } => {
+                        let axis = g.fa.rotate(Vec3::X);
+                        let acc = &mut imp.angular.z;
+                        solve_friction(row, &mut vel, axis, row.friction, acc, params);
+                    }
+                    _ => {}
+                }
+            }
             match kind {
                 JointKind::Spherical { cone, twist }
                     if row.rigid_limits && (cone.is_some() || twist.is_some()) =>

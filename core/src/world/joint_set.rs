@@ -144,10 +144,18 @@ impl JointSet {
             }
             h.transform(&d.frame_a);
             h.transform(&d.frame_b);
-            // Bit 0: collide connected; bit 1: rigid limits.
-            h.word(d.collide_connected as u64 | (d.rigid_limits as u64) << 1);
+            // Bit 0: collide connected; bit 1: rigid limits; bit 2: joint
+            // friction (its torque follows the break thresholds, so a joint
+            // without friction hashes as before friction existed).
+            let friction = d.friction.is_positive();
+            h.word(
+                d.collide_connected as u64 | (d.rigid_limits as u64) << 1 | (friction as u64) << 2,
+            );
             opt(h, d.break_force);
             opt(h, d.break_torque);
+            if friction {
+                h.scalar(d.friction);
+            }
             h.vec3(j.impulses.linear);
             h.vec3(j.impulses.angular);
             for a in j.impulses.axial {
@@ -217,6 +225,15 @@ pub(super) fn validate(d: &JointDesc) -> Result<(), WorldError> {
                 ));
             }
         }
+    }
+    let turns = matches!(
+        d.kind,
+        JointKind::Spherical { .. } | JointKind::Revolute { .. }
+    );
+    if d.friction.is_negative() || (!turns && !d.friction.is_zero()) {
+        return bad(format!(
+            "joint {name:?}: friction must be a torque ≥ 0, on a spherical or revolute joint"
+        ));
     }
     for (what, v) in [("force", d.break_force), ("torque", d.break_torque)] {
         if v.is_some_and(|v| !v.is_positive()) {

@@ -141,6 +141,32 @@ pub(super) fn motor_impulse(
     d
 }
 
+/// The axes a spherical joint's friction acts about: A's joint frame's.
+pub(super) fn friction_axes(g: &Geometry) -> [Vec3; 3] {
+    [Vec3::X, Vec3::Y, Vec3::Z].map(|a| g.fa.rotate(a))
+}
+
+/// Joint friction about `axis`: a row that stops the bodies' relative
+/// rotation about it, its accumulated impulse held within `torque`·h (a
+/// speed motor at speed 0, in the solve and relax passes alike).
+pub(super) fn solve_friction(
+    row: &Row,
+    vel: &mut Vels,
+    axis: Vec3,
+    torque: Scalar,
+    acc: &mut Scalar,
+    params: &JointParams,
+) {
+    let k = angular_mass(row, axis);
+    let cdot = (vel.wb - vel.wa).dot(axis);
+    let hold = Motor::Speed {
+        speed: Scalar::ZERO,
+        max_force: torque,
+    };
+    let d = motor_impulse(hold, cdot, Scalar::ZERO, k, acc, params, false);
+    apply_angular(row, vel, axis * d);
+}
+
 /// The anchor block: three rows that bring the anchors together.
 pub(super) fn solve_point(
     row: &Row,

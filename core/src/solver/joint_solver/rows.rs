@@ -57,6 +57,8 @@ pub(super) struct Row {
     /// Whether its angle limits are rigid and orthogonal to its held rows
     /// (see [`super::kinds::HeldAxis`]), not soft.
     pub(super) rigid_limits: bool,
+    /// Its friction torque, N·m (`JointDesc::friction`; zero: none).
+    pub(super) friction: Scalar,
 }
 
 impl End {
