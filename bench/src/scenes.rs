@@ -294,6 +294,12 @@ enum Bend {
 /// how it bends.
 type RagdollJoint = (&'static str, &'static str, [f64; 3], [f64; 3], Bend);
 
+/// Every ragdoll joint's friction, N·m: a limb hanging over a step's edge
+/// (a head on its neck, a shin from a thigh lying on one contact point)
+/// otherwise swings for minutes, damped by nothing but the bodies' angular
+/// damping; with 1 N·m both ragdoll scenes sleep within 4 s.
+const JOINT_FRICTION: &str = "1";
+
 /// The joints of one ragdoll.
 const RAGDOLL_JOINTS: [RagdollJoint; 10] = [
     (
@@ -432,6 +438,8 @@ pub fn ragdolls_toml(cols: usize, rows: usize) -> String {
          # each other. The limbs are damped (linear 0.2/s, angular 2/s), as game\n\
          # ragdolls usually are: without it, limbs pressed between ragdolls and\n\
          # steps keep moving at a few cm/s and part of the pile stays awake.\n\
+         # Every joint has {JOINT_FRICTION} N·m of friction: without it a limb hanging\n\
+         # over a step's edge can swing on for minutes.\n\
          \n\
          [world]\n\
          gravity = [0, -9.81, 0]\n\
@@ -506,7 +514,7 @@ pub fn ragdolls_toml(cols: usize, rows: usize) -> String {
                         "kind = \"spherical\"\n\
                          rotation_a = {{ axis = [0, 0, 1], angle_deg = 90 }}\n\
                          rotation_b = {{ axis = [0, 0, 1], angle_deg = 90 }}\n\
-                         cone_deg = {}\ntwist_deg = [{}, {}]\n",
+                         cone_deg = {}\ntwist_deg = [{}, {}]\nfriction_torque = {JOINT_FRICTION}\n",
                         num(*cone),
                         num(-twist),
                         num(*twist),
@@ -515,7 +523,7 @@ pub fn ragdolls_toml(cols: usize, rows: usize) -> String {
                 Bend::Hinge { lo, hi } => {
                     let _ = write!(
                         out,
-                        "kind = \"revolute\"\nlimits_deg = [{}, {}]\n",
+                        "kind = \"revolute\"\nlimits_deg = [{}, {}]\nfriction_torque = {JOINT_FRICTION}\n",
                         num(*lo),
                         num(*hi)
                     );
