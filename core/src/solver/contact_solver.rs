@@ -21,7 +21,9 @@
 //!    (a gap) allow the approach that just closes the gap in one substep;
 //! 4. the integrator's position stage;
 //! 5. [`ContactSolver::solve`] without bias (relax): removes the velocity
-//!    the soft push-out added, so resting contacts do not bounce.
+//!    the soft push-out added, so resting contacts do not bounce; its
+//!    friction is bounded by the load its rigid rows settle. A contact hit
+//!    this tick (see [`IMPACT_RELAX_PASSES`]) is visited three more times.
 //!
 //! After steps 3 and 5, [`ContactSolver::shock`] visits the high-ratio
 //! contacts once more from the ground up, each with its lower body held
@@ -113,7 +115,7 @@ use narrow::lanes::{Batch, Kernel};
 use rows::{BodyArrays, angular_along, apply_linear, linear_basis, mul, push_angular};
 
 use crate::body::BodyHot;
-use crate::collision::{ContactPair, PatchFriction, PointImpulse};
+use crate::collision::{ContactPair, MAX_MANIFOLD_POINTS, PatchFriction, PointImpulse};
 use crate::math::{Mat3, Scalar, Vec3};
 
 /// The solver's buffers, kept by the world and reused every tick.
@@ -168,6 +170,10 @@ pub(crate) struct ContactSolver {
     /// The constraints with a high mass ratio (see [`RATIO_KEPT`]), which
     /// each pass visits [`HIGH_RATIO_PASSES`] more times.
     heavy: Vec<u32>,
+    /// The other constraints with a point that approached faster than
+    /// `restitution_threshold` at the tick's start (a hit), which each
+    /// relax pass visits [`IMPACT_RELAX_PASSES`] more times.
+    impact: Vec<u32>,
     /// Per solver body, its level for the shock pass (`prepare` only; see
     /// [`shock`]).
     level: Vec<u32>,
@@ -433,8 +439,8 @@ impl ContactSolver {
     /// ends, and the warm start's changes do not depend on the velocities
     /// (see [`Constraint::warm_start`]), so [`warm_start`](Self::warm_start)
     /// then adds the sums instead of reading every constraint again: the
-    /// same bits. Not when the high-ratio visits or the shock pass change
-    /// impulses after the pass.
+    /// same bits. Not when the high-ratio visits, the hits' visits or the
+    /// shock pass change impulses after the pass.
     pub(crate) fn solve(
         &mut self,
         params: &SolverParams,
@@ -442,7 +448,11 @@ impl ContactSolver {
         warm_next: bool,
         workers: &Workers,
     ) {
-        let fuse = warm_next && !use_bias && self.heavy.is_empty() && self.shock.is_empty();
+        let fuse = warm_next
+            && !use_bias
+            && self.heavy.is_empty()
+            && self.impact.is_empty()
+            && self.shock.is_empty();
         // SAFETY: the pass visits one colour at a time (`for_each_colored`),
         // then the heavy constraints on this thread alone.
         // On the narrow rows, the velocities are in quanta for the pass.
@@ -500,6 +510,42 @@ impl ContactSolver {
                 pass.visit_exact(&mut self.constraints[i as usize]);
             }
         }
+        if !use_bias {
+            for _ in 0..IMPACT_RELAX_PASSES {
+                for &i in &self.impact {
+                    // So are the hits.
+                    pass.visit_exact(&mut self.constraints[i as usize]);
+                }
+            }
+        }
+    }
+
+    /// Step 5 of [`prepare`](Self::prepare): the hits of this tick, the
+    /// constraints (not high-ratio ones) with a point whose normal velocity
+    /// at the tick's start approaches faster than `restitution_threshold`.
+    /// Like the high-ratio contacts they go to the Q32.32 rows for the
+    /// tick: returns how many of them were on the narrow rows.
+    fn find_impacts(&mut self, params: &SolverParams) -> u32 {
+        let mut left_narrow = 0;
+        self.impact.clear();
+        let threshold = -params.restitution_threshold;
+        let mut heavy = self.heavy.iter().peekable();
+        for (i, c) in self.constraints.iter().enumerate() {
+            if heavy.next_if_eq(&&(i as u32)).is_some() {
+                continue;
+            }
+            let count = c.count.min(MAX_MANIFOLD_POINTS);
+            if c.points[..count]
+                .iter()
+                .any(|cp| cp.relative_velocity < threshold)
+            {
+                self.impact.push(i as u32);
+                if let Some(r) = self.rows[..self.rows_len].get_mut(i) {
+                    left_narrow += u32::from(std::mem::take(&mut r.on));
+                }
+            }
+        }
+        left_narrow
     }
 
     /// Step 4 of [`prepare`](Self::prepare) for a scene with high mass

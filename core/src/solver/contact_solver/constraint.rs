@@ -193,7 +193,7 @@ pub(super) struct Constraint {
     pub(super) rounding: [Scalar; 2],
     /// The manifold's total normal impulse at this substep's warm start
     /// (the last substep's, or last tick's): what bounds friction through
-    /// the substep's passes.
+    /// the substep's soft passes (see [`Pass::friction`](super::pass::Pass::friction)).
     pub(super) warm_total: Scalar,
     /// The friction rows, acting at the centre of the patch.
     pub(super) patch: Patch,

@@ -673,10 +673,11 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
     let mut impulse_t = [r.impulse[T0], r.impulse[T0 + 1]];
     let mut impulse_w = r.impulse[TW];
     // Friction at the patch centre, after the normal rows (see
-    // `patch::solve_patch`), bounded by the warm start's total normal
-    // impulse, or (a contact new this substep) the one its normal rows
-    // just settled.
-    let (disc, twist_limit) = if r.limits_set {
+    // `patch::solve_patch`), bounded in a soft pass by the warm start's
+    // total normal impulse, or (a relax pass, or a contact new this
+    // substep) the one its normal rows just settled (as `Pass::friction`,
+    // which says why).
+    let (disc, twist_limit) = if r.limits_set && args.use_bias {
         (r.disc_limit, r.twist_limit)
     } else {
         limits_for(r, normal_total_of(r, &settled(r.impulse, &impulses)))

@@ -282,13 +282,22 @@ impl Pass<'_> {
     }
 
     /// Friction at the patch centre, after the normal rows, bounded by μ
-    /// times the manifold's total normal impulse of the warm start, the one
-    /// the last substep's relax pass settled, or for a contact without one
-    /// (new this substep) the total its normal rows just settled: an exact
-    /// sum, whatever the order of its points (see [`solve_patch`]).
+    /// times the manifold's total normal impulse: in a soft pass, the warm
+    /// start's (the one the last substep's relax pass settled); in a relax
+    /// pass, or for a contact without a warm start (new this substep), the
+    /// one its normal rows just settled. An exact sum, whatever the order
+    /// of its points (see [`solve_patch`]). The relax pass's rows are rigid
+    /// and its velocities are the ones the substep keeps, so its friction
+    /// takes the load they settled: under a load that falls within a tick
+    /// (the end of a hit) the warm start's total is stale, and a box
+    /// landing flat while it slid lost up to twice the speed Coulomb's law
+    /// allows in one substep and tipped over its leading edge. The soft
+    /// pass keeps the warm start's total: its rows carry the push-out,
+    /// and bounding friction by that let tall stacks lean (`stress`
+    /// stack_height 50 → 40).
     #[inline(always)]
     pub(super) fn friction(&self, c: &mut Constraint, v: &mut Visit) {
-        let total = if c.warm_total.is_positive() {
+        let total = if self.use_bias && c.warm_total.is_positive() {
             c.warm_total
         } else {
             let count = c.count.min(MAX_MANIFOLD_POINTS);

@@ -387,9 +387,11 @@ impl ContactSolver {
         if !uniform {
             on_narrow -= self.assign_ratio_springs(params);
         }
-        // 5. The shock pass's order over the high-ratio contacts.
+        // 5. The hits of this tick (extra relax visits).
+        on_narrow -= self.find_impacts(params);
+        // 6. The shock pass's order over the high-ratio contacts.
         self.order_shock();
-        // 6. The lanes' batches: runs of eight constraints of one colour on
+        // 7. The lanes' batches: runs of eight constraints of one colour on
         //    the narrow rows with one point count, from each colour's start.
         self.batch_lanes(lanes);
         let grew = self.capacities().grew_since(&caps);
@@ -406,7 +408,7 @@ impl ContactSolver {
 
     /// The capacities of every buffer `prepare` fills: a tick that changed
     /// one grew a buffer (`SolverStats::growths`).
-    fn capacities(&self) -> Capacities<21> {
+    fn capacities(&self) -> Capacities<22> {
         let [c0, c1, c2] = self.coloring.buffers();
         Capacities::of([
             &self.bodies,
@@ -423,6 +425,7 @@ impl ContactSolver {
             &self.touched,
             &self.heaviest,
             &self.heavy,
+            &self.impact,
             &self.level,
             &self.shock,
             &self.pending,
@@ -433,7 +436,7 @@ impl ContactSolver {
         ])
     }
 
-    /// Step 6 of [`prepare`](Self::prepare): copies the constants of every
+    /// Step 7 of [`prepare`](Self::prepare): copies the constants of every
     /// run of eight constraints that can go to the lanes together (one
     /// colour, all on the narrow rows, one point count; each run starts at
     /// its colour's start plus a multiple of eight, as the worker blocks

@@ -376,12 +376,13 @@ fn kernel(
         }
         apply(&d, p, &b.ae, &mut st.v, &mut ok);
     }
-    // Friction at the patch centre, after the normal rows, bounded by the
-    // warm start's total normal impulse or (a contact new this substep) the
-    // one its normal rows just settled, as the twin: both tangents from
-    // the same velocities, held in the disc, then the twist.
+    // Friction at the patch centre, after the normal rows, bounded in a
+    // soft pass by the warm start's total normal impulse or (a relax pass,
+    // or a contact new this substep) the one its normal rows just settled,
+    // as the twin: both tangents from the same velocities, held in the
+    // disc, then the twist.
     for (l, r) in rows.iter().enumerate().take(LANES) {
-        if !st.limits_set[l] {
+        if !st.limits_set[l] || !use_bias {
             let points = std::array::from_fn(|i| st.impulses[i][l] as i32);
             (st.disc[l], st.twist_limit[l]) =
                 limits_for(r, normal_total_of(r, &settled([0; ROWS], &points)));
