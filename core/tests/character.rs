@@ -588,7 +588,7 @@ fn a_100_tick_course_replays_to_the_same_bits_as_recorded() {
     // any bit changes it on purpose.
     assert_eq!(
         a,
-        (0x3e05_3f11_19b2_53d7, 0xa86a_a9c5_d25f_3140),
+        (0x3422_8a9c_f171_37ea, 0x5b28_9cdd_79f1_834e),
         "folded {:#018x}, final {:#018x}",
         a.0,
         a.1
