@@ -39,15 +39,9 @@ fn stop_distance(v0: f64, mu: f64) -> f64 {
     v0 * v0 / (2.0 * mu * G)
 }
 
-/// A 1 m box (1 kg) resting on the ground after `settle` ticks is launched
-/// at `v0` m/s in direction `deg` (degrees from x towards z); returns the
-/// distance it slid before stopping.
-fn slide(tick_rate: u32, substeps: u32, settle: u32, deg: f64, v0: f64, mu: f64) -> f64 {
-    let mut w = world(tick_rate, substeps);
-    ground(&mut w, mat(mu));
-    let b = w
-        .create_body(&BodyDesc::dynamic().position(v(0.0, 0.5, 0.0)))
-        .unwrap();
+/// A 1 m box of 1 kg (friction `mu`) as `desc` places it.
+fn unit_box(w: &mut World, desc: BodyDesc, mu: f64) -> lockstep_core::BodyHandle {
+    let b = w.create_body(&desc).unwrap();
     w.add_collider(
         b,
         ColliderDesc::new(Shape::Cuboid(Cuboid {
@@ -57,6 +51,16 @@ fn slide(tick_rate: u32, substeps: u32, settle: u32, deg: f64, v0: f64, mu: f64)
         .material(mat(mu)),
     )
     .unwrap();
+    b
+}
+
+/// A 1 m box (1 kg) resting on the ground after `settle` ticks is launched
+/// at `v0` m/s in direction `deg` (degrees from x towards z); returns the
+/// distance it slid before stopping.
+fn slide(tick_rate: u32, substeps: u32, settle: u32, deg: f64, v0: f64, mu: f64) -> f64 {
+    let mut w = world(tick_rate, substeps);
+    ground(&mut w, mat(mu));
+    let b = unit_box(&mut w, BodyDesc::dynamic().position(v(0.0, 0.5, 0.0)), mu);
     for _ in 0..settle {
         step(&mut w);
     }
@@ -132,22 +136,10 @@ fn thrown_flat(tick_rate: u32, substeps: u32) -> (f64, f64) {
     let mu = 0.5;
     let mut w = world(tick_rate, substeps);
     ground(&mut w, mat(mu));
-    let b = w
-        .create_body(
-            &BodyDesc::dynamic()
-                .position(v(0.0, 1.5, 0.0))
-                .linear_velocity(v(5.0, 2.0, 0.0)),
-        )
-        .unwrap();
-    w.add_collider(
-        b,
-        ColliderDesc::new(Shape::Cuboid(Cuboid {
-            half_extents: v(0.5, 0.5, 0.5),
-        }))
-        .density(s(1.0))
-        .material(mat(mu)),
-    )
-    .unwrap();
+    let thrown = BodyDesc::dynamic()
+        .position(v(0.0, 1.5, 0.0))
+        .linear_velocity(v(5.0, 2.0, 0.0));
+    let b = unit_box(&mut w, thrown, mu);
     let mut spin: f64 = 0.0;
     // It lands at 0.70 s and stops by 1.23 s (the closed form below).
     for _ in 0..(1.6 * tick_rate as f64) as u32 {
