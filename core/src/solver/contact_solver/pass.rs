@@ -290,8 +290,8 @@ impl Pass<'_> {
     /// and its velocities are the ones the substep keeps, so its friction
     /// takes the load they settled: under a load that falls within a tick
     /// (the end of a hit) the warm start's total is stale, and a box
-    /// landing flat while it slid lost up to twice the speed Coulomb's law
-    /// allows in one substep and tipped over its leading edge. The soft
+    /// landing flat while it slid lost up to 1.6 times the speed Coulomb's
+    /// law allows in one tick and tipped over its leading edge. The soft
     /// pass keeps the warm start's total: its rows carry the push-out,
     /// and bounding friction by that let tall stacks lean (`stress`
     /// stack_height 50 → 40).
