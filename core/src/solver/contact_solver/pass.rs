@@ -297,10 +297,7 @@ impl Pass<'_> {
     /// stack_height 50 → 40).
     #[inline(always)]
     pub(super) fn friction(&self, c: &mut Constraint, v: &mut Visit) {
-        // A soft pass on a warm-started contact: the warm start's total,
-        // and the twist keeps its impulse (see `solve_patch`).
-        let warm = self.use_bias && c.warm_total.is_positive();
-        let total = if warm {
+        let total = if self.use_bias && c.warm_total.is_positive() {
             c.warm_total
         } else {
             let count = c.count.min(MAX_MANIFOLD_POINTS);
@@ -310,7 +307,7 @@ impl Pass<'_> {
             }
             total
         };
-        solve_patch(c, &mut v.va, &mut v.vb, &v.u, &mut v.applied, total, !warm);
+        solve_patch(c, &mut v.va, &mut v.vb, &v.u, &mut v.applied, total);
     }
 
     /// The visit after the normal rows and friction: the linear impulses, the
