@@ -361,6 +361,40 @@ impl CharacterController {
         Ok(m)
     }
 
+    /// The velocity the ground under the character now would carry it
+    /// with (step 6): the velocity of the ground body's point at the
+    /// character's position, zero on static ground or in the air.
+    ///
+    /// The body's linear velocity after a step is the whole move of the
+    /// tick, its own walk and the carry together. A game that keeps
+    /// momentum in that velocity (walking that accelerates towards a wished
+    /// speed) must take this away first to get the walk relative to the
+    /// ground, and pass only that as [`CharacterInput::velocity`]: the
+    /// controller adds the carry again. Fed back whole, the carry is
+    /// counted once more every tick, and a character pushing the crate it
+    /// stands on doubles its own speed each tick.
+    ///
+    /// Arithmetic faults are raised in the caller's [`FaultScope`], as for
+    /// the game's own arithmetic.
+    ///
+    /// # Errors
+    /// [`WorldError::InvalidBody`] if the body was removed.
+    pub fn ground_velocity(&self, world: &World) -> Result<Vec3, WorldError> {
+        let pos = world.body(self.body)?.position();
+        let exclude = [self.body];
+        let filter = self.filter(&exclude);
+        let Some(ground) = self.probe_ground(world, pos, &filter, self.config.skin) else {
+            return Ok(Vec3::ZERO);
+        };
+        let g = world.body(ground.body)?;
+        if g.kind() == BodyKind::Static {
+            return Ok(Vec3::ZERO);
+        }
+        // The same point as the carry's (step 6).
+        let arm = pos - g.center_of_mass();
+        Ok(g.linear_velocity() + g.angular_velocity().cross(arm))
+    }
+
     /// The ground under the character now (the probe of step 2), without
     /// moving it.
     ///

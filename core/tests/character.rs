@@ -421,6 +421,81 @@ fn rides_a_platform_moving_at_2_m_s_sideways_and_up() {
     assert!(f(rel.length()) < 0.02, "drifted {rel:?} going down");
 }
 
+/// `ground_velocity` is what the ground would carry the character with:
+/// zero on static ground and in the air, the platform's velocity at the
+/// character's position on a moving one. A game whose walk keeps momentum
+/// in the body's velocity takes it away first: then a character left alone
+/// on a platform moving at 2 m/s rides it; fed the whole velocity back, the
+/// carry is counted again every tick and it runs off the platform.
+#[test]
+fn ground_velocity_is_what_the_ground_carries_the_character_with() {
+    for relative in [true, false] {
+        let mut w = world();
+        floor(&mut w);
+        let p = platform(&mut w, Scalar::ZERO);
+        let c = character(&mut w, Vec3::new(scalar!(1), scalar!(1.41), Scalar::ZERO));
+        let still = walk(Scalar::ZERO, Scalar::ZERO);
+        for _ in 0..5 {
+            assert!(tick(&mut w, &c, &still));
+        }
+        assert_eq!(c.ground_velocity(&w).unwrap(), Vec3::ZERO);
+        // Turning at 1 rad/s about y through its centre: the character,
+        // 1 m out along x, would be carried at 1 m/s along −z.
+        w.set_angular_velocity(p, Vec3::new(Scalar::ZERO, scalar!(1), Scalar::ZERO))
+            .unwrap();
+        let g = c.ground_velocity(&w).unwrap();
+        assert!(
+            f((g - Vec3::new(Scalar::ZERO, Scalar::ZERO, scalar!(-1))).length()) < 1e-6,
+            "{g:?}"
+        );
+        // Sliding at 2 m/s; the game's walk closes on standing still at
+        // 6 per second, from the body's velocity.
+        w.set_angular_velocity(p, Vec3::ZERO).unwrap();
+        w.set_linear_velocity(p, Vec3::new(scalar!(2), Scalar::ZERO, Scalar::ZERO))
+            .unwrap();
+        let mut offset = Vec3::ZERO;
+        let mut stayed = true;
+        for t in 0..120 {
+            // The first second it catches up with the platform's
+            // sudden start (the walk's own inertia); then it rides.
+            if t == 60 {
+                offset = pos(&w, c.body()) - pos(&w, p);
+            }
+            let mut v = w.body(c.body()).unwrap().linear_velocity();
+            if relative {
+                v -= c.ground_velocity(&w).unwrap();
+            }
+            let keep = scalar!(0.9);
+            stayed &= tick(&mut w, &c, &walk(v.x * keep, v.z * keep));
+        }
+        let drift = f((pos(&w, c.body()) - pos(&w, p) - offset).length());
+        if relative {
+            assert!(stayed && drift < 1e-3, "drifted {drift} m on the platform");
+        } else {
+            // The carry counted again every tick: it ran off the platform.
+            assert!(!stayed, "the carry counted twice, and it stayed on");
+        }
+    }
+    // On static ground, and in the air, nothing carries it.
+    let mut w = world();
+    floor(&mut w);
+    let c = character(&mut w, Vec3::new(Scalar::ZERO, scalar!(0.91), Scalar::ZERO));
+    assert!(tick(&mut w, &c, &walk(scalar!(1), Scalar::ZERO)));
+    assert_eq!(c.ground_velocity(&w).unwrap(), Vec3::ZERO);
+    let jump = CharacterInput {
+        velocity: Vec3::ZERO,
+        jump_speed: scalar!(5),
+    };
+    tick(&mut w, &c, &jump);
+    tick(&mut w, &c, &still_input());
+    assert!(c.ground(&w).unwrap().is_none());
+    assert_eq!(c.ground_velocity(&w).unwrap(), Vec3::ZERO);
+}
+
+fn still_input() -> CharacterInput {
+    walk(Scalar::ZERO, Scalar::ZERO)
+}
+
 /// A 1 m crate of `mass` kg on the floor at x = 2.
 fn crate_(world: &mut World, mass: Scalar) -> BodyHandle {
     let b = world
