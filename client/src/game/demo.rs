@@ -18,7 +18,10 @@
 //!    100`. The horizontal velocity closes on it at `(v_wished − v) · GAIN`,
 //!    the acceleration capped at [`MAX_ACCEL`] (in the air too: the demo
 //!    has full air control), where `v` is the velocity the body moved with
-//!    last tick. A player with no stick input below [`REST_SPEED`] stops.
+//!    last tick less the velocity of the ground under it
+//!    ([`CharacterController::ground_velocity`]: the walk relative to the
+//!    crate a player stands on; the controller adds the crate's carry). A
+//!    player with no stick input below [`REST_SPEED`] stops.
 //! 3. **Jump.** A player on walkable ground (slopes up to 45°, [`STANDING_COS`])
 //!    who presses jump leaves it at `JUMP_SPEED`; in the air, jump does
 //!    nothing.
@@ -211,6 +214,10 @@ impl DemoGame {
                 continue;
             }
             let input = entry.and_then(DemoInput::decode).unwrap_or_default();
+            // The walk relative to the ground: the body's velocity also
+            // holds last tick's carry by the crate under the player, which
+            // the controller adds again.
+            let v = v - controller.ground_velocity(world).unwrap_or(Vec3::ZERO);
             let mut walk = Vec3::new(v.x, Scalar::ZERO, v.z) + drive_acceleration(v, input) * dt;
             if input.move_x == 0 && input.move_z == 0 && horizontal_speed_below(walk, REST_SPEED) {
                 walk = Vec3::ZERO;

@@ -2,7 +2,7 @@
 //! closed forms, players in the world's contacts (floor, walls, crates),
 //! bots, and determinism.
 
-use lockstep_core::{BodyKind, Scalar, StepReport, Vec3, World};
+use lockstep_core::{BodyKind, Scalar, StepReport, Transform, Vec3, World};
 use lockstep_testsupport::Rng;
 
 use super::*;
@@ -678,4 +678,74 @@ fn a_different_bot_seed_gives_a_different_match() {
         tick(&mut b, &mut gb, &ib);
     }
     assert_ne!(a.state_hash(), b.state_hash());
+}
+
+/// A player standing still on a crate that slides away under it rides the
+/// crate and stops with it. The body's velocity after a step holds the
+/// carry by the crate as well as the walk; the rules take the ground's
+/// velocity away before closing on the wished speed, or the carry would be
+/// counted again every tick: the player ran forward off the crate, and one
+/// walking into the edge of a crate it stood on pushed it faster every tick
+/// (a player of the sixteen-bot minute, with a contact-solver change under
+/// test, left the arena at 32 m/s that way).
+#[test]
+fn a_player_rides_a_sliding_crate_and_stops_with_it() {
+    let (mut world, mut game) = demo();
+    let player = game.limits(0).unwrap().body;
+    let crate_ = world.find_body("crate45").unwrap();
+    let at = |x: f64, y: f64, z: f64| {
+        Transform::from_translation(Vec3::new(
+            Scalar::from_f64_lossy(x),
+            Scalar::from_f64_lossy(y),
+            Scalar::from_f64_lossy(z),
+        ))
+    };
+    // The crate on open floor, the player on it (0.8 m top, 0.9 m to the
+    // capsule's centre, a 1 cm skin), both at rest.
+    world.set_pose(crate_, at(6.0, 0.4, 8.0)).unwrap();
+    world.set_linear_velocity(crate_, Vec3::ZERO).unwrap();
+    world.set_pose(player, at(6.0, 1.71, 8.0)).unwrap();
+    for _ in 0..30 {
+        tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+    }
+    world
+        .set_linear_velocity(
+            crate_,
+            Vec3::new(Scalar::from_int(3), Scalar::ZERO, Scalar::ZERO),
+        )
+        .unwrap();
+    let mut fastest: f64 = 0.0;
+    for t in 0..120 {
+        tick(&mut world, &mut game, &[(0, input(0, 0, false))]);
+        let (p, c) = (world.body(player).unwrap(), world.body(crate_).unwrap());
+        let rel = p.position() - c.position();
+        // The crate's sudden 3 m/s leaves the player behind at first (the
+        // drive closes at MAX_ACCEL); it never leaves the crate's top.
+        assert!(
+            rel.x.abs().to_f64() < 0.25 && rel.z.abs().to_f64() < 0.01,
+            "tick {t}: the player is {rel:?} from the crate's centre"
+        );
+        fastest = fastest.max(p.linear_velocity().length().to_f64());
+    }
+    // Both at rest, the player back on the crate's middle; never faster
+    // than the crate was pushed (with the carry counted twice it ran at
+    // 41 m/s and shoved the crate to 26 m/s).
+    let cv = world
+        .body(crate_)
+        .unwrap()
+        .linear_velocity()
+        .length()
+        .to_f64();
+    let pv = player_vel(&world, &game, 0);
+    let rel = world.body(player).unwrap().position() - world.body(crate_).unwrap().position();
+    assert!(cv < 1e-3, "the crate still moves at {cv} m/s");
+    assert!(
+        pv.0.abs() < 1e-3 && pv.2.abs() < 1e-3,
+        "the player still moves at {pv:?}"
+    );
+    assert!(
+        rel.x.abs().to_f64() < 0.01 && rel.z.abs().to_f64() < 0.01,
+        "the player stopped {rel:?} from the crate's centre"
+    );
+    assert!(fastest <= 3.0, "the player reached {fastest} m/s");
 }
