@@ -700,17 +700,20 @@ pub(super) fn visit(args: &VisitArgs<'_>, r: &mut NarrowRows) -> bool {
                 ok &= b.fit();
             }
         }
-        // Twist: the relative spin about the normal.
-        let spin = rsh(dot(&r.n, &b.wb).wrapping_sub(dot(&r.n, &b.wa)), je);
-        let want = (impulse_w as i64).wrapping_sub(spin);
-        ok &= want.abs() < ROW_LIMIT;
-        let new = want.clamp(-twist_limit, twist_limit);
-        ok &= new.abs() < LIMIT;
-        let d = new.wrapping_sub(impulse_w as i64);
-        impulse_w = new as i32;
-        if d != 0 {
-            b.apply(d, &r.rows[TW], ae);
-            ok &= b.fit();
+        // Twist: the relative spin about the normal, not in a soft pass
+        // with a warm start (as `patch::solve_patch`, which says why).
+        if !(r.limits_set && args.use_bias) {
+            let spin = rsh(dot(&r.n, &b.wb).wrapping_sub(dot(&r.n, &b.wa)), je);
+            let want = (impulse_w as i64).wrapping_sub(spin);
+            ok &= want.abs() < ROW_LIMIT;
+            let new = want.clamp(-twist_limit, twist_limit);
+            ok &= new.abs() < LIMIT;
+            let d = new.wrapping_sub(impulse_w as i64);
+            impulse_w = new as i32;
+            if d != 0 {
+                b.apply(d, &r.rows[TW], ae);
+                ok &= b.fit();
+            }
         }
     }
     if !ok {

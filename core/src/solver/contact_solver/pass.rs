@@ -297,7 +297,10 @@ impl Pass<'_> {
     /// stack_height 50 → 40).
     #[inline(always)]
     pub(super) fn friction(&self, c: &mut Constraint, v: &mut Visit) {
-        let total = if self.use_bias && c.warm_total.is_positive() {
+        // A soft pass on a warm-started contact: the warm start's total,
+        // and the twist keeps its impulse (see `solve_patch`).
+        let warm = self.use_bias && c.warm_total.is_positive();
+        let total = if warm {
             c.warm_total
         } else {
             let count = c.count.min(MAX_MANIFOLD_POINTS);
@@ -307,7 +310,7 @@ impl Pass<'_> {
             }
             total
         };
-        solve_patch(c, &mut v.va, &mut v.vb, &v.u, &mut v.applied, total);
+        solve_patch(c, &mut v.va, &mut v.vb, &v.u, &mut v.applied, total, !warm);
     }
 
     /// The visit after the normal rows and friction: the linear impulses, the

@@ -419,6 +419,7 @@ fn kernel(
         }
         apply(&d, &b.rows[T0 + j], &b.ae, &mut st.v, &mut ok);
     }
+    // The twist, not in a soft pass with a warm start, as the twin.
     let mut d = [0i64; LANES];
     for l in 0..LANES {
         let mut s = 0i64;
@@ -429,12 +430,13 @@ fn kernel(
         let spin = rsh(s, b.je[l]);
         let want = st.impulse_w[l].wrapping_sub(spin);
         let tl = st.twist_limit[l];
-        let n = if active[l] {
+        let solve = active[l] && !(st.limits_set[l] && use_bias);
+        let n = if solve {
             want.clamp(-tl, tl)
         } else {
             st.impulse_w[l]
         };
-        ok[l] &= !active[l] || (want.abs() < ROW_LIMIT && n.abs() < LIMIT);
+        ok[l] &= !solve || (want.abs() < ROW_LIMIT && n.abs() < LIMIT);
         d[l] = n.wrapping_sub(st.impulse_w[l]);
         st.impulse_w[l] = n as i32 as i64;
     }
