@@ -663,7 +663,7 @@ fn a_100_tick_course_replays_to_the_same_bits_as_recorded() {
     // any bit changes it on purpose.
     assert_eq!(
         a,
-        (0x3422_8a9c_f171_37ea, 0x5b28_9cdd_79f1_834e),
+        (0x9084_0d4a_6b7c_2a67, 0x027a_e2a4_a455_d43e),
         "folded {:#018x}, final {:#018x}",
         a.0,
         a.1
