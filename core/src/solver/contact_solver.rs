@@ -604,6 +604,7 @@ impl ContactSolver {
         // SAFETY: the pass visits one colour at a time (`for_each_colored`).
         let arrays = unsafe { BodyArrays::new(&mut self.vels, &mut self.dls, &mut self.warm) };
         let threshold = -params.restitution_threshold;
+        let bodies = &self.bodies;
         let visit = |c: &mut Constraint, r: Option<&mut NarrowRows>| {
             // The narrow rows' impulses back in Q32.32 (here, where the
             // constraint is at hand anyway): restitution and the stored
@@ -618,12 +619,20 @@ impl ContactSolver {
             let (mut va, mut vb) = arrays.load(c.a, c.b);
             let mut un = linear_basis(c, &va, &vb)[0];
             let mut applied = Scalar::ZERO;
+            let both = (c.a != NONE && c.b != NONE)
+                .then(|| (&bodies[c.a as usize], &bodies[c.b as usize]))
+                .filter(|(a, b)| a.dynamic && b.dynamic);
             for cp in &mut c.points[..c.count] {
                 if cp.relative_velocity > threshold || cp.max_normal_impulse.is_zero() {
                     continue;
                 }
-                let vn = un + angular_along(&va, &vb, cp.ra_n, cp.rb_n);
-                let lambda = -(cp.normal_mass * (vn + c.restitution * cp.relative_velocity));
+                let arms = both.map(|(ba, bb)| common_point_arms(c.normal, c.rounding, cp, ba, bb));
+                let (ra_n, rb_n, ia_n, ib_n, mass) = match arms {
+                    Some(x) => x,
+                    None => (cp.ra_n, cp.rb_n, cp.ia_n, cp.ib_n, cp.normal_mass),
+                };
+                let vn = un + angular_along(&va, &vb, ra_n, rb_n);
+                let lambda = -(mass * (vn + c.restitution * cp.relative_velocity));
                 let old = cp.normal_impulse;
                 let new = (old + lambda).max(Scalar::ZERO);
                 let d = new - old;
@@ -632,7 +641,13 @@ impl ContactSolver {
                 if !d.is_zero() {
                     un += mul(c.inv_mass_sum, d);
                     applied += d;
-                    push_angular(&mut va, &mut vb, c.a, c.b, d, cp.ia_n, cp.ib_n);
+                    push_angular(&mut va, &mut vb, c.a, c.b, d, ia_n, ib_n);
+                    if arms.is_some() {
+                        // Its angular impulse goes in here, at these arms.
+                        cp.mark += d;
+                        arrays.add_dl(c.wa, -arith::scale(ra_n, d));
+                        arrays.add_dl(c.wb, arith::scale(rb_n, d));
+                    }
                 }
             }
             apply_linear(c, &mut va, &mut vb, [applied, Scalar::ZERO, Scalar::ZERO]);
@@ -673,4 +688,32 @@ impl ContactSolver {
             }
         });
     }
+}
+
+/// The arms of point `cp` from the centres of two moving bodies `a` and
+/// `b` to one common point now: the midpoint of the point's two material
+/// points (each carried with its body since the tick's start). Equal and
+/// opposite impulses there change the bodies' total angular momentum by
+/// nothing. Returns `r×n` and `I⁻¹(r×n)` of each and the effective mass.
+fn common_point_arms(
+    n: Vec3,
+    rounding: [Scalar; 2],
+    cp: &constraint::ConstraintPoint,
+    a: &SolverBody,
+    b: &SolverBody,
+) -> (Vec3, Vec3, Vec3, Vec3, Scalar) {
+    // The arms to the contact point at the tick's start (without the
+    // rounding's offset).
+    let ra = cp.ra + arith::scale(n, rounding[0]);
+    let rb = cp.rb - arith::scale(n, rounding[1]);
+    // B's centre from A's now.
+    let d = (b.center0 + b.dp) - (a.center0 + a.dp);
+    let ra_now = (a.dr.mul_vec(ra) + d + b.dr.mul_vec(rb)).half();
+    let rb_now = ra_now - d;
+    let ra_n = arith::cross(ra_now, n);
+    let rb_n = arith::cross(rb_now, n);
+    let ia_n = a.inv_inertia_mul(ra_n);
+    let ib_n = b.inv_inertia_mul(rb_n);
+    let k = rows::effective(a, b, ra_n, rb_n, ia_n, ib_n);
+    (ra_n, rb_n, ia_n, ib_n, arith::inverse_or_zero(k))
 }
