@@ -59,7 +59,7 @@ use crate::collider::{ColliderDesc, ColliderHandle};
 use crate::math::{FaultScope, Faults, Quat, Scalar, Transform, Vec3, elem};
 use crate::query::{QueryFilter, Ray, SWEEP_TOLERANCE, ShapeHit, sweep_shape};
 use crate::shape::{Capsule, Shape};
-use crate::world::{World, WorldError};
+use crate::world::{BodyRef, World, WorldError};
 
 /// How many times the depenetration step re-checks the capsule.
 pub const MAX_DEPENETRATION_PASSES: usize = 4;
@@ -381,9 +381,7 @@ impl CharacterController {
     /// [`WorldError::InvalidBody`] if the body was removed.
     pub fn ground_velocity(&self, world: &World) -> Result<Vec3, WorldError> {
         let pos = world.body(self.body)?.position();
-        let exclude = [self.body];
-        let filter = self.filter(&exclude);
-        let Some(ground) = self.probe_ground(world, pos, &filter, self.config.skin) else {
+        let Some(ground) = self.ground_at(world, pos) else {
             return Ok(Vec3::ZERO);
         };
         let g = world.body(ground.body)?;
@@ -391,8 +389,7 @@ impl CharacterController {
             return Ok(Vec3::ZERO);
         }
         // The same point as the carry's (step 6).
-        let arm = pos - g.center_of_mass();
-        Ok(g.linear_velocity() + g.angular_velocity().cross(arm))
+        Ok(velocity_at(&g, pos))
     }
 
     /// The ground under the character now (the probe of step 2), without
@@ -402,9 +399,15 @@ impl CharacterController {
     /// [`WorldError::InvalidBody`] if the body was removed.
     pub fn ground(&self, world: &World) -> Result<Option<Ground>, WorldError> {
         let pos = world.body(self.body)?.position();
+        Ok(FaultScope::run(|| self.ground_at(world, pos)).0)
+    }
+
+    /// The probe of step 2 from `pos`, its faults raised in the caller's
+    /// scope.
+    fn ground_at(&self, world: &World, pos: Vec3) -> Option<Ground> {
         let exclude = [self.body];
         let filter = self.filter(&exclude);
-        Ok(FaultScope::run(|| self.probe_ground(world, pos, &filter, self.config.skin)).0)
+        self.probe_ground(world, pos, &filter, self.config.skin)
     }
 
     fn filter<'a>(&self, exclude: &'a [BodyHandle]) -> QueryFilter<'a> {
@@ -756,10 +759,7 @@ impl CharacterController {
             (BodyKind::Kinematic, Some(target)) => {
                 target.transform_point(g.pose().inverse_transform_point(pos)) - pos
             }
-            _ => {
-                let arm = pos - g.center_of_mass();
-                (g.linear_velocity() + g.angular_velocity().cross(arm)) * dt
-            }
+            _ => velocity_at(&g, pos) * dt,
         };
         if short(shift) {
             return Ok(pos);
@@ -794,8 +794,7 @@ impl CharacterController {
                 continue;
             };
             let body = world.body(b.body)?;
-            let arm = b.point - body.center_of_mass();
-            let at_point = body.linear_velocity() + body.angular_velocity().cross(arm);
+            let at_point = velocity_at(&body, b.point);
             let wished = Vec3::new(input.velocity.x, Scalar::ZERO, input.velocity.z);
             let closing = (wished - at_point).dot(dir);
             if closing <= Scalar::ZERO {
@@ -809,6 +808,11 @@ impl CharacterController {
         }
         Ok(pushed)
     }
+}
+
+/// The velocity of `body`'s material point at world position `p`.
+fn velocity_at(body: &BodyRef<'_>, p: Vec3) -> Vec3 {
+    body.linear_velocity() + body.angular_velocity().cross(p - body.center_of_mass())
 }
 
 /// The ground a walkable hit found.
