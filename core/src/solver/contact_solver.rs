@@ -25,6 +25,11 @@
 //!    friction is bounded by the load its rigid rows settle. A contact hit
 //!    this tick (see [`IMPACT_RELAX_PASSES`]) is visited three more times.
 //!
+//! A hit's normal rows, in both passes, are first solved together as one
+//! block over its patch (see `Pass::hit_row`): where that meets every
+//! row with impulses ≥ 0, the point rows are skipped, so the corner
+//! visited first does not take the whole hit.
+//!
 //! After steps 3 and 5, [`ContactSolver::shock`] visits the high-ratio
 //! contacts once more from the ground up, each with its lower body held
 //! still (see [`shock`]), so a heavy body cannot sink through a light one.
@@ -530,7 +535,7 @@ impl ContactSolver {
         self.impact.clear();
         let threshold = -params.restitution_threshold;
         let mut heavy = self.heavy.iter().peekable();
-        for (i, c) in self.constraints.iter().enumerate() {
+        for (i, c) in self.constraints.iter_mut().enumerate() {
             if heavy.next_if_eq(&&(i as u32)).is_some() {
                 continue;
             }
@@ -539,6 +544,7 @@ impl ContactSolver {
                 .iter()
                 .any(|cp| cp.relative_velocity < threshold)
             {
+                c.hit = true;
                 self.impact.push(i as u32);
                 if let Some(r) = self.rows[..self.rows_len].get_mut(i) {
                     left_narrow += u32::from(std::mem::take(&mut r.on));

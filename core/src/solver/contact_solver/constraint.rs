@@ -207,6 +207,10 @@ pub(super) struct Constraint {
     /// pass at new poses; 0 (never a pose number) after `prepare`.
     pub(super) frame: SeparationFrame,
     pub(super) frame_poses: u32,
+    /// Whether this constraint takes a hit this tick (see
+    /// [`ContactSolver::impact`](super::ContactSolver)): its visits start
+    /// with [`Pass::hit_row`](super::pass::Pass::hit_row).
+    pub(super) hit: bool,
 }
 
 /// Friction of one manifold, solved at the centre of its contact patch

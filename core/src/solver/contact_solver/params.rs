@@ -132,10 +132,11 @@ pub(super) const HIGH_RATIO_PASSES: u32 = 3;
 /// edge up and the box tips over it, though the hit is fully inelastic.
 /// With three more visits (and the relax pass's friction bounded by the
 /// load it settles, see `Pass::friction`) the landing converges: a box
-/// thrown flat comes to rest along the throw 9.6 mm apart at 480 and
-/// 3840 Hz × 1 and 3 mm apart × 4, within 1.7 cm of the rigid closed form
-/// at every rate from 60 Hz × 4 (a sideways drift of up to 1.5 cm is
-/// left: docs/stress.md).
+/// thrown flat comes to rest along the throw 9.8 mm apart at 480 and
+/// 3840 Hz × 1 and 2 mm apart × 4, within 1.7 cm of the rigid closed form
+/// at every rate from 60 Hz × 4. With the hit's rows solved as a block
+/// (`Pass::hit_row`) it also slides straight: 5 mm at most to the side of
+/// the throw at any rate, where it was up to 1.5 cm (docs/stress.md).
 pub(super) const IMPACT_RELAX_PASSES: u32 = 3;
 
 /// Settings the solver reads each tick.

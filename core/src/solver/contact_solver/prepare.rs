@@ -254,6 +254,7 @@ impl ContactSolver {
             c.restitution = pc.restitution;
             c.rounding = pc.rounding;
             c.frame_poses = 0;
+            c.hit = false;
             let p = &pairs[c.pair as usize];
             c.a = if c.a == NONE {
                 NONE
