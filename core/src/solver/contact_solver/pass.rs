@@ -517,7 +517,8 @@ impl HitPoints {
     /// The accumulated impulses with the points of `pushing` meeting their
     /// rows and the others at zero (in the least-squares sense of the
     /// patch's modes: exact for a rigid face's rows), or `None` if the
-    /// block is singular.
+    /// block is singular or near it (its impulses past
+    /// [`limit`](Self::limit)).
     fn block(
         &self,
         c: &Constraint,
