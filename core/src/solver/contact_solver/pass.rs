@@ -1,7 +1,7 @@
 //! One pass over the constraints: a visit of each, on the Q32.32 rows, the
 //! narrow rows (scalar twin) or their lanes.
 
-use super::arith::round_wide;
+use super::arith::{round_wide, scale};
 use super::constraint::{BodyVel, Constraint, ConstraintPoint, NONE, SeparationFrame, SolverBody};
 use super::iterate::{PREFETCH_AHEAD, for_each_prefetched};
 use super::narrow::lanes::{Batch, Kernel, LANES};
@@ -74,6 +74,19 @@ impl Visit {
     #[inline(always)]
     pub(super) fn point(&self, kk: usize, count: usize) -> usize {
         super::constraint::row_order(kk, count, self.rot)
+    }
+
+    /// Point `cp`'s current separation: cached at these poses, or computed
+    /// from the frame and cached.
+    #[inline(always)]
+    pub(super) fn separation(&self, cp: &mut ConstraintPoint) -> Scalar {
+        if self.cached {
+            cp.separation
+        } else {
+            let s = self.frame.separation(cp);
+            cp.separation = s;
+            s
+        }
     }
 }
 
@@ -287,13 +300,7 @@ impl Pass<'_> {
         let inv_h = self.params.inv_h;
         let mut hit = HitPoints::default();
         for (k, cp) in c.points[..count].iter_mut().enumerate() {
-            let s = if v.cached {
-                cp.separation
-            } else {
-                let s = v.frame.separation(cp);
-                cp.separation = s;
-                s
-            };
+            let s = v.separation(cp);
             hit.allowed[k] = if s.is_positive() {
                 -(s * inv_h)
             } else if self.use_bias {
@@ -357,13 +364,7 @@ impl Pass<'_> {
         let count = c.count.min(MAX_MANIFOLD_POINTS);
         for kk in 0..count {
             let cp = &mut c.points[v.point(kk, count)];
-            let s = if v.cached {
-                cp.separation
-            } else {
-                let s = v.frame.separation(cp);
-                cp.separation = s;
-                s
-            };
+            let s = v.separation(cp);
             let (bias, mass_scale, impulse_scale) = if s.is_positive() {
                 (s * params.inv_h, Scalar::ONE, Scalar::ZERO)
             } else if self.use_bias {
@@ -703,10 +704,10 @@ impl Response {
     #[inline(always)]
     fn add(&mut self, cp: &ConstraintPoint, x: Scalar) {
         self.lin += x;
-        self.ra += scale_by(cp.ra_n, x);
-        self.ia += scale_by(cp.ia_n, x);
-        self.rb += scale_by(cp.rb_n, x);
-        self.ib += scale_by(cp.ib_n, x);
+        self.ra += scale(cp.ra_n, x);
+        self.ia += scale(cp.ia_n, x);
+        self.rb += scale(cp.rb_n, x);
+        self.ib += scale(cp.ib_n, x);
     }
 
     /// The change of point `cp`'s normal velocity.
@@ -735,10 +736,4 @@ impl Response {
 fn checked_round(acc: i128) -> Option<Scalar> {
     let q = acc.checked_add(1 << 31)? >> 32;
     i64::try_from(q).ok().map(Scalar::from_bits)
-}
-
-/// `v·s`, each component rounded once.
-#[inline(always)]
-fn scale_by(v: Vec3, s: Scalar) -> Vec3 {
-    Vec3::new(mul(v.x, s), mul(v.y, s), mul(v.z, s))
 }
